@@ -1,0 +1,34 @@
+# Two commands: `make demo` and `make test`. Both build .venv from pinned requirements first.
+VENV    := .venv
+PY      := $(VENV)/bin/python
+STAMP   := $(VENV)/.installed
+OUT     ?= out/demo
+# EGL renders headless with no extra packages here; OSMesa (Debian libosmesa6) is the fallback.
+MUJOCO_GL ?= $(shell $(PY) -c "import os; os.environ['MUJOCO_GL']='egl'; import mujoco; mujoco.GLContext(8, 8).make_current()" >/dev/null 2>&1 && echo egl || echo osmesa)
+export MUJOCO_GL
+export PYTHONHASHSEED := 0
+
+.PHONY: demo test venv lint clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml requirements.lock
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	# CPU torch first: an unpinned torch would pull a multi-GB CUDA build.
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -r requirements.lock
+	$(PY) -m pip install -q --no-deps --no-build-isolation -e .
+	touch $(STAMP)
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+test: $(STAMP) lint
+	$(VENV)/bin/pytest
+
+demo: $(STAMP)
+	$(PY) -m macrostate_mj.demo --out $(OUT)
+
+clean:
+	rm -rf $(VENV) out
