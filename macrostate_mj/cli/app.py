@@ -1,0 +1,24 @@
+"""The Typer application and its command groups; commands register themselves in sibling modules."""
+
+import typer
+
+app = typer.Typer(
+    name="macrostate-mj",
+    help="MuJoCo testbed for inferring a collective's macrostate from one member or one camera.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+train_app = typer.Typer(help="Train an estimator.", no_args_is_help=True)
+evaluate_app = typer.Typer(help="Evaluate a trained estimator.", no_args_is_help=True)
+experiment_app = typer.Typer(help="Reproduce a figure or table of the dissertation.",
+                             no_args_is_help=True)
+ants_app = typer.Typer(help="Simulated ant colony.", no_args_is_help=True)
+oc_app = typer.Typer(help="One-class models on optical flows (IO-GEN and baselines).",
+                     no_args_is_help=True)
+
+app.add_typer(train_app, name="train")
+app.add_typer(evaluate_app, name="evaluate")
+app.add_typer(experiment_app, name="experiment")
+app.add_typer(ants_app, name="ants")
+app.add_typer(oc_app, name="oc")

@@ -1,0 +1,115 @@
+"""Atomic outputs, output-folder checks and run manifests: one home for how runs write files.
+
+Every output goes to a temporary sibling first and is renamed into place, so an interrupted run
+never leaves a half-written file under its final name.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import platform
+import tempfile
+import time
+from collections.abc import Iterator
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any
+
+from macrostate_mj import __version__
+from macrostate_mj.errors import UserError
+
+
+@contextlib.contextmanager
+def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside `final`; rename it onto `final` only if the block succeeds."""
+    final = Path(final)
+    fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, final)
+    finally:
+        tmp_path.unlink(missing_ok=True)
+
+
+def write_text_atomic(final: str | os.PathLike, text: str) -> None:
+    with atomic_path(final) as tmp:
+        tmp.write_text(text)
+
+
+def write_json_atomic(final: str | os.PathLike, obj: Any) -> None:
+    write_text_atomic(final, json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n")
+
+
+def check_writable_file(path: str | os.PathLike, overwrite: bool, what: str = "output") -> Path:
+    """Fail early (before any work) if `path` exists without --overwrite or cannot be written."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise UserError(f"{what} {path} already exists; pass --overwrite or choose another path")
+    check_writable_dir(path.parent if str(path.parent) else Path("."), create=True)
+    return path
+
+
+def check_writable_dir(path: str | os.PathLike, create: bool = True) -> Path:
+    """Make sure `path` is (or can become) a writable folder; create it only if asked."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{path} is a file, not a folder; choose a folder path for the output")
+    probe = path
+    while not probe.exists():
+        probe = probe.parent
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise UserError(f"cannot write to {path} (permission denied); choose a writable folder")
+    if create:
+        path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def prepare_out_dir(out: str | os.PathLike, products: list[str], overwrite: bool) -> Path:
+    """Check an output folder before a run: refuse to clobber `products` unless --overwrite."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} is a file, not a folder; choose a folder path")
+    existing = [p for p in products if (out / p).exists()]
+    if existing and not overwrite:
+        raise UserError(f"{out / existing[0]} already exists; pass --overwrite or choose another --out")
+    check_writable_dir(out, create=False)
+    return out
+
+
+def write_manifest(out_dir: str | os.PathLike, command: str, config: Any, seed: int | None,
+                   timings: dict[str, float], **extra: Any) -> Path:
+    """Write `manifest.json` beside a run's outputs: what ran, with which config, seed and code."""
+    import mujoco
+    import numpy
+
+    path = Path(out_dir) / "manifest.json"
+    write_json_atomic(path, {
+        "command": command,
+        "config": config,
+        "seed": seed,
+        "version": __version__,
+        "versions": {"mujoco": mujoco.__version__, "numpy": numpy.__version__,
+                     "python": platform.python_version()},
+        "created_unix": round(time.time(), 3),
+        "timings_s": {k: round(v, 4) for k, v in timings.items()},
+        **extra,
+    })
+    return path
+
+
+def _jsonable(obj: Any) -> Any:
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return _jsonable(asdict(obj))
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, Path):
+        return str(obj)
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    return obj

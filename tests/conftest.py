@@ -1,0 +1,17 @@
+"""Shared fixtures: where the (optional) real reference data lives."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+REFERENCE = Path(os.environ.get("MACROSTATE_REFERENCE_DATA", REPO.parent / "shared" / "reference-data"))
+
+
+@pytest.fixture
+def reference_data() -> Path:
+    """The dissertation's real data; tests that need it skip cleanly on a user's fresh clone."""
+    if not REFERENCE.is_dir():
+        pytest.skip(f"reference data not found at {REFERENCE} (set MACROSTATE_REFERENCE_DATA)")
+    return REFERENCE
