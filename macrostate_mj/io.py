@@ -21,18 +21,33 @@ from macrostate_mj import __version__
 from macrostate_mj.errors import UserError
 
 
+class AtomicFile:
+    """A temporary path beside `final` (same extension, for writers that pick a format from it)
+    that becomes `final` on `commit()` and disappears on `discard()`."""
+
+    def __init__(self, final: str | os.PathLike):
+        self.final = Path(final)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.final.stem}.",
+                                   suffix=f".part{self.final.suffix}", dir=self.final.parent)
+        os.close(fd)
+        self.tmp = Path(tmp)
+
+    def commit(self) -> None:
+        os.replace(self.tmp, self.final)
+
+    def discard(self) -> None:
+        self.tmp.unlink(missing_ok=True)
+
+
 @contextlib.contextmanager
 def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside `final`; rename it onto `final` only if the block succeeds."""
-    final = Path(final)
-    fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
+    f = AtomicFile(final)
     try:
-        yield tmp_path
-        os.replace(tmp_path, final)
+        yield f.tmp
+        f.commit()
     finally:
-        tmp_path.unlink(missing_ok=True)
+        f.discard()
 
 
 def write_text_atomic(final: str | os.PathLike, text: str) -> None:
@@ -75,7 +90,8 @@ def prepare_out_dir(out: str | os.PathLike, products: list[str], overwrite: bool
         raise UserError(f"--out {out} is a file, not a folder; choose a folder path")
     existing = [p for p in products if (out / p).exists()]
     if existing and not overwrite:
-        raise UserError(f"{out / existing[0]} already exists; pass --overwrite or choose another --out")
+        raise UserError(f"{out / existing[0]} already exists; pass --overwrite or choose "
+                        "another --out")
     check_writable_dir(out, create=False)
     return out
 

@@ -6,7 +6,8 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-REFERENCE = Path(os.environ.get("MACROSTATE_REFERENCE_DATA", REPO.parent / "shared" / "reference-data"))
+REFERENCE = Path(os.environ.get("MACROSTATE_REFERENCE_DATA",
+                               REPO.parent / "shared" / "reference-data"))
 
 
 @pytest.fixture

@@ -7,6 +7,7 @@ Every command lives in a sibling module and imports its heavy dependencies lazil
 import sys
 
 from macrostate_mj.cli import bench as _bench  # noqa: F401  (registers commands)
+from macrostate_mj.cli import colony as _colony  # noqa: F401
 from macrostate_mj.cli import sim as _sim  # noqa: F401
 from macrostate_mj.cli.app import app
 from macrostate_mj.errors import UserError

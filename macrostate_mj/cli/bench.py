@@ -18,7 +18,7 @@ SUITES: dict[str, str] = {
 
 @app.command()
 def bench(
-    only: list[str] = typer.Option(None, "--only", help=f"Suites to run: {', '.join(SUITES)}."),
+    only: list[str] = typer.Option(None, "--only", help="Suites to run (repeatable); default all."),
     as_json: bool = typer.Option(False, "--json", help="One JSON object per line, nothing else."),
 ) -> None:
     """Measure our loops against their bare limits (simulation, rendering, tracking, ...)."""
@@ -38,5 +38,6 @@ def bench(
             if as_json:
                 print(json.dumps(fig), flush=True)
             else:
-                ratio = f"  ratio {fig['ratio']:.3f} vs limit {fig['limit']:.4g}" if "ratio" in fig else ""
+                ratio = (f"  ratio {fig['ratio']:.3f} vs limit {fig['limit']:.4g}"
+                         if "ratio" in fig else "")
                 console.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}")

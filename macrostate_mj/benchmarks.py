@@ -1,0 +1,82 @@
+"""Speed figures of the simulation and render paths, each against a limit measured in the same
+run on the same model: bare `mj_step` in C for physics, a bare `mujoco.Renderer` for frames."""
+
+from __future__ import annotations
+
+import time
+
+import mujoco
+import numpy as np
+
+from macrostate_mj.scenarios import get_scenario
+from macrostate_mj.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.world import build_world
+
+
+def _best_of(fn, repeats: int = 3) -> float:
+    """Shortest wall time of `repeats` calls: the least disturbed by other processes."""
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def figure(name: str, value: float, unit: str, limit: float | None = None, **extra) -> dict:
+    fig = {"name": name, "value": round(value, 4), "unit": unit, **extra}
+    if limit is not None:
+        fig |= {"limit": round(limit, 4), "ratio": round(value / limit, 4)}
+    return fig
+
+
+def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> list[dict]:
+    cfg = get_scenario(scenario)
+    world = build_world(cfg, robots)
+    steps = int(round(seconds / cfg.timestep))
+    sim = ChainSim(world)
+    data = mujoco.MjData(world.model)
+
+    def ours() -> None:
+        sim.reset(np.random.default_rng(0))
+        log = PoseLog(world.names)
+        sim.run(seconds, [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)])
+
+    def bare() -> None:
+        mujoco.mj_resetData(world.model, data)
+        data.qpos[:] = sim.data.qpos
+        data.ctrl[:] = 3.0
+        mujoco.mj_step(world.model, data, nstep=steps)
+
+    ours()  # warm-up, and leaves a realistic state for `bare` to start from
+    t_ours, t_bare = _best_of(ours), _best_of(bare)
+    tag = f"{scenario}, {robots} robots, dt={cfg.timestep}"
+    return [
+        figure("sim_steps_per_s", steps / t_ours, "steps/s", steps / t_bare,
+               limit_name="bare mj_step(nstep) on the same model", config=tag),
+        figure("sim_realtime_factor", seconds / t_ours, "x real time", config=tag),
+    ]
+
+
+def bench_render(scenario: str = "lab", robots: int = 5, frames: int = 60) -> list[dict]:
+    from macrostate_mj.camera import OverheadRenderer
+
+    world = build_world(get_scenario(scenario), robots)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(0))
+    with OverheadRenderer(world.model) as ours:
+        ours.render(sim.data)
+        t_ours = _best_of(lambda: [ours.render(sim.data) for _ in range(frames)])
+        w, h = ours.width, ours.height
+    bare = mujoco.Renderer(world.model, height=h, width=w)
+    try:
+        def bare_frames() -> None:
+            for _ in range(frames):
+                bare.update_scene(sim.data, camera="overhead")
+                bare.render()
+        bare_frames()
+        t_bare = _best_of(bare_frames)
+    finally:
+        bare.close()
+    return [figure("render_fps", frames / t_ours, "frames/s", frames / t_bare,
+                   limit_name="bare mujoco.Renderer, same camera", config=f"{w}x{h}")]

@@ -1,0 +1,110 @@
+"""Library API of `macrostate-mj simulate`: validate everything, run, write atomically.
+
+This is the top of the data flow (it may call into `viz`), like the CLI that wraps it.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from macrostate_mj.errors import UserError
+from macrostate_mj.io import check_writable_file, prepare_out_dir, write_manifest
+from macrostate_mj.poses_io import poses_table, write_poses
+from macrostate_mj.scenarios import ScenarioConfig, get_scenario
+from macrostate_mj.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.world import build_world, chain_capacity
+
+
+@dataclass(frozen=True)
+class SimulateRequest:
+    scenario: str
+    robots: int
+    seconds: float
+    seed: int
+    out: Path
+    video: Path | None = None
+    rerun: Path | None = None
+    overwrite: bool = False
+    video_fps: float = 10.0
+    head_speed: float | None = None
+
+
+def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
+    if robots < 2:
+        raise UserError(f"--robots must be at least 2 (a Head and a Tail), got {robots}")
+    if robots > chain_capacity(cfg):
+        raise UserError(f"{robots} robots do not fit the {cfg.name} arena (at most "
+                        f"{chain_capacity(cfg)} at spacing {cfg.spacing} m); use fewer --robots")
+    if not seconds > 0:
+        raise UserError(f"--seconds must be positive, got {seconds}")
+
+
+def scenario_for(name: str, head_speed: float | None = None) -> ScenarioConfig:
+    cfg = get_scenario(name)
+    if head_speed is not None:
+        if not 0 < head_speed:
+            raise UserError(f"--head-speed must be positive, got {head_speed}")
+        cfg = cfg.with_overrides(head_speed=head_speed)
+    return cfg
+
+
+def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
+    """Run one simulation; returns the written paths. Nothing is written if validation fails."""
+    cfg = scenario_for(req.scenario, req.head_speed)
+    validate_chain(cfg, req.robots, req.seconds)
+    out = prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
+    for path, flag in ((req.video, "--video"), (req.rerun, "--rerun")):
+        if path is not None:
+            check_writable_file(path, req.overwrite, flag)
+    out.mkdir(parents=True, exist_ok=True)
+
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    world = build_world(cfg, req.robots)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(req.seed))
+    timings["build"] = time.perf_counter() - t0
+
+    log = PoseLog(world.names)
+    hooks = [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)]
+    recorders = []
+    if req.video is not None:
+        from viz.video import VideoRecorder
+
+        rec = VideoRecorder(req.video, sim, fps=req.video_fps)
+        recorders.append(rec)
+        hooks.append(Periodic(1 / req.video_fps, rec.capture))
+    if req.rerun is not None:
+        from viz.rerun_log import RerunRecorder
+
+        rrd = RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz)
+        recorders.append(rrd)
+        hooks.append(Periodic(1 / cfg.log_hz, rrd.capture, sim.log_phase))
+    t0 = time.perf_counter()
+    try:
+        sim.run(req.seconds, hooks, progress)
+    except BaseException:
+        for r in recorders:
+            r.abort()
+        raise
+    for r in recorders:
+        r.finish()
+    timings["run"] = time.perf_counter() - t0
+
+    times, poses, waypoints = log.arrays()
+    write_poses(out / "poses.parquet", poses_table(world.names, times, poses, waypoints))
+    written = {"poses": out / "poses.parquet"}
+    if req.video is not None:
+        written["video"] = req.video
+    if req.rerun is not None:
+        written["rerun"] = req.rerun
+    written["manifest"] = write_manifest(
+        out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, timings,
+        robots=world.names, outputs={k: str(v) for k, v in written.items()},
+        steps=int(round(req.seconds / cfg.timestep)),
+        realtime_factor=req.seconds / max(timings["run"], 1e-9))
+    return written
