@@ -29,7 +29,7 @@ from macrostate_mj.errors import UserError
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets" / "mjcf" / "ant"
 NEST_HALF = 0.075  # m, inner half-width of the nest (walls in scene_nest.xml)
-HEAD_TIP = 0.0076  # m, head tip ahead of the thorax centre (site head_tip in ant.xml)
+HEAD_TIP = 0.0077  # m, head tip ahead of the thorax centre (site head_tip in ant.xml)
 REST, WALK, GROOM, ANTENNATE, DUEL, BITE, BITTEN = range(7)
 BEHAVIOURS = ("rest", "walk", "groom", "antennate", "duel", "bite", "bitten")
 DAY_MIN, DAY_MAX = -2, 18  # the recorded timeline; D0 is the removal itself, not a day
@@ -190,7 +190,7 @@ def build_model(cfg: ColonyConfig):
 
 def segment_gaps(p: np.ndarray, yaw: float, others: np.ndarray, oyaw: np.ndarray) -> np.ndarray:
     """Closest distance between one ant's body axis and several others' (sampled segments)."""
-    s = np.linspace(-0.012, HEAD_TIP, 7)
+    s = np.linspace(-0.0125, HEAD_TIP, 7)
     a = p + s[:, None] * np.array([math.cos(yaw), math.sin(yaw)])
     b = others[:, None, :] + s[None, :, None] * np.stack([np.cos(oyaw), np.sin(oyaw)], 1)[:, None]
     return np.linalg.norm(a[None, :, None, :] - b[:, None, :, :], axis=-1).min(axis=(1, 2))

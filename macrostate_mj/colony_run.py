@@ -92,7 +92,7 @@ def stable_splits(ids: list[int], seed: int, n_splits: int = 3, test_share: floa
     out = []
     for k in range(1, n_splits + 1):
         perm = np.random.default_rng([seed, k]).permutation(len(ids))
-        n_test = int(test_share * len(ids))
+        n_test = max(1, int(test_share * len(ids)))
         test = sorted(ids[i] for i in perm[:n_test])
         train = sorted(ids[i] for i in perm[n_test:])
         out.append((train, test))
