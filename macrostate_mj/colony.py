@@ -325,10 +325,10 @@ class Colony:
         ctrl[self.act[:, 0]], ctrl[self.act[:, 1]], ctrl[self.act[:, 2]] = vel[:, 0], vel[:, 1], wz
         ctrl[self.act[:, 3:].ravel()] = appendage_targets(self.beh, t, self.phase, self.a).ravel()
 
-    def advance_frame(self) -> None:
+    def advance_frame(self, record: list[np.ndarray] | None = None) -> None:
         """One rendered frame of physics: behaviour bouts update per frame, control at ~80 Hz
         (fast enough for 7 Hz antenna drumming; Python control per step would cost more than
-        the physics)."""
+        the physics). `record` collects the controls of every step (for benchmarks)."""
         import mujoco
 
         dt = self.model.opt.timestep
@@ -336,6 +336,8 @@ class Colony:
         for k in range(self.steps_per_frame):
             if k % self.ctrl_every == 0:
                 self._control(self.data.time, dt * self.ctrl_every)
+            if record is not None:
+                record.append(self.data.ctrl.copy())
             mujoco.mj_step(self.model, self.data)
         if not np.isfinite(self.data.qpos).all():
             raise RuntimeError(f"colony physics diverged on day {self.day} at t={self.data.time}")

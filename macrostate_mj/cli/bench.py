@@ -13,6 +13,7 @@ from macrostate_mj.cli.app import app
 SUITES: dict[str, str] = {
     "sim": "macrostate_mj.benchmarks:bench_sim",
     "render": "macrostate_mj.benchmarks:bench_render",
+    "colony": "macrostate_mj.bench_colony:bench_colony",
 }
 
 
