@@ -7,7 +7,8 @@ failed run leaves no half-written product):
   global temporal order (stable days first), exactly like OpticalFlows_HsAnts;
   `flows/split{1,2,3}/{train,test}.csv` (80/20 of the stable ids, three seeded splits);
   `flows/boxes.csv` (`sample_id,k,x,y,w,h`: duel/bite boxes in 64 × 64 sample coordinates, the
-  union over the two frames of pair k, for a Grad-CAM pointing game); `flows/samples.csv`.
+  union over the two frames of pair k, for a Grad-CAM pointing game); `flows/samples.csv`;
+  `flows/bins.json` (the Fig 4.8 day bins as [first_id, end_id) for macrostate_mj.antflow).
 - `labels.csv`: one row per sample (Stable before the removal, Unstable after) with its day.
 - `boxes.csv`: per frame, each duel or bite with both ants and its pixel box.
 - `video/D±N.mp4` (`--video`), `frames/D±N/000000.jpg` (`--frames`), `manifest.json`.
@@ -64,8 +65,9 @@ def validate(req: ColonyRequest) -> list[int]:
         raise UserError(f"--prey {req.prey} is outside 0..10")
     if not (math.isfinite(req.fps) and 1 <= req.fps <= 60):
         raise UserError(f"--fps {req.fps} is outside 1..60")
-    if not 32 <= req.size <= 1024:
-        raise UserError(f"--size {req.size} is outside 32..1024 px (the offscreen buffer is 1024)")
+    if not 32 <= req.size <= 1024 or req.size % 8:
+        raise UserError(f"--size {req.size} must be a multiple of 8 in 32..1024 px (video codecs "
+                        "want multiples of 8; the offscreen buffer is 1024)")
     if req.seed < 0:
         raise UserError(f"--seed {req.seed} is negative; use a seed >= 0")
     if not (math.isfinite(req.every) and req.every > 0 and math.isfinite(req.gap) and req.gap > 0):
@@ -114,6 +116,21 @@ def sample_boxes(sid: int, idx: list[int], events: dict[int, list], scale: float
     return rows
 
 
+BINS = (("D+1", 1, 1), ("D+2", 2, 2), ("D+3-6", 3, 6), ("D+7-10", 7, 10), ("D+11-14", 11, 14),
+        ("D+15-18", 15, 18))  # the time bins of SPEC §8 / Fig 4.8, in days
+
+
+def day_bins(labels: list[list]) -> dict[str, list[int]]:
+    """{bin: [first_id, end_id)} over the unstable samples present (the `bins.json` that
+    macrostate_mj.antflow reads in place of the real set's fixed index bins)."""
+    out = {}
+    for name, lo, hi in BINS:
+        ids = [r[0] for r in labels if r[2] == "Unstable" and lo <= int(r[3][1:]) <= hi]
+        if ids:
+            out[name] = [min(ids), max(ids) + 1]
+    return out
+
+
 def _day_frames(colony: Colony, req: ColonyRequest, day: int, render: set[int] | None,
                 renderer, events: dict[int, list], frame_rows: list, writer,
                 frame_dir: Path | None, advance: Callable[[float], None] | None,
@@ -155,7 +172,7 @@ def simulate_colony(req: ColonyRequest, advance: Callable[[float], None] | None 
     import mujoco
 
     from macrostate_mj.flow import extract_flow_samples, sample_frame_indices
-    from macrostate_mj.io import prepare_out_dir, write_manifest
+    from macrostate_mj.io import prepare_out_dir, write_json_atomic, write_manifest
 
     t_start = time.perf_counter()
     days = validate(req)
@@ -226,6 +243,7 @@ def simulate_colony(req: ColonyRequest, advance: Callable[[float], None] | None 
                            [[f"Stable/{i:05d}"] for i in train])
                 _write_csv(flows / f"split{k}" / "test.csv", None,
                            [[f"Stable/{i:05d}"] for i in test])
+        write_json_atomic(flows / "bins.json", day_bins(labels))
         head = ["sample_id", "path", "label", "day", "t_start_s", "aggression"]
         _write_csv(stage / "labels.csv", head, labels)
         _write_csv(flows / "samples.csv", head, labels)

@@ -148,6 +148,7 @@ def test_simulate_end_to_end_writes_flows_labels_and_boxes(tmp_path, monkeypatch
     for r in boxes:
         x, y, w, h = (float(r[c]) for c in "xywh")
         assert int(r["sample_id"]) in ids_u and 0 <= x and x + w <= 64 and 0 < w and 0 < h
+    assert json.loads((flows / "bins.json").read_text()) == {"D+1": [min(ids_u), max(ids_u) + 1]}
     frame_boxes = list(csv.DictReader(open(out / "boxes.csv")))
     assert {r["kind"] for r in frame_boxes} <= {"duel", "bite"} and frame_boxes
     assert len(list((out / "frames" / "D+1").glob("*.jpg"))) == 30
@@ -172,6 +173,7 @@ def test_simulate_same_seed_same_products(tmp_path, monkeypatch, capsys):
     ["--seconds-per-day", "0"],
     ["--seconds-per-day", "-4"],
     ["--size", "8"],
+    ["--size", "100"],
     ["--method", "nope"],
 ])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys, args):
