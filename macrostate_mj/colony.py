@@ -277,7 +277,8 @@ class Colony:
             for k in (i, j) if j >= 0 else (i,):
                 self.beh[k] = rng.choice(3, p=rg.solo_p)
                 self.timer[k] = rng.exponential(rg.solo_s[self.beh[k]])
-                self.partner[k], self.cooldown[k] = -1, 2.0
+                if j >= 0:  # after an interaction, 2 s before the next one
+                    self.partner[k], self.cooldown[k] = -1, 2.0
         rates = np.array([rg.antennate_rate, rg.duel_rate, rg.bite_rate])
         u = rng.random(n)
         pick = rng.random(n) * rates.sum()
