@@ -1,0 +1,191 @@
+"""Training of a ReTLo module on ThymioLoc data, and its self-contained checkpoint.
+
+Samples are every (module, step) of every training instance with the true history (teacher
+forcing). Model selection uses what the user will see: the closed-loop chain error on the
+validation file, predictions fed back exactly as at test time.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from estimators.retlo.chain import check_chain, evaluate_chain, predict_chain
+from estimators.retlo.frames import module_inputs, module_targets
+from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor
+from macrostate_mj.errors import UserError
+from macrostate_mj.io import atomic_path
+
+FORMAT = "macrostate-mj/retlo-checkpoint"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Optimisation settings; the defaults converge in about a minute or two on one core."""
+
+    epochs: int = 150
+    patience: int = 25  # epochs without a better validation error before stopping
+    batch: int = 64
+    lr: float = 1e-3
+    angle_weight: float = 1.0  # angle MAE (rad) against position error (spacing units)
+    seed: int = 0
+    threads: int = 1  # one thread: bit-identical results, and fair to a shared machine
+    feedback: bool = True  # also train on the model's own fed-back predictions (see `train`)
+    model: ModelConfig = field(default_factory=ModelConfig)
+
+
+def make_samples(worlds: list[np.ndarray], cfg: ModelConfig) -> dict[str, np.ndarray]:
+    """Every module and step of every chain, with true history: obs, hist, pos, ang arrays."""
+    parts: dict[str, list[np.ndarray]] = {"obs": [], "hist": [], "pos": [], "ang": []}
+    for world in worlds:
+        track = world[:, :, ::-1]  # Tail first
+        for k in range(world.shape[2] - 2):
+            ref, fol, head = track[:, :, k], track[:, :, k + 1], track[:, :, k + 2]
+            for t in range(cfg.history, world.shape[1] - 1):
+                obs, hist, origin, alpha = module_inputs(
+                    ref, fol, head, t, cfg.history, cfg.cos_sin,
+                    world.shape[1] if cfg.mark_estimates else None)  # all history true
+                pos, ang = module_targets(fol, head, t, origin, alpha)
+                for key, val in zip(parts, (obs, hist, pos, ang), strict=True):
+                    parts[key].append(val)
+    return {k: np.concatenate(v).astype(np.float32) for k, v in parts.items()}
+
+
+def mean_spacing(worlds: list[np.ndarray]) -> float:
+    """Mean neighbour distance (cm): the position scale the network works in."""
+    return float(np.mean(np.concatenate([np.linalg.norm(np.diff(w[..., :2], axis=2), axis=-1)
+                                         .ravel() for w in worlds])))
+
+
+def _loss(net: RetloNet, batch: dict[str, torch.Tensor], angle_weight: float) -> torch.Tensor:
+    """Euclidean position error (in spacing units) + angle MAE, as §2.6.2.3 prescribes."""
+    pos, ang = net(batch["obs"], batch["hist"])
+    pos_loss = torch.linalg.vector_norm(pos - batch["pos"] / net.pos_scale, dim=-1).mean()
+    if net.cfg.cos_sin:
+        target = torch.stack([torch.cos(batch["ang"]), torch.sin(batch["ang"])], dim=-1)
+        ang_loss = (ang - target).abs().mean()
+    else:
+        ang_loss = (torch.remainder(ang - batch["ang"] + torch.pi, 2 * torch.pi) - torch.pi).abs()
+        ang_loss = ang_loss.mean()
+    return pos_loss + angle_weight * ang_loss
+
+
+def _with_feedback(net: RetloNet, worlds: list[np.ndarray],
+                   data: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Add the samples the current model would meet at test time: histories holding its own
+    fed-back predictions, frames built from its own estimates, paired with the true targets.
+    Teacher forcing alone leaves the LSTM blind to its own drift (errors grow step after step);
+    this is DAgger-style data aggregation, refreshed every epoch."""
+    samples: dict[str, list[np.ndarray]] = {}
+    for world in worlds:
+        predict_chain(TorchPredictor(net), world, samples=samples)
+    extra = {k: torch.from_numpy(np.concatenate(v).astype(np.float32)) for k, v in samples.items()}
+    return {k: torch.cat([data[k], extra[k]]) for k in data}
+
+
+def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
+          progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
+          ) -> tuple[RetloNet, dict]:
+    """Train with Adam, keep the best closed-loop validation checkpoint, stop early.
+
+    `progress` shows a bar of its own; a caller with its own bar passes `on_epoch(epoch, val_cm)`.
+    """
+    for i, w in enumerate(train_worlds):
+        check_chain(w.shape, cfg.model.history, what=f"training file {i + 1}")
+    check_chain(val_world.shape, cfg.model.history, what="validation file")
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    base = make_samples(train_worlds, cfg.model)
+    net = RetloNet(cfg.model, mean_spacing(train_worlds))
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    best = (float("inf"), -1, copy.deepcopy(net.state_dict()))
+    curve: list[dict] = []
+    start = time.perf_counter()
+    from rich.progress import Progress
+
+    with Progress(disable=not progress, transient=True) as bar:
+        task = bar.add_task(f"train {cfg.model.kind}", total=cfg.epochs)
+        for epoch in range(cfg.epochs):
+            data = {k: torch.from_numpy(v) for k, v in base.items()}
+            if cfg.feedback:
+                data = _with_feedback(net, train_worlds, data)
+            net.train()
+            n = len(data["obs"])
+            order = torch.from_numpy(rng.permutation(n))
+            total = 0.0
+            for i in range(0, n, cfg.batch):
+                idx = order[i:i + cfg.batch]
+                loss = _loss(net, {k: v[idx] for k, v in data.items()}, cfg.angle_weight)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                total += float(loss.detach()) * len(idx)
+            val_cm = evaluate_chain(TorchPredictor(net), val_world)["mean_error_cm"]
+            curve.append({"epoch": epoch, "train_loss": total / n, "val_cm": val_cm})
+            if val_cm < best[0]:
+                best = (val_cm, epoch, copy.deepcopy(net.state_dict()))
+            bar.update(task, advance=1, description=f"train {cfg.model.kind} epoch {epoch + 1} "
+                       f"val {val_cm:.2f} cm (best {best[0]:.2f} @ {best[1] + 1})")
+            if on_epoch is not None:
+                on_epoch(epoch, val_cm)
+            if epoch - best[1] >= cfg.patience:
+                break
+    net.load_state_dict(best[2])
+    net.eval()
+    info = {"best_val_cm": best[0], "best_epoch": best[1] + 1, "epochs_run": len(curve),
+            "train_seconds": time.perf_counter() - start, "n_samples": len(base["obs"]),
+            "curve": curve}
+    return net, info
+
+
+def save_checkpoint(path: str | os.PathLike, net: RetloNet, px_per_cm: float,
+                    train_cfg: TrainConfig, info: dict) -> Path:
+    """Everything needed to predict: weights, scale, px/cm, config, kind, format and version."""
+    path = Path(path)
+    ckpt = {
+        "format": FORMAT, "version": VERSION, "kind": net.cfg.kind,
+        "model_config": asdict(net.cfg), "pos_scale_cm": float(net.pos_scale),
+        "px_per_cm": float(px_per_cm), "train_config": asdict(train_cfg),
+        "train_info": {k: v for k, v in info.items() if k != "train_seconds"},
+        "state_dict": net.state_dict(),
+    }
+    buf = io.BytesIO()
+    torch.save(ckpt, buf)
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(buf.getvalue())
+    return path
+
+
+def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:
+    """Load a checkpoint written by `save_checkpoint`, refusing anything else in one line."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: no such checkpoint; pass a .pt from `train retlo` or heuristic2x")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises many types for a file that is not its own
+        raise UserError(f"{path}: not a readable torch checkpoint ({type(err).__name__}); "
+                        "pass a .pt written by `train retlo`") from None
+    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
+        raise UserError(f"{path}: not a ReTLo checkpoint; pass a .pt written by `train retlo`")
+    if ckpt.get("version") != VERSION:
+        raise UserError(f"{path}: ReTLo checkpoint version {ckpt.get('version')}, this code reads "
+                        f"{VERSION}; retrain with `train retlo`")
+    try:
+        cfg = ModelConfig(**ckpt["model_config"])
+        net = RetloNet(cfg, ckpt["pos_scale_cm"])
+        net.load_state_dict(ckpt["state_dict"])
+    except (KeyError, TypeError, RuntimeError) as err:
+        raise UserError(f"{path}: checkpoint does not match the {ckpt.get('kind')} model "
+                        f"({type(err).__name__}); retrain with `train retlo`") from None
+    return net.eval(), ckpt

@@ -1,0 +1,148 @@
+"""Figures of `experiment retlo`: Fig 2.7 (bars), Fig 2.8 (step-wise lines), Fig 2.9 (video)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from macrostate_mj.io import atomic_path
+
+MODEL_STYLE = {"heuristic2x": ("2X heuristic", "#999999"), "fc": ("FC", "#1f77b4"),
+               "lstm": ("LSTM (ours)", "#d62728")}
+
+
+def _save(fig, path: str | os.PathLike) -> None:
+    """PNG with no creation metadata, written atomically: reruns give identical files."""
+    import matplotlib.pyplot as plt
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=120, metadata={"Software": None})
+    plt.close(fig)
+
+
+def plot_overall(results: dict, path: str | os.PathLike) -> None:
+    """Fig 2.7: mean error of the unseen robots per model and test set, ± std over seeds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tests = results["tests"]
+    fig, ax = plt.subplots(figsize=(1.2 + 2.4 * len(tests), 3.6))
+    width = 0.8 / len(MODEL_STYLE)
+    for i, (model, (label, colour)) in enumerate(MODEL_STYLE.items()):
+        means = [results["results"][t["name"]][model]["mean_error_cm"]["mean"] for t in tests]
+        stds = [results["results"][t["name"]][model]["mean_error_cm"]["std"] for t in tests]
+        xs = np.arange(len(tests)) + (i - 1) * width
+        ax.bar(xs, means, width, yerr=stds, capsize=3, color=colour, label=label)
+        for x, m in zip(xs, means, strict=True):
+            ax.text(x, m, f"{m:.1f}", ha="center", va="bottom", fontsize=7)
+    ax.set_xticks(np.arange(len(tests)),
+                  [f"{t['n_robots']} robots\n{t['name']}" for t in tests], fontsize=8)
+    ax.set_ylabel("mean error of unseen robots (cm)")
+    ax.set_title(f"ReTLo error, mean ± std over {results['seeds']} seeds")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_stepwise(results: dict, test: str, path: str | os.PathLike) -> None:
+    """Fig 2.8: step-wise error of F2 and H (or H alone in 3-robot teams), ± std over seeds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    res = results["results"][test]
+    robots = [r for r in ("F2", "H") if r in res["lstm"]["per_robot_step_cm"]]
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    for model, (label, colour) in MODEL_STYLE.items():
+        agg = res[model]
+        for robot, style in zip(robots, ("--", "-"), strict=False):
+            style = style if len(robots) > 1 else "-"
+            cells = agg["per_robot_step_cm"][robot]
+            keep = [i for i, c in enumerate(cells) if c["mean"] is not None]
+            secs = [(agg["first_step"] + i) * agg["step_s"] for i in keep]
+            mean = np.array([cells[i]["mean"] for i in keep])
+            std = np.array([cells[i]["std"] for i in keep])
+            ax.errorbar(secs, mean, yerr=std, fmt=style, marker="o", ms=3, capsize=2,
+                        color=colour, label=f"{label}, {robot}")
+    ax.set_xlabel("time in the instance (s); true history before the first point")
+    ax.set_ylabel("error (cm)")
+    ax.set_title(f"Step-wise error, {test}")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def _colours(n: int) -> list[tuple[int, int, int]]:
+    """BGR per robot in file order: Head pink, Tail yellow, Followers blue to green (Fig 2.9)."""
+    mids = [(255, int(80 + 150 * i / max(1, n - 3)), 40) for i in range(n - 2)]
+    return [(180, 60, 255), *mids, (0, 220, 255)]
+
+
+def _triangle(x: float, y: float, o_deg: float, size: float) -> np.ndarray:
+    """Isosceles triangle in pixels (y down), apex along heading o = atan2(-dy, dx)."""
+    a = np.deg2rad(o_deg)
+    fwd, left = np.array([np.cos(a), -np.sin(a)]), np.array([-np.sin(a), -np.cos(a)])
+    c = np.array([x, y])
+    pts = [c + fwd * size * 0.6, c - fwd * size * 0.4 + left * size * 0.35,
+           c - fwd * size * 0.4 - left * size * 0.35]
+    return np.round(np.array(pts)).astype(np.int32)
+
+
+def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray,
+                px_per_cm: float, fps: float = 2.0) -> Path:
+    """Fig 2.9 as an MP4: true poses as triangles, estimates as circles with heading arrows.
+
+    true_px, est_px: (instances, steps, robots, 3) pixels/degrees in file order, est NaN where
+    nothing is estimated. Instances play one after another at the 2 Hz log rate.
+    """
+    import cv2
+
+    size = 11.0 * px_per_cm  # a Thymio is about 11 cm long
+    lo = np.floor(np.nanmin(true_px[..., :2], axis=(0, 1, 2)) - size).astype(int)
+    hi = np.ceil(np.nanmax(true_px[..., :2], axis=(0, 1, 2)) + size).astype(int)
+    w, h = (int(v) + int(v) % 2 for v in hi - lo)
+    with atomic_path(path) as tmp:
+        mp4 = Path(str(tmp) + ".mp4")  # VideoWriter picks the container from the suffix
+        try:
+            _draw(cv2.VideoWriter(str(mp4), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h)),
+                  true_px, est_px, lo, (w, h), size)
+            os.replace(mp4, tmp)
+        finally:
+            mp4.unlink(missing_ok=True)
+    return Path(path)
+
+
+def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
+          wh: tuple[int, int], size: float) -> None:
+    """Write every frame of every instance to an open cv2.VideoWriter, then release it."""
+    import cv2
+
+    colours = _colours(true_px.shape[2])
+    for inst in range(true_px.shape[0]):
+        for step in range(true_px.shape[1]):
+            frame = np.full((wh[1], wh[0], 3), 245, np.uint8)
+            for r, colour in enumerate(colours):
+                x, y, o = true_px[inst, step, r]
+                tri = _triangle(x - lo[0], y - lo[1], o, size)
+                cv2.fillPoly(frame, [tri], colour, cv2.LINE_AA)
+                cv2.polylines(frame, [tri], True, (0, 0, 0), 1, cv2.LINE_AA)
+                ex, ey, eo = est_px[inst, step, r]
+                if np.isnan(ex):
+                    continue
+                c = (int(round(ex - lo[0])), int(round(ey - lo[1])))
+                cv2.circle(frame, c, int(size * 0.3), colour, -1, cv2.LINE_AA)
+                cv2.circle(frame, c, int(size * 0.3), (0, 0, 0), 1, cv2.LINE_AA)
+                a = np.deg2rad(eo)
+                tip = (int(round(c[0] + np.cos(a) * size * 0.5)),
+                       int(round(c[1] - np.sin(a) * size * 0.5)))
+                cv2.arrowedLine(frame, c, tip, (0, 0, 0), 2, cv2.LINE_AA, tipLength=0.35)
+            known = "true history" if np.all(np.isnan(est_px[inst, step])) else "estimated"
+            cv2.putText(frame, f"instance {inst + 1}  t = {step / 2:4.1f} s  ({known})",
+                        (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+            writer.write(frame)
+    writer.release()
