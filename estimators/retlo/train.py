@@ -110,6 +110,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     best = (float("inf"), -1, copy.deepcopy(net.state_dict()))
     curve: list[dict] = []
+    batches = 0
     start = time.perf_counter()
     from rich.progress import Progress
 
@@ -130,6 +131,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
                 loss.backward()
                 opt.step()
                 total += float(loss.detach()) * len(idx)
+                batches += 1
             val_cm = evaluate_chain(TorchPredictor(net), val_world)["mean_error_cm"]
             curve.append({"epoch": epoch, "train_loss": total / n, "val_cm": val_cm})
             if val_cm < best[0]:
@@ -144,6 +146,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     net.eval()
     info = {"best_val_cm": best[0], "best_epoch": best[1] + 1, "epochs_run": len(curve),
             "train_seconds": time.perf_counter() - start, "n_samples": len(base["obs"]),
+            "batches": batches,
             "curve": curve}
     return net, info
 

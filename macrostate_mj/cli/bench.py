@@ -14,6 +14,7 @@ SUITES: dict[str, str] = {
     "sim": "macrostate_mj.benchmarks:bench_sim",
     "render": "macrostate_mj.benchmarks:bench_render",
     "colony": "macrostate_mj.bench_colony:bench_colony",
+    "retlo": "macrostate_mj.bench_retlo:bench_retlo",
 }
 
 

@@ -1,0 +1,233 @@
+"""ReTLo: frames, modular inference on chains with known answers, training, checkpoints, CLI."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from estimators.retlo.chain import evaluate_chain, predict_chain
+from estimators.retlo.frames import from_frame, to_frame
+from estimators.retlo.models import Heuristic2X, ModelConfig, RetloNet, TorchPredictor
+from estimators.retlo.synthetic import synthetic_chains
+from estimators.retlo.train import (
+    FORMAT,
+    TrainConfig,
+    load_checkpoint,
+    save_checkpoint,
+    train,
+)
+from macrostate_mj.errors import UserError
+from macrostate_mj.thymioloc import from_world, to_world, write_csv
+
+TINY = dict(k=16, m=16, d=16)
+
+
+def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
+    from macrostate_mj.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["macrostate-mj", *args])
+    try:
+        main()
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _rigid(n_robots: int, shape: str, n_inst: int = 2, n_steps: int = 26) -> np.ndarray:
+    """A rigid chain translating at constant velocity: a straight line (along its motion) or a
+    zigzag; headings constant. The answer is known at every step."""
+    v = np.array([4.0, 3.0])
+    offsets = np.stack([-31.0 * np.arange(n_robots) * 0.8, -31.0 * np.arange(n_robots) * 0.6], -1)
+    if shape == "zigzag":
+        offsets[1::2] += np.array([-12.0, 16.0])
+    t = np.arange(n_steps)[:, None, None]
+    xy = np.array([100.0, 50.0]) + offsets[None] + v * t
+    theta = np.full((n_steps, n_robots, 1), np.arctan2(3.0, 4.0))
+    one = np.concatenate([xy, theta], -1)
+    world = np.repeat(one[None], n_inst, axis=0)
+    world[..., :2] += np.arange(n_inst)[:, None, None, None] * 7.0
+    return world
+
+
+class ConstantVelocity:
+    """Extrapolates the Head from the last two history steps: exact for a rigid translating chain
+    only if fed-back estimates and frame changes are handled right."""
+
+    history, cos_sin, mark_estimates = 10, False, False
+
+    def predict(self, obs, hist):
+        pos = 2 * hist[:, -1, 0:2] - hist[:, -2, 0:2]
+        return pos, np.stack([hist[:, -1, 5], hist[:, -1, 2], hist[:, -1, 5]], -1)
+
+
+def test_frame_round_trip():
+    rng = np.random.default_rng(0)
+    pts, origin, alpha = rng.normal(size=(5, 2)), rng.normal(size=(5, 2)), rng.normal(size=5)
+    assert np.allclose(from_frame(to_frame(pts, origin, alpha), origin, alpha), pts)
+
+
+@pytest.mark.parametrize("n_robots", [3, 4, 5, 7])
+def test_heuristic_is_exact_on_a_straight_rigid_chain_of_any_length(n_robots):
+    world = _rigid(n_robots, "straight")
+    report = evaluate_chain(Heuristic2X(), world)
+    assert report["mean_error_cm"] < 1e-9
+    names = {3: ["H"], 4: ["F2", "H"], 5: ["F2", "F3", "H"], 7: ["F2", "F3", "F4", "F5", "H"]}
+    assert list(report["per_robot_cm"]) == names[n_robots]
+    # module k reaches step S-2-k: the linear delay of §2.5.1.2
+    assert sum(v is not None for v in report["per_robot_step_cm"]["H"]) == 26 - 10 - (n_robots - 2)
+
+
+@pytest.mark.parametrize("n_robots", [3, 5, 6])
+def test_fed_back_estimates_and_frames_are_exact_on_a_translating_zigzag(n_robots):
+    world = _rigid(n_robots, "zigzag")
+    assert evaluate_chain(Heuristic2X(), world)["mean_error_cm"] > 5  # shape matters here
+    est = predict_chain(ConstantVelocity(), world)
+    seen = ~np.isnan(est[..., 0])
+    assert seen.sum() > 0 and np.allclose(est[seen], world[seen], atol=1e-8)
+    # truth after τ is never read: scrambling it changes nothing
+    scrambled = world.copy()
+    scrambled[:, 10:, :-2] += 1000.0  # every robot but the Tail and its neighbour
+    scrambled[:, 10:, -2, 2] += 1.0  # the neighbour's heading is not observed either
+    assert np.allclose(predict_chain(ConstantVelocity(), scrambled)[seen], est[seen])
+
+
+def test_chain_refuses_short_chains_and_short_instances():
+    with pytest.raises(UserError, match="at least 3"):
+        predict_chain(Heuristic2X(), _rigid(2, "straight"))
+    with pytest.raises(UserError, match="steps"):
+        predict_chain(Heuristic2X(), _rigid(3, "straight", n_steps=11))
+
+
+def _fit(kind: str, seed: int = 0, epochs: int = 4):
+    cfg = TrainConfig(epochs=epochs, patience=10, seed=seed, batch=64, lr=3e-3,
+                      model=ModelConfig(kind=kind, **TINY))
+    return train([synthetic_chains(40, 3, seed=1)], synthetic_chains(12, 3, seed=2), cfg,
+                 progress=False), cfg
+
+
+@pytest.mark.parametrize("kind", ["fc", "lstm"])
+def test_training_lowers_validation_error(kind):
+    val = synthetic_chains(12, 3, seed=2)
+    torch.manual_seed(0)
+    untrained = evaluate_chain(TorchPredictor(RetloNet(ModelConfig(kind=kind, **TINY), 31.0)),
+                               val)["mean_error_cm"]
+    (net, info), _ = _fit(kind)
+    trained = evaluate_chain(TorchPredictor(net), val)["mean_error_cm"]
+    assert trained == pytest.approx(info["best_val_cm"])
+    assert trained < 0.5 * untrained
+    assert info["curve"][-1]["train_loss"] < info["curve"][0]["train_loss"]
+
+
+def test_checkpoint_round_trip_is_exact_and_versioned(tmp_path):
+    (net, info), cfg = _fit("lstm", epochs=1)
+    path = save_checkpoint(tmp_path / "m.pt", net, 3.0, cfg, info)
+    loaded, ckpt = load_checkpoint(path)
+    assert ckpt["kind"] == "lstm" and ckpt["px_per_cm"] == 3.0 and ckpt["format"] == FORMAT
+    world = synthetic_chains(5, 5, seed=3)
+    assert np.array_equal(predict_chain(TorchPredictor(net), world),
+                          predict_chain(TorchPredictor(loaded), world), equal_nan=True)
+    ckpt["version"] = 99
+    torch.save(ckpt, tmp_path / "future.pt")
+    with pytest.raises(UserError, match="version 99"):
+        load_checkpoint(tmp_path / "future.pt")
+
+
+def test_same_seed_same_checkpoint_bytes(tmp_path):
+    for name in ("a", "b"):
+        (net, info), cfg = _fit("fc", epochs=2)
+        save_checkpoint(tmp_path / f"{name}.pt", net, 3.0, cfg, info)
+    assert (tmp_path / "a.pt").read_bytes() == (tmp_path / "b.pt").read_bytes()
+
+
+def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, monkeypatch, capsys):
+    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(30, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(8, 3, 2), 3.0))
+    five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(6, 5, 3), 3.0))
+    model = tmp_path / "fc.pt"
+    code, out, err = _cli(monkeypatch, capsys, "train", "retlo", "--model", "fc", "--train",
+                          str(train_csv), "--val", str(val_csv), "--out", str(model),
+                          "--seed", "0", "--epochs", "2")
+    assert code == 0, err
+    assert model.is_file() and (tmp_path / "fc.pt.manifest.json").is_file()
+    for name in (str(model), "heuristic2x"):
+        report_path = tmp_path / f"{name[-5:]}.json"
+        code, _, err = _cli(monkeypatch, capsys, "evaluate", "retlo", "--model", name,
+                            "--data", str(five), "--out", str(report_path))
+        assert code == 0, err
+        report = json.loads(report_path.read_text())
+        assert list(report["per_robot_cm"]) == ["F2", "F3", "H"]
+        assert report["csv_robot"] == {"F2": "F2", "F3": "F1", "H": "H"}
+        assert report["n_instances"] == 6 and report["mean_error_cm"] > 0
+        assert len(report["per_step_cm"]) == 16
+
+
+def test_experiment_writes_figures_video_and_results(tmp_path, monkeypatch, capsys):
+    import cv2
+
+    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(24, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(6, 3, 2), 3.0))
+    five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(4, 5, 3), 3.0))
+    out = tmp_path / "exp"
+    code, stdout, err = _cli(monkeypatch, capsys, "experiment", "retlo", "--train",
+                             str(train_csv), "--val", str(val_csv), "--test", str(five),
+                             "--holdout", "0.25", "--seeds", "2", "--epochs", "1",
+                             "--out", str(out))
+    assert code == 0, err
+    results = json.loads((out / "results.json").read_text())
+    assert [t["n_robots"] for t in results["tests"]] == [3, 5]
+    lstm = results["results"]["five.csv"]["lstm"]
+    assert len(lstm["per_seed_cm"]) == 2 and set(lstm["per_robot_cm"]) == {"F2", "F3", "H"}
+    for name in ("fig2_7.png", "fig2_8.png", "manifest.json", "models/lstm_seed1.pt"):
+        assert (out / name).stat().st_size > 0
+    video = cv2.VideoCapture(str(out / "fig2_9.mp4"))
+    assert int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 3 * 26
+    video.release()
+    assert "LSTM" in stdout and "% below FC" in stdout
+
+
+def _bad_checkpoint(tmp_path):
+    path = tmp_path / "other.pt"
+    torch.save({"state_dict": {}, "kind": "dsvdd"}, path)
+    return path
+
+
+BAD_RUNS = {
+    "two robots": (lambda p: ["evaluate", "retlo", "--model", "heuristic2x", "--data",
+                              str(write_csv(p / "d.csv", from_world(_rigid(2, "straight"), 3.0))),
+                              "--out", str(p / "r.json")], "at least 3"),
+    "too few steps": (lambda p: ["evaluate", "retlo", "--model", "heuristic2x", "--data",
+                                 str(write_csv(p / "d.csv", from_world(
+                                     _rigid(3, "straight", n_steps=8), 3.0))),
+                                 "--out", str(p / "r.json")], "steps"),
+    "other checkpoint": (lambda p: ["evaluate", "retlo", "--model", str(_bad_checkpoint(p)),
+                                    "--data", "x.csv", "--out", str(p / "r.json")],
+                         "not a ReTLo checkpoint"),
+    "not torch": (lambda p: ["evaluate", "retlo", "--model", str(p / "r.json"), "--data",
+                             "x.csv", "--out", str(p / "q.json")], "unknown model"),
+    "unknown eval model": (lambda p: ["evaluate", "retlo", "--model", "heuristic3x", "--data",
+                                      "x.csv", "--out", str(p / "r.json")], "unknown model"),
+    "unknown train model": (lambda p: ["train", "retlo", "--model", "gru", "--train", "x.csv",
+                                       "--val", "x.csv", "--out", str(p / "m.pt")],
+                            "unknown model 'gru'"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_RUNS))
+def test_bad_input_exits_2_with_one_line(tmp_path, monkeypatch, capsys, case):
+    make_args, expected = BAD_RUNS[case]
+    (tmp_path / "r.json").write_text("{}") if case == "not torch" else None
+    code, out, err = _cli(monkeypatch, capsys, *make_args(tmp_path))
+    assert code == 2 and err.count("\n") == 1 and expected in err, err
+    assert "Traceback" not in err
+    assert not (tmp_path / "m.pt").exists() and not (tmp_path / "q.json").exists()
+
+
+def test_to_world_matches_synthetic_units():
+    world = synthetic_chains(2, 3, seed=0)
+    assert np.allclose(to_world(from_world(world, 3.0), 3.0), world)
