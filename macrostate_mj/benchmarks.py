@@ -31,26 +31,36 @@ def figure(name: str, value: float, unit: str, limit: float | None = None, **ext
 
 
 def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> list[dict]:
+    """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
+    wheel commands from the same start state: the physics cost alone, same contacts."""
     cfg = get_scenario(scenario)
     world = build_world(cfg, robots)
-    steps = int(round(seconds / cfg.timestep))
+    dt = world.model.opt.timestep
+    steps = int(round(seconds / dt))
     sim = ChainSim(world)
     data = mujoco.MjData(world.model)
+    commands: list[tuple[int, np.ndarray]] = []   # (step index, wheel commands) per tick
 
     def ours() -> None:
         sim.reset(np.random.default_rng(0))
         log = PoseLog(world.names)
         sim.run(seconds, [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)])
 
+    sim.reset(np.random.default_rng(0))
+    start_qpos = sim.data.qpos.copy()
+    sim.run(seconds, [Periodic(1 / cfg.command_hz, lambda s: commands.append(
+        (int(round(s.time / dt)), s.data.ctrl.copy())))])
+    ticks = [c[0] for c in commands] + [steps]
+
     def bare() -> None:
         mujoco.mj_resetData(world.model, data)
-        data.qpos[:] = sim.data.qpos
-        data.ctrl[:] = 3.0
-        mujoco.mj_step(world.model, data, nstep=steps)
+        data.qpos[:] = start_qpos
+        for (step, ctrl), nxt in zip(commands, ticks[1:], strict=True):
+            data.ctrl[:] = ctrl
+            mujoco.mj_step(world.model, data, nstep=nxt - step)
 
-    ours()  # warm-up, and leaves a realistic state for `bare` to start from
     t_ours, t_bare = _best_of(ours), _best_of(bare)
-    tag = f"{scenario}, {robots} robots, dt={cfg.timestep}"
+    tag = f"{scenario}, {robots} robots, dt={dt}"
     return [
         figure("sim_steps_per_s", steps / t_ours, "steps/s", steps / t_bare,
                limit_name="bare mj_step(nstep) on the same model", config=tag),

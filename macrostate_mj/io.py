@@ -27,12 +27,17 @@ class AtomicFile:
 
     def __init__(self, final: str | os.PathLike):
         self.final = Path(final)
+        self.final.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.final.stem}.",
                                    suffix=f".part{self.final.suffix}", dir=self.final.parent)
         os.close(fd)
         self.tmp = Path(tmp)
 
     def commit(self) -> None:
+        # mkstemp creates 0600; give the final file the usual umask-derived mode.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self.tmp, 0o666 & ~umask)
         os.replace(self.tmp, self.final)
 
     def discard(self) -> None:
@@ -64,7 +69,7 @@ def check_writable_file(path: str | os.PathLike, overwrite: bool, what: str = "o
     path = Path(path)
     if path.exists() and not overwrite:
         raise UserError(f"{what} {path} already exists; pass --overwrite or choose another path")
-    check_writable_dir(path.parent if str(path.parent) else Path("."), create=True)
+    check_writable_dir(path.parent, create=False)
     return path
 
 
@@ -76,6 +81,8 @@ def check_writable_dir(path: str | os.PathLike, create: bool = True) -> Path:
     probe = path
     while not probe.exists():
         probe = probe.parent
+    if not probe.is_dir():
+        raise UserError(f"cannot create {path}: {probe} is a file; choose a folder path")
     if not os.access(probe, os.W_OK | os.X_OK):
         raise UserError(f"cannot write to {path} (permission denied); choose a writable folder")
     if create:

@@ -81,14 +81,26 @@ def avoidance_velocities(positions: np.ndarray, radius: float, gain: float) -> n
     return np.sum(push[:, :, None] * diff / dist[:, :, None], axis=1)
 
 
+def path_blocked(positions: np.ndarray, i: int, heading: float, radius: float,
+                 cone: float = np.radians(60)) -> bool:
+    """Is another robot within `radius` ahead of robot i (inside +-cone of its heading)?"""
+    p = np.asarray(positions, float)
+    diff = np.delete(p, i, axis=0) - p[i]
+    near = np.linalg.norm(diff, axis=1) < radius
+    bearing = np.abs(wrap_angle(np.arctan2(diff[:, 1], diff[:, 0]) - heading))
+    return bool(np.any(near & (bearing < cone)))
+
+
 def unicycle_from_holonomic(u: np.ndarray, theta: float, k_omega: float, v_max: float,
                             allow_reverse: bool = True, deadband: float = 0.005
                             ) -> tuple[float, float]:
     """Track a holonomic velocity u with a unicycle: v = |u| cos e, omega = k_omega e.
 
-    e is the angle from the robot's heading to u. With `allow_reverse` False the robot stops
-    instead of backing up (the lab's followers: fewer high-frequency oscillations, seed §2.6.2.1).
-    Below `deadband` (m/s) the robot holds still rather than spinning on the spot.
+    e is the angle from the robot's heading to u. With `allow_reverse` a reference behind the
+    robot is tracked backwards, turning the rear toward it (no half-turns for small
+    corrections); otherwise the robot stops instead of backing up and turns on the spot (the
+    lab's followers: fewer high-frequency oscillations, seed §2.6.2.1). Below `deadband` (m/s)
+    the robot holds still rather than spinning on the spot.
     """
     speed = float(np.hypot(u[0], u[1]))
     if speed < deadband:
@@ -96,7 +108,9 @@ def unicycle_from_holonomic(u: np.ndarray, theta: float, k_omega: float, v_max: 
     speed = min(speed, v_max)
     e = wrap_angle(np.arctan2(u[1], u[0]) - theta)
     v = speed * np.cos(e)
-    if not allow_reverse:
+    if allow_reverse and v < 0:
+        e = wrap_angle(e + np.pi)
+    elif not allow_reverse:
         v = max(v, 0.0)
     return float(v), float(k_omega * e)
 

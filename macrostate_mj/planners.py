@@ -3,6 +3,7 @@
 - `GridPlanner`  Psi of seed §2.6.2.2 (lab): waypoints in cells ahead of the last two visited.
 - `CellPlanner`  seed §3.4 (webots): a new nearby cell-centre waypoint whenever a cell is entered.
 - `PresetPlanner` seed §2.5.2.1 (robotarium): the Head drives one of five preset (v, omega).
+- `FixedWaypoint` one scripted target (tests, demonstrations).
 """
 
 from __future__ import annotations
@@ -131,13 +132,14 @@ class CellPlanner:
 class PresetPlanner:
     """Robotarium Head: hold a preset (v, omega) for `hold` seconds, then draw another. `fixed`
     pins one preset (the training treatments of seed §2.5.2.1 run one Head velocity each). Near a
-    wall the Head turns on the spot, at the tightest preset's rate, until it faces within 60
-    degrees of the arena centre, so it never grinds along a wall."""
+    wall the Head turns on the spot at `wall_turn` rad/s until it faces within 60 degrees of
+    the arena centre, so it never grinds along a wall."""
 
     arena: tuple[float, float]
     margin: float
     hold: float = 4.0
     fixed: int | None = None
+    wall_turn: float = 1.0
     presets: tuple[tuple[float, float], ...] = ROBOTARIUM_HEAD_PRESETS
     target: np.ndarray | None = None
     twist: tuple[float, float] | None = None
@@ -158,14 +160,30 @@ class PresetPlanner:
         if np.any(np.abs(head_pose[:2]) > half):
             to_centre = wrap_angle(np.arctan2(-head_pose[1], -head_pose[0]) - head_pose[2])
             if abs(to_centre) > np.radians(60):
-                w = max(abs(p[1]) for p in self.presets)
-                self.twist = (0.0, float(np.sign(to_centre) * w))
+                self.twist = (0.0, float(np.sign(to_centre) * self.wall_turn))
             else:
                 self.twist = self.presets[0]
 
 
-def make_planner(cfg: ScenarioConfig, fixed_preset: int | None = None
-                 ) -> GridPlanner | CellPlanner | PresetPlanner:
+@dataclass
+class FixedWaypoint:
+    """Drive the Head to one point and stay there (tests, scripted demonstrations)."""
+
+    point: tuple[float, float]
+    target: np.ndarray | None = None
+    twist: tuple[float, float] | None = None
+
+    def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
+        self.target = np.array(self.point, float)
+
+    def update(self, head_pose: np.ndarray, t: float, rng: np.random.Generator) -> None:
+        pass
+
+
+Planner = GridPlanner | CellPlanner | PresetPlanner | FixedWaypoint
+
+
+def make_planner(cfg: ScenarioConfig, fixed_preset: int | None = None) -> Planner:
     if cfg.planner == "grid":
         return GridPlanner(Grid(cfg.arena, cfg.grid), cfg.wall_margin, cfg.reach_radius)
     if cfg.planner == "cell":

@@ -52,15 +52,29 @@ def scenario_for(name: str, head_speed: float | None = None) -> ScenarioConfig:
     return cfg
 
 
-def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
-    """Run one simulation; returns the written paths. Nothing is written if validation fails."""
+def check_request(req: SimulateRequest) -> ScenarioConfig:
+    """Every check of a simulate request, before anything is built or written."""
     cfg = scenario_for(req.scenario, req.head_speed)
     validate_chain(cfg, req.robots, req.seconds)
-    out = prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
+    prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
     for path, flag in ((req.video, "--video"), (req.rerun, "--rerun")):
         if path is not None:
+            if path.suffix != {"--video": ".mp4", "--rerun": ".rrd"}[flag]:
+                raise UserError(f"{flag} {path} needs the "
+                                f"{ {'--video': '.mp4', '--rerun': '.rrd'}[flag]} extension")
             check_writable_file(path, req.overwrite, flag)
-    out.mkdir(parents=True, exist_ok=True)
+    return cfg
+
+
+def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
+    """Run one simulation; returns the written paths. Nothing is written if validation fails."""
+    cfg = check_request(req)
+    out = req.out
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UserError(f"cannot create --out {out}: {err.strerror}; "
+                        "choose a writable folder") from None
 
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -105,6 +119,6 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     written["manifest"] = write_manifest(
         out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, timings,
         robots=world.names, outputs={k: str(v) for k, v in written.items()},
-        steps=int(round(req.seconds / cfg.timestep)),
+        timestep=world.model.opt.timestep,
         realtime_factor=req.seconds / max(timings["run"], 1e-9))
     return written

@@ -1,7 +1,7 @@
 """Embedded scenarios (SPEC §3): typed, frozen configs; the one home of their constants.
 
-Robot geometry (wheel radius, track, top speed) is not repeated here: it is read from the
-compiled MJCF by `macrostate_mj.world`, so the XML stays the single source of truth.
+Robot geometry (wheel radius, track, top speed) and the physics timestep are not repeated
+here: they are read from the compiled MJCF, so the XML stays the single source of truth.
 """
 
 from __future__ import annotations
@@ -34,7 +34,6 @@ class ScenarioConfig:
     reach_radius: float = 0.06      # Head has reached its waypoint within this distance (m)
     avoid_radius: float = 0.2       # robots repel each other within this distance (m)
     avoid_gain: float = 0.15        # repulsion speed at contact (m/s)
-    timestep: float = 0.004         # physics step (s); see README "Physics timestep"
 
     def with_overrides(self, **kw: object) -> ScenarioConfig:
         return replace(self, **kw)
@@ -51,7 +50,7 @@ SCENARIOS: dict[str, ScenarioConfig] = {
     # Webots study, seed §3.4: 3 x 3 m, 10 x 10 grid, new waypoint on entering a new cell.
     "webots": ScenarioConfig(
         name="webots", scene="scene_webots.xml", robot="thymio", arena=(3.0, 3.0), spacing=0.30,
-        k_f=8.0, k_t=12.0, k_omega=1.5, head_speed=0.12, chain_speed=0.2, command_hz=2.0,
+        k_f=3.0, k_t=3.0, k_omega=1.5, head_speed=0.12, chain_speed=0.2, command_hz=2.0,
         log_hz=2.0, planner="cell", grid=(10, 10), allow_reverse=True, wait_slack=None,
         wall_margin=0.2,
     ),
@@ -62,13 +61,14 @@ SCENARIOS: dict[str, ScenarioConfig] = {
         command_hz=30.0, log_hz=30.0, planner="preset", grid=(1, 1), allow_reverse=True,
         wait_slack=None,
         wall_margin=0.08, reach_radius=0.02, avoid_radius=0.05, avoid_gain=0.04,
-        timestep=0.002,
     ),
 }
 
-# Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tight curves.
+# Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tighter
+# curves (radii 0.3 and 0.15 m, wider than a 6-robot chain is long, so the Head never circles
+# onto its own Tail).
 ROBOTARIUM_HEAD_PRESETS: tuple[tuple[float, float], ...] = (
-    (0.03, 0.0), (0.03, 0.2), (0.03, -0.2), (0.03, 0.4), (0.03, -0.4),
+    (0.03, 0.0), (0.03, 0.1), (0.03, -0.1), (0.03, 0.2), (0.03, -0.2),
 )
 
 

@@ -19,10 +19,11 @@ import numpy as np
 from macrostate_mj.motion import (
     avoidance_velocities,
     chain_velocities,
+    path_blocked,
     unicycle_from_holonomic,
     wheel_speeds,
 )
-from macrostate_mj.planners import make_planner
+from macrostate_mj.planners import Planner, make_planner
 from macrostate_mj.world import World, place_chain
 
 
@@ -78,12 +79,13 @@ class PoseLog:
 class ChainSim:
     """Runs one chain world; owns its MjData, planner and the controller's state."""
 
-    def __init__(self, world: World, fixed_preset: int | None = None, k_t: float | None = None):
+    def __init__(self, world: World, fixed_preset: int | None = None, k_t: float | None = None,
+                 planner: Planner | None = None):
         self.world = world
         self.cfg = world.scenario
         self.model = world.model
         self.data = mujoco.MjData(self.model)
-        self.planner = make_planner(self.cfg, fixed_preset)
+        self.planner = planner or make_planner(self.cfg, fixed_preset)
         self.k_t = self.cfg.k_t if k_t is None else k_t
         self.rng = np.random.default_rng(0)
         self.log_phase = 0.0
@@ -135,6 +137,8 @@ class ChainSim:
         for i in range(self.n):
             if i == 0 and self.planner.twist is not None:
                 v, omega = self.planner.twist
+                if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):
+                    v = 0.0     # a Head driven in (v, omega) waits rather than ram a robot
             else:
                 v_max = cfg.head_speed if i == 0 else cfg.chain_speed
                 reverse = cfg.allow_reverse and i > 0

@@ -108,7 +108,6 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
     colours = marker_colours(n)
     spec = mujoco.MjSpec.from_file(str(ASSETS / cfg.scene))
     spec.copy_during_attach = True
-    spec.option.timestep = cfg.timestep
     robot = mujoco.MjSpec.from_file(str(ASSETS / cfg.robot / "robot.xml"))
     for name, colour, pose in zip(names, colours, start, strict=True):
         frame = spec.worldbody.add_frame(pos=[pose[0], pose[1], 0.0],

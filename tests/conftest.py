@@ -5,6 +5,9 @@ from pathlib import Path
 
 import pytest
 
+# Before any test module imports mujoco: headless rendering needs a GL backend chosen up front.
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = Path(os.environ.get("MACROSTATE_REFERENCE_DATA",
                                REPO.parent / "shared" / "reference-data"))

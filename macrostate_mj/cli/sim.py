@@ -23,10 +23,11 @@ def simulate(
     overwrite: bool = typer.Option(False, help="Replace existing outputs."),
 ) -> None:
     """Simulate a robot chain; write its pose log (and optionally a video and a rerun file)."""
-    from macrostate_mj.runs import SimulateRequest, simulate_run
+    from macrostate_mj.runs import SimulateRequest, check_request, simulate_run
 
     req = SimulateRequest(scenario, robots, seconds, seed, out, video, rerun, overwrite,
                           head_speed=head_speed)
+    check_request(req)
     with sim_progress(seconds, "simulating") as advance:
         written = simulate_run(req, advance)
     for kind, path in written.items():

@@ -1,0 +1,135 @@
+"""`simulate`, `export-mjcf` and `bench` from the command line, as a user runs them."""
+
+import json
+import subprocess
+import sys
+
+import cv2
+import mujoco
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from macrostate_mj.camera import OverheadRenderer, PinholeCamera
+from macrostate_mj.scenarios import get_scenario
+from macrostate_mj.sim import ChainSim
+from macrostate_mj.world import build_world
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "macrostate_mj.cli", *args],
+                          capture_output=True, text=True, timeout=600)
+
+
+def assert_clean_error(res: subprocess.CompletedProcess, *words: str) -> None:
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
+    for w in words:
+        assert w in lines[0]
+
+
+def test_simulate_writes_long_format_poses_and_manifest(tmp_path):
+    out = tmp_path / "run"
+    res = cli("simulate", "--scenario", "lab", "--robots", "4", "--seconds", "10", "--seed", "3",
+              "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    table = pq.read_table(out / "poses.parquet").to_pandas()
+    assert list(table.columns[:6]) == ["t", "step", "robot", "x", "y", "theta"]
+    assert table.robot.iloc[:4].tolist() == ["H", "F1", "F2", "T"]
+    assert len(table) == 20 * 4                          # 2 Hz for 10 s, 4 robots
+    assert table.theta.between(-np.pi, np.pi, inclusive="right").all()
+    assert table.x.abs().max() < 1.25 and table.y.abs().max() < 0.95
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["seed"] == 3 and manifest["config"]["scenario"]["name"] == "lab"
+    assert {"build", "run"} <= set(manifest["timings_s"]) and manifest["version"]
+
+
+def test_same_seed_bit_identical_parquet_other_seed_differs(tmp_path):
+    tables = []
+    for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
+        res = cli("simulate", "--robots", "3", "--seconds", "8", "--seed", seed,
+                  "--out", str(tmp_path / name))
+        assert res.returncode == 0, res.stderr
+        tables.append(pq.read_table(tmp_path / name / "poses.parquet"))
+    assert tables[0].equals(tables[1])
+    assert not tables[0].equals(tables[2])
+
+
+def test_video_and_rerun_outputs(tmp_path):
+    video, rrd = tmp_path / "v.mp4", tmp_path / "r.rrd"
+    res = cli("simulate", "--robots", "3", "--seconds", "3", "--out", str(tmp_path / "o"),
+              "--video", str(video), "--rerun", str(rrd))
+    assert res.returncode == 0, res.stderr
+    cap = cv2.VideoCapture(str(video))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 30
+    ok, frame = cap.read()
+    assert ok and frame.shape == (570, 750, 3)
+    assert rrd.stat().st_size > 10_000 and rrd.read_bytes()[:4] == b"RRF2"
+    assert not list(tmp_path.glob(".*part*"))            # no temporary left behind
+
+
+def test_export_mjcf_loads_in_plain_mujoco(tmp_path):
+    out = tmp_path / "scene.xml"
+    res = cli("export-mjcf", "--scenario", "webots", "--robots", "6", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert model.nu == 12 and model.body("T/thymio").id > 0
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--scenario", "moon"], ["moon", "lab"]),
+    (["--robots", "1"], ["--robots", "2"]),
+    (["--robots", "400"], ["400", "fewer"]),
+    (["--seconds", "0"], ["--seconds", "positive"]),
+    (["--seconds", "abc"], ["--seconds"]),
+])
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, words):
+    out = tmp_path / "never"
+    assert_clean_error(cli("simulate", "--out", str(out), *args), *words)
+    assert not out.exists()
+
+
+def test_existing_output_needs_overwrite_and_unwritable_path(tmp_path):
+    out = tmp_path / "run"
+    assert cli("simulate", "--robots", "2", "--seconds", "1", "--out", str(out)).returncode == 0
+    before = (out / "poses.parquet").read_bytes()
+    assert_clean_error(cli("simulate", "--robots", "2", "--seconds", "1", "--seed", "9",
+                           "--out", str(out)), "--overwrite")
+    assert (out / "poses.parquet").read_bytes() == before
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert_clean_error(cli("simulate", "--robots", "2", "--seconds", "1",
+                           "--out", str(blocker / "run")), "cannot create", "is a file")
+    assert_clean_error(cli("simulate", "--robots", "2", "--seconds", "1", "--out",
+                           str(tmp_path / "ok"), "--video", str(blocker / "v.mp4")), "is a file")
+    assert not (tmp_path / "ok").exists()
+
+
+def test_camera_model_projects_markers_onto_their_pixels():
+    world = build_world(get_scenario("lab"), 5)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(4))
+    cam = PinholeCamera.from_model(world.model, sim.data)
+    assert cam.px_per_m == pytest.approx(300, rel=0.01)       # 3 px/cm at the floor
+    poses = sim.poses()
+    xyz = np.column_stack([poses[:, :2], np.full(5, world.marker_height)])
+    uv = cam.world_to_pixel(xyz)
+    with OverheadRenderer(world.model) as renderer:
+        rgb = renderer.render(sim.data).astype(int)
+    for (u, v), colour in zip(uv, world.colours, strict=True):
+        assert np.abs(rgb[int(round(v)), int(round(u))] - colour * 255).max() < 60
+    back = cam.pixel_to_world(uv, world.marker_height)
+    assert np.allclose(back, poses[:, :2], atol=1e-9)
+    h = cam.homography(world.marker_height)
+    proj = (h @ np.column_stack([poses[:, :2], np.ones(5)]).T).T
+    assert np.allclose(proj[:, :2] / proj[:, 2:], uv, atol=1e-6)
+
+
+def test_bench_prints_ratios_against_limits():
+    res = cli("bench", "--json", "--only", "sim")
+    assert res.returncode == 0, res.stderr
+    figs = [json.loads(line) for line in res.stdout.splitlines()]
+    steps = next(f for f in figs if f["name"] == "sim_steps_per_s")
+    assert steps["ratio"] == pytest.approx(steps["value"] / steps["limit"], rel=1e-3)
+    assert steps["ratio"] > 0.5
