@@ -31,6 +31,7 @@ class SimulateRequest:
     overwrite: bool = False
     video_fps: float = 10.0
     head_speed: float | None = None
+    track: bool = False
 
 
 def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
@@ -50,6 +51,11 @@ def scenario_for(name: str, head_speed: float | None = None) -> ScenarioConfig:
             raise UserError(f"--head-speed must be positive, got {head_speed}")
         cfg = cfg.with_overrides(head_speed=head_speed)
     return cfg
+
+
+def imaging_rng(seed: int) -> np.random.Generator:
+    """The camera chain's own stream: tracking never changes the simulated trajectory."""
+    return np.random.default_rng([seed, 1])
 
 
 def check_request(req: SimulateRequest) -> ScenarioConfig:
@@ -83,9 +89,17 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     sim.reset(np.random.default_rng(req.seed))
     timings["build"] = time.perf_counter() - t0
 
-    log = PoseLog(world.names)
-    hooks = [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)]
     recorders = []
+    hooks = []
+    chain = None
+    if req.track:
+        from macrostate_mj.camera_chain import CameraChain
+
+        chain = CameraChain(sim)
+        chain.start(imaging_rng(req.seed))
+        hooks.append(Periodic(1 / cfg.command_hz, chain.capture))
+    log = PoseLog(world.names, tracker=chain)
+    hooks.append(Periodic(1 / cfg.log_hz, log.append, sim.log_phase))
     if req.video is not None:
         from viz.video import VideoRecorder
 
@@ -105,12 +119,17 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         for r in recorders:
             r.abort()
         raise
+    finally:
+        if chain is not None:
+            chain.close()
     for r in recorders:
         r.finish()
     timings["run"] = time.perf_counter() - t0
 
     times, poses, waypoints = log.arrays()
-    write_poses(out / "poses.parquet", poses_table(world.names, times, poses, waypoints))
+    tracked, detected = log.tracked_arrays()
+    write_poses(out / "poses.parquet",
+                poses_table(world.names, times, poses, waypoints, tracked, detected))
     written = {"poses": out / "poses.parquet"}
     if req.video is not None:
         written["video"] = req.video
@@ -120,5 +139,7 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, timings,
         robots=world.names, outputs={k: str(v) for k, v in written.items()},
         timestep=world.model.opt.timestep,
-        realtime_factor=req.seconds / max(timings["run"], 1e-9))
+        realtime_factor=req.seconds / max(timings["run"], 1e-9),
+        tracking=None if chain is None else {"frames": chain.frames, "dropped": chain.dropped,
+                                             "noise": chain.noise})
     return written

@@ -57,23 +57,37 @@ class Periodic:
 
 @dataclass
 class PoseLog:
-    """Poses at log ticks: times (T,), poses (T, n, 3), Head waypoint (T, 2) or NaN."""
+    """Poses at log ticks: times (T,), poses (T, n, 3), Head waypoint (T, 2) or NaN, and, with
+    a `tracker` (anything with `latest` (n, 3) and `detected` (n,)), its latest output."""
 
     names: list[str]
+    tracker: object | None = None
     times: list[float] = field(default_factory=list)
     poses: list[np.ndarray] = field(default_factory=list)
     waypoints: list[np.ndarray] = field(default_factory=list)
+    tracked: list[np.ndarray] = field(default_factory=list)
+    detected: list[np.ndarray] = field(default_factory=list)
 
     def append(self, sim: ChainSim) -> None:
         self.times.append(sim.time)
         self.poses.append(sim.poses())
         wp = sim.planner.target
         self.waypoints.append(np.array(wp, float) if wp is not None else np.full(2, np.nan))
+        if self.tracker is not None:
+            self.tracked.append(self.tracker.latest.copy())
+            self.detected.append(self.tracker.detected.copy())
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = len(self.names)
         return (np.asarray(self.times), np.asarray(self.poses).reshape(-1, n, 3),
                 np.asarray(self.waypoints).reshape(-1, 2))
+
+    def tracked_arrays(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        if self.tracker is None:
+            return None, None
+        n = len(self.names)
+        return (np.asarray(self.tracked).reshape(-1, n, 3),
+                np.asarray(self.detected).reshape(-1, n))
 
 
 class ChainSim:

@@ -20,13 +20,16 @@ def simulate(
     video: Path = typer.Option(None, help="Also render the overhead camera to this MP4."),
     rerun: Path = typer.Option(None, help="Also log the run to this rerun .rrd file."),
     head_speed: float = typer.Option(None, help="Override the scenario's Head speed (m/s)."),
+    track: bool = typer.Option(False, help="Film with the overhead camera and track the "
+                               "markers at the command rate: adds x_trk, y_trk, theta_trk, "
+                               "detected."),
     overwrite: bool = typer.Option(False, help="Replace existing outputs."),
 ) -> None:
     """Simulate a robot chain; write its pose log (and optionally a video and a rerun file)."""
     from macrostate_mj.runs import SimulateRequest, check_request, simulate_run
 
     req = SimulateRequest(scenario, robots, seconds, seed, out, video, rerun, overwrite,
-                          head_speed=head_speed)
+                          head_speed=head_speed, track=track)
     check_request(req)
     with sim_progress(seconds, "simulating") as advance:
         written = simulate_run(req, advance)

@@ -1,0 +1,115 @@
+"""Imaging noise between the renderer and the tracker: the camera chain of the real testbed.
+
+Domain randomization per episode (light intensity and direction, a small camera-pose error
+the tracker's calibration does not know about, JPEG quality, motion-blur direction), and per
+frame (sensor noise, blur, compression, dropped frames). Every draw comes from the Generator
+passed in. Defaults aim at the real camera: sub-pixel to one-pixel tracking error, rare drops.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import mujoco
+import numpy as np
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    light_scale: tuple[float, float] = (0.75, 1.15)   # diffuse intensity multiplier range
+    light_tilt_deg: float = 25.0                       # max tilt of the key light from vertical
+    cam_shift_m: float = 0.001                         # camera position error (sigma, m)
+    cam_tilt_deg: float = 0.015                        # camera orientation error (sigma, deg)
+    sensor_sigma: float = 3.0                          # Gaussian sensor noise (0-255 units)
+    jpeg_quality: tuple[int, int] = (75, 95)
+    blur_px: float = 1.5                               # max motion-blur length (px)
+    drop_prob: float = 0.003                           # whole frames lost
+
+    @classmethod
+    def none(cls) -> NoiseConfig:
+        """Clean frames: the tracker's own (quantization) limit."""
+        return cls((1.0, 1.0), 0.0, 0.0, 0.0, 0.0, (100, 100), 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class EpisodeImaging:
+    """One episode's draw of the randomized conditions."""
+
+    light_scale: float
+    light_dir: np.ndarray
+    cam_shift: np.ndarray
+    cam_rot: np.ndarray          # quaternion (w, x, y, z) applied to the nominal camera
+    jpeg_quality: int
+    blur_kernel: np.ndarray | None
+
+
+def draw_episode(cfg: NoiseConfig, rng: np.random.Generator) -> EpisodeImaging:
+    tilt = np.radians(rng.uniform(0, cfg.light_tilt_deg))
+    az = rng.uniform(-np.pi, np.pi)
+    light_dir = np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), -np.cos(tilt)])
+    axis_angle = np.radians(cfg.cam_tilt_deg) * rng.standard_normal(3)
+    quat = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(quat, axis_angle / max(np.linalg.norm(axis_angle), 1e-12),
+                              float(np.linalg.norm(axis_angle)))
+    length = rng.uniform(0, cfg.blur_px)
+    kernel = _line_kernel(length, rng.uniform(0, np.pi)) if length >= 0.5 else None
+    lo, hi = cfg.jpeg_quality
+    return EpisodeImaging(float(rng.uniform(*cfg.light_scale)), light_dir,
+                          cfg.cam_shift_m * rng.standard_normal(3), quat,
+                          int(rng.integers(lo, hi + 1)), kernel)
+
+
+def _line_kernel(length: float, angle: float) -> np.ndarray:
+    """A normalized line kernel of `length` px at `angle`: linear motion during exposure."""
+    size = int(np.ceil(length)) * 2 + 1
+    k = np.zeros((size, size), np.float32)
+    c = size // 2
+    for s in np.linspace(-length / 2, length / 2, 4 * size):
+        k[int(round(c + s * np.sin(angle))), int(round(c + s * np.cos(angle)))] += 1
+    return k / k.sum()
+
+
+class SceneConditions:
+    """Applies an episode's light and camera draw to a model, restoring nominal values first."""
+
+    def __init__(self, model: mujoco.MjModel, camera: str = "overhead"):
+        self.model = model
+        self.cam = model.camera(camera).id
+        self._light_diffuse = model.light_diffuse.copy()
+        self._light_dir = model.light_dir.copy()
+        self._cam_pos = model.cam_pos[self.cam].copy()
+        self._cam_quat = model.cam_quat[self.cam].copy()
+
+    def apply(self, ep: EpisodeImaging) -> None:
+        m = self.model
+        m.light_diffuse[:] = np.clip(self._light_diffuse * ep.light_scale, 0, 1)
+        m.light_dir[:] = ep.light_dir
+        m.cam_pos[self.cam] = self._cam_pos + ep.cam_shift
+        quat = np.zeros(4)
+        mujoco.mju_mulQuat(quat, ep.cam_rot, self._cam_quat)
+        m.cam_quat[self.cam] = quat
+
+    def restore(self) -> None:
+        m = self.model
+        m.light_diffuse[:] = self._light_diffuse
+        m.light_dir[:] = self._light_dir
+        m.cam_pos[self.cam] = self._cam_pos
+        m.cam_quat[self.cam] = self._cam_quat
+
+
+def degrade(rgb: np.ndarray, ep: EpisodeImaging, cfg: NoiseConfig,
+            rng: np.random.Generator) -> np.ndarray | None:
+    """One frame through the camera chain; None when the frame is dropped."""
+    if cfg.drop_prob and rng.random() < cfg.drop_prob:
+        return None
+    img = rgb
+    if ep.blur_kernel is not None:
+        img = cv2.filter2D(img, -1, ep.blur_kernel)
+    if cfg.sensor_sigma > 0:
+        noise = rng.standard_normal(img.shape, dtype=np.float32) * cfg.sensor_sigma
+        img = np.clip(img.astype(np.float32) + noise, 0, 255).astype(np.uint8)
+    if ep.jpeg_quality < 100:
+        ok, buf = cv2.imencode(".jpg", img[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, ep.jpeg_quality])
+        img = cv2.imdecode(buf, cv2.IMREAD_COLOR)[:, :, ::-1]
+    return np.ascontiguousarray(img)
