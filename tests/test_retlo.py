@@ -209,7 +209,7 @@ BAD_RUNS = {
                                     "--data", "x.csv", "--out", str(p / "r.json")],
                          "not a ReTLo checkpoint"),
     "not torch": (lambda p: ["evaluate", "retlo", "--model", str(p / "r.json"), "--data",
-                             "x.csv", "--out", str(p / "q.json")], "unknown model"),
+                             "x.csv", "--out", str(p / "q.json")], "not a readable torch"),
     "unknown eval model": (lambda p: ["evaluate", "retlo", "--model", "heuristic3x", "--data",
                                       "x.csv", "--out", str(p / "r.json")], "unknown model"),
     "unknown train model": (lambda p: ["train", "retlo", "--model", "gru", "--train", "x.csv",

@@ -40,6 +40,7 @@ class TrainConfig:
     seed: int = 0
     threads: int = 1  # one thread: bit-identical results, and fair to a shared machine
     feedback: bool = True  # also train on the model's own fed-back predictions (see `train`)
+    mirror: bool = True  # add every sample reflected across the frame's x axis (see `mirrored`)
     model: ModelConfig = field(default_factory=ModelConfig)
 
 
@@ -58,6 +59,24 @@ def make_samples(worlds: list[np.ndarray], cfg: ModelConfig) -> dict[str, np.nda
                 for key, val in zip(parts, (obs, hist, pos, ang), strict=True):
                     parts[key].append(val)
     return {k: np.concatenate(v).astype(np.float32) for k, v in parts.items()}
+
+
+def mirrored(data: dict[str, np.ndarray], cos_sin: bool) -> dict[str, np.ndarray]:
+    """Reflect samples across the frame's x axis (the Tail→Follower line): y → -y, θ → -θ.
+
+    The motion rules of §2.3 have no left or right, so a reflected chain is as plausible as the
+    original; this doubles 280 instances' worth of turns at no collection cost.
+    """
+    n_ang = 2 if cos_sin else 1
+    hist = data["hist"].copy()
+    for start in (1, 3 + n_ang):  # Head y, Follower y
+        hist[..., start] *= -1
+    for start in (2, 4 + n_ang):  # Head angle, Follower angle (sin only for cos/sin)
+        hist[..., start + n_ang - 1] *= -1
+    obs, pos = data["obs"].copy(), data["pos"].copy()
+    obs[:, 1::2] *= -1
+    pos[:, 1] *= -1
+    return {"obs": obs, "hist": hist, "pos": pos, "ang": -data["ang"]}
 
 
 def mean_spacing(worlds: list[np.ndarray]) -> float:
@@ -79,8 +98,8 @@ def _loss(net: RetloNet, batch: dict[str, torch.Tensor], angle_weight: float) ->
     return pos_loss + angle_weight * ang_loss
 
 
-def _with_feedback(net: RetloNet, worlds: list[np.ndarray],
-                   data: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+def _with_feedback(net: RetloNet, worlds: list[np.ndarray], data: dict[str, torch.Tensor],
+                   mirror: bool) -> dict[str, torch.Tensor]:
     """Add the samples the current model would meet at test time: histories holding its own
     fed-back predictions, frames built from its own estimates, paired with the true targets.
     Teacher forcing alone leaves the LSTM blind to its own drift (errors grow step after step);
@@ -88,7 +107,11 @@ def _with_feedback(net: RetloNet, worlds: list[np.ndarray],
     samples: dict[str, list[np.ndarray]] = {}
     for world in worlds:
         predict_chain(TorchPredictor(net), world, samples=samples)
-    extra = {k: torch.from_numpy(np.concatenate(v).astype(np.float32)) for k, v in samples.items()}
+    extra = {k: np.concatenate(v).astype(np.float32) for k, v in samples.items()}
+    if mirror:
+        extra = {k: np.concatenate([v, mirrored(extra, net.cfg.cos_sin)[k]])
+                 for k, v in extra.items()}
+    extra = {k: torch.from_numpy(v) for k, v in extra.items()}
     return {k: torch.cat([data[k], extra[k]]) for k in data}
 
 
@@ -106,6 +129,9 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     base = make_samples(train_worlds, cfg.model)
+    if cfg.mirror:
+        base = {k: np.concatenate([v, mirrored(base, cfg.model.cos_sin)[k]])
+                for k, v in base.items()}
     net = RetloNet(cfg.model, mean_spacing(train_worlds))
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     best = (float("inf"), -1, copy.deepcopy(net.state_dict()))
@@ -119,7 +145,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
         for epoch in range(cfg.epochs):
             data = {k: torch.from_numpy(v) for k, v in base.items()}
             if cfg.feedback:
-                data = _with_feedback(net, train_worlds, data)
+                data = _with_feedback(net, train_worlds, data, cfg.mirror)
             net.train()
             n = len(data["obs"])
             order = torch.from_numpy(rng.permutation(n))
