@@ -1,7 +1,8 @@
 """The overhead camera chain as a periodic hook: render -> imaging noise -> tracker.
 
-It keeps the latest detection of every robot, as the real testbed's logger did: the 2 Hz pose
-log records whatever the 4 Hz tracker saw last. A robot missed in a frame keeps its previous
+It keeps the latest detection of every robot (and when it was made), as the real testbed's
+logger did: the 2 Hz pose log records whatever the 4 Hz tracker saw last, up to one command
+period earlier (`t_trk` in the log says exactly when). A robot missed in a frame keeps its previous
 tracked pose (NaN before its first detection) with `detected` False.
 """
 
@@ -28,6 +29,7 @@ class CameraChain:
         self._area = marker_area(world.spec, f"{world.names[0]}/marker")
         n = len(world.names)
         self.latest = np.full((n, 3), np.nan)
+        self.latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
         self.detected = np.zeros(n, bool)
         self.frames = self.dropped = 0
 
@@ -43,6 +45,7 @@ class CameraChain:
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
         self.latest[:] = np.nan
+        self.latest_time[:] = np.nan
         self.detected[:] = False
 
     def capture(self, sim: ChainSim) -> None:
@@ -54,6 +57,7 @@ class CameraChain:
             return
         det = self.tracker.track(frame)
         self.latest[det.detected] = det.poses[det.detected]
+        self.latest_time[det.detected] = sim.time
         self.detected[:] = det.detected
 
     def close(self) -> None:

@@ -2,7 +2,8 @@
 
 Columns: t (s), step (log index), robot (H, F1.., T), x, y (m, world frame, origin at the arena
 centre, x along the long side), theta (rad, CCW from +x, in (-pi, pi]), waypoint_x/y (the Head's
-current target, NaN without one) and, when tracking ran, x_trk, y_trk, theta_trk, detected.
+current target, NaN without one) and, when tracking ran, x_trk, y_trk, theta_trk (the latest
+detection, same units), t_trk (when it was made) and detected (seen in the latest frame).
 """
 
 from __future__ import annotations
@@ -18,9 +19,8 @@ from macrostate_mj.motion import wrap_angle
 
 
 def poses_table(names: list[str], times: np.ndarray, poses: np.ndarray, waypoints: np.ndarray,
-                tracked: np.ndarray | None = None, detected: np.ndarray | None = None
-                ) -> pa.Table:
-    """Arrays (T,), (T, n, 3), (T, 2) [, (T, n, 3), (T, n)] -> long-format table."""
+                tracking: dict[str, np.ndarray] | None = None) -> pa.Table:
+    """Arrays (T,), (T, n, 3), (T, 2) [+ `PoseLog.tracked_arrays()`] -> long-format table."""
     n_t, n = poses.shape[:2]
     cols = {
         "t": np.repeat(np.asarray(times, float), n),
@@ -32,10 +32,11 @@ def poses_table(names: list[str], times: np.ndarray, poses: np.ndarray, waypoint
         "waypoint_x": np.repeat(waypoints[:, 0], n),
         "waypoint_y": np.repeat(waypoints[:, 1], n),
     }
-    if tracked is not None:
-        cols |= {"x_trk": tracked[:, :, 0].ravel(), "y_trk": tracked[:, :, 1].ravel(),
-                 "theta_trk": tracked[:, :, 2].ravel(),
-                 "detected": np.asarray(detected, bool).ravel()}
+    if tracking is not None:
+        trk = tracking["tracked"]
+        cols |= {"x_trk": trk[:, :, 0].ravel(), "y_trk": trk[:, :, 1].ravel(),
+                 "theta_trk": trk[:, :, 2].ravel(), "t_trk": tracking["tracked_time"].ravel(),
+                 "detected": np.asarray(tracking["detected"], bool).ravel()}
     return pa.table(cols)
 
 
@@ -44,10 +45,25 @@ def write_poses(path: str | Path, table: pa.Table) -> None:
         pq.write_table(table, tmp, compression="zstd")
 
 
-def read_pose_arrays(path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """Back to (names, times (T,), poses (T, n, 3)) from a `poses.parquet`."""
-    table = pq.read_table(path, columns=["t", "robot", "x", "y", "theta"]).to_pydict()
-    robots = table["robot"]
+def table_arrays(table: pa.Table) -> dict[str, np.ndarray | list[str]]:
+    """Back to arrays from one run's long table: names, t (T,), poses (T, n, 3) and, when
+    tracked, tracked (T, n, 3) and detected (T, n)."""
+    robots = table.column("robot").to_pylist()
     n = robots.index(robots[0], 1) if robots.count(robots[0]) > 1 else len(robots)
-    xyz = np.column_stack([table["x"], table["y"], table["theta"]]).reshape(-1, n, 3)
-    return robots[:n], np.asarray(table["t"][::n]), xyz
+
+    def stack(*cols: str) -> np.ndarray:
+        return np.column_stack([table.column(c).to_numpy() for c in cols]).reshape(-1, n, len(cols))
+
+    out: dict[str, np.ndarray | list[str]] = {
+        "names": robots[:n], "t": table.column("t").to_numpy()[::n],
+        "poses": stack("x", "y", "theta")}
+    if "x_trk" in table.column_names:
+        out["tracked"] = stack("x_trk", "y_trk", "theta_trk")
+        out["detected"] = stack("detected")[..., 0].astype(bool)
+    return out
+
+
+def read_pose_arrays(path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Back to (names, times (T,), poses (T, n, 3)) from a `poses.parquet` of one run."""
+    arrays = table_arrays(pq.read_table(path))
+    return arrays["names"], arrays["t"], arrays["poses"]

@@ -127,9 +127,8 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     timings["run"] = time.perf_counter() - t0
 
     times, poses, waypoints = log.arrays()
-    tracked, detected = log.tracked_arrays()
     write_poses(out / "poses.parquet",
-                poses_table(world.names, times, poses, waypoints, tracked, detected))
+                poses_table(world.names, times, poses, waypoints, log.tracked_arrays()))
     written = {"poses": out / "poses.parquet"}
     if req.video is not None:
         written["video"] = req.video

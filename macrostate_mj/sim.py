@@ -58,7 +58,8 @@ class Periodic:
 @dataclass
 class PoseLog:
     """Poses at log ticks: times (T,), poses (T, n, 3), Head waypoint (T, 2) or NaN, and, with
-    a `tracker` (anything with `latest` (n, 3) and `detected` (n,)), its latest output."""
+    a `tracker` (anything with `latest` (n, 3), `latest_time` (n,) and `detected` (n,)), its
+    latest output."""
 
     names: list[str]
     tracker: object | None = None
@@ -66,6 +67,7 @@ class PoseLog:
     poses: list[np.ndarray] = field(default_factory=list)
     waypoints: list[np.ndarray] = field(default_factory=list)
     tracked: list[np.ndarray] = field(default_factory=list)
+    tracked_time: list[np.ndarray] = field(default_factory=list)
     detected: list[np.ndarray] = field(default_factory=list)
 
     def append(self, sim: ChainSim) -> None:
@@ -75,6 +77,7 @@ class PoseLog:
         self.waypoints.append(np.array(wp, float) if wp is not None else np.full(2, np.nan))
         if self.tracker is not None:
             self.tracked.append(self.tracker.latest.copy())
+            self.tracked_time.append(self.tracker.latest_time.copy())
             self.detected.append(self.tracker.detected.copy())
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -82,12 +85,14 @@ class PoseLog:
         return (np.asarray(self.times), np.asarray(self.poses).reshape(-1, n, 3),
                 np.asarray(self.waypoints).reshape(-1, 2))
 
-    def tracked_arrays(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    def tracked_arrays(self) -> dict[str, np.ndarray] | None:
+        """{"tracked": (T, n, 3), "tracked_time": (T, n), "detected": (T, n)} or None."""
         if self.tracker is None:
-            return None, None
+            return None
         n = len(self.names)
-        return (np.asarray(self.tracked).reshape(-1, n, 3),
-                np.asarray(self.detected).reshape(-1, n))
+        return {"tracked": np.asarray(self.tracked).reshape(-1, n, 3),
+                "tracked_time": np.asarray(self.tracked_time).reshape(-1, n),
+                "detected": np.asarray(self.detected).reshape(-1, n)}
 
 
 class ChainSim:
@@ -103,6 +108,8 @@ class ChainSim:
         self.k_t = self.cfg.k_t if k_t is None else k_t
         self.rng = np.random.default_rng(0)
         self.log_phase = 0.0
+        # Displacement of the Tail's destination (m), set by a data-collection policy (SRS).
+        self.tail_offset = np.zeros(2)
         self.n = len(world.names)
         self._body = np.array([self.model.joint(f"{nm}/root").bodyid[0] for nm in world.names])
 
@@ -111,6 +118,7 @@ class ChainSim:
         """Full reset: a fresh state (warm start included), start poses drawn from `rng`."""
         self.rng = rng
         mujoco.mj_resetData(self.model, self.data)
+        self.tail_offset = np.zeros(2)
         start = place_chain(self.cfg, self.n, rng) if start is None else np.asarray(start)
         for adr, (x, y, th) in zip(self.world.qpos_adr, start, strict=True):
             self.data.qpos[adr:adr + 3] = [x, y, self.model.qpos0[adr + 2]]
@@ -148,6 +156,10 @@ class ChainSim:
         vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
                                wait_slack=cfg.wait_slack)
         vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
+        # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
+        # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
+        gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])
+        vel[-1] += self.k_t * gap * self.tail_offset
         for i in range(self.n):
             if i == 0 and self.planner.twist is not None:
                 v, omega = self.planner.twist

@@ -1,0 +1,218 @@
+"""`macrostate-mj collect`: episodes in parallel (local processes or Ray), shards, datasets.
+
+Each finished episode is stored as `shards/episode_NNNNN.parquet`, written atomically by the
+driver as results arrive; a rerun of the same command after a kill skips the shards present,
+and no partial shard can exist. The datasets are assembled from the shards in episode order,
+so the CSVs are bit-identical whatever the number of workers or the executor.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import socket
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from collectors.episodes import EpisodeSpec, run_episode
+from collectors.policies import PolicyConfig
+from macrostate_mj.errors import UserError
+from macrostate_mj.instances import (
+    INSTANCE_STEPS,
+    cut_instances,
+    instance_starts,
+    split_indices,
+    to_thymioloc_pixels,
+)
+from macrostate_mj.io import prepare_out_dir, write_manifest, write_text_atomic
+from macrostate_mj.poses_io import table_arrays, write_poses
+from macrostate_mj.runs import scenario_for, validate_chain
+from macrostate_mj.thymioloc import write_csv
+
+SPLIT_NAMES = ("Train", "Val", "Test")
+PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.json",
+            *(f"{s}{t}.csv" for s in SPLIT_NAMES for t in ("", "_truth"))]
+
+
+@dataclass(frozen=True)
+class CollectRequest:
+    scenario: str
+    robots: int
+    minutes: float
+    seed: int
+    out: Path
+    policy: str = "passive"
+    sigma: float = 0.75
+    workers: int = 1
+    ray: str | None = None
+    split: str | None = None
+    overwrite: bool = False
+    episode_minutes: float = 5.0
+    warmup: float = 10.0
+    px_per_cm: float = 3.0
+    head_speed: float | None = None
+
+
+def parse_split(text: str | None) -> tuple[float, float, float] | None:
+    if text is None:
+        return None
+    try:
+        parts = tuple(float(p) for p in text.split("/"))
+    except ValueError:
+        parts = ()
+    if len(parts) != 3 or min(parts) < 0 or sum(parts) <= 0:
+        raise UserError(f"--split {text!r} must be three non-negative numbers like 60/10/30")
+    return parts
+
+
+def plan(req: CollectRequest) -> list[EpisodeSpec]:
+    """Validate the request and cut the driving time into equal episodes."""
+    cfg = scenario_for(req.scenario, req.head_speed)
+    validate_chain(cfg, req.robots, req.minutes)
+    if req.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {req.workers}")
+    if req.px_per_cm <= 0:
+        raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
+    n = max(1, math.ceil(req.minutes / req.episode_minutes - 1e-9))
+    seconds = req.minutes * 60 / n
+    if seconds * cfg.log_hz < INSTANCE_STEPS:
+        raise UserError(f"--minutes {req.minutes} is too short for one {INSTANCE_STEPS}-step "
+                        "instance; collect at least 0.25 minutes")
+    policy = PolicyConfig(req.policy, req.sigma)
+    return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
+                        head_speed=req.head_speed) for i in range(n)]
+
+
+def collect(req: CollectRequest, progress: Callable[[int, float], None] | None = None
+            ) -> dict[str, Path]:
+    """Run (or resume) a collection and write its datasets; returns the written paths."""
+    specs = plan(req)
+    fractions = parse_split(req.split)
+    out = prepare_out_dir(req.out, PRODUCTS, req.overwrite)
+    executor = _ray_executor(req.ray) if req.ray else None
+    shards = out / "shards"
+    plan_json = json.dumps([asdict(s) for s in specs], sort_keys=True, default=str)
+    if req.overwrite and shards.exists():
+        shutil.rmtree(shards)
+    if (shards / "plan.json").exists() and (shards / "plan.json").read_text() != plan_json:
+        raise UserError(f"{shards} holds episodes of a different collection; pass --overwrite "
+                        "or choose another --out")
+    shards.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(shards / "plan.json", plan_json)
+
+    t0 = time.perf_counter()
+    todo = [s for s in specs if not _shard(shards, s.index).exists()]
+    done = len(specs) - len(todo)
+    if progress:
+        progress(done, done * specs[0].seconds / 60)
+    episode_stats: dict[int, dict] = {}
+    runner = executor or _local_results
+    for index, table, stats in runner(todo, req.workers):
+        pq.write_table(table, _tmp_shard(shards, index), compression="zstd")
+        _tmp_shard(shards, index).replace(_shard(shards, index))
+        episode_stats[index] = stats
+        done += 1
+        if progress:
+            progress(done, done * specs[0].seconds / 60)
+    t_run = time.perf_counter() - t0
+    written = assemble(req, specs, out, fractions)
+    cfg = scenario_for(req.scenario, req.head_speed)
+    written["manifest"] = write_manifest(
+        out, "collect", {"request": asdict(req), "scenario": asdict(cfg),
+                         "episodes": len(specs), "episode_seconds": specs[0].seconds},
+        req.seed, {"episodes": t_run, "assemble": time.perf_counter() - t0 - t_run},
+        px_per_cm=req.px_per_cm, resumed_episodes=len(specs) - len(todo),
+        episode_stats={str(k): v for k, v in sorted(episode_stats.items())},
+        outputs={k: str(v) for k, v in written.items()})
+    return written
+
+
+def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
+             fractions: tuple[float, ...] | None) -> dict[str, Path]:
+    """Shards -> full log + ThymioLoc instances (tracked and truth) + optional splits."""
+    cfg = scenario_for(req.scenario, req.head_speed)
+    tables, tracked, truth = [], [], []
+    for spec in specs:
+        table = pq.read_table(_shard(out / "shards", spec.index))
+        tables.append(table)
+        arrays = table_arrays(table)
+        first = int(round(spec.warmup * cfg.log_hz))
+        starts = instance_starts(len(arrays["t"]), cfg.log_hz, first=first)
+        tr = cut_instances(arrays["tracked"], starts)
+        gt = cut_instances(arrays["poses"], starts)
+        keep = np.all(np.isfinite(tr), axis=(1, 2, 3))    # a robot never seen yet: skip
+        tracked.append(tr[keep])
+        truth.append(gt[keep])
+    tracked_px = to_thymioloc_pixels(np.concatenate(tracked), cfg.arena, req.px_per_cm)
+    truth_px = to_thymioloc_pixels(np.concatenate(truth), cfg.arena, req.px_per_cm)
+    written = {"poses": out / "poses.parquet",
+               "instances": write_csv(out / "instances.csv", tracked_px),
+               "instances_truth": write_csv(out / "instances_truth.csv", truth_px)}
+    write_poses(written["poses"], pa.concat_tables(tables))
+    if fractions is not None:
+        parts = split_indices(len(tracked_px), fractions, np.random.default_rng([req.seed, 99]))
+        for name, idx in zip(SPLIT_NAMES, parts, strict=True):
+            if len(idx):
+                written[name] = write_csv(out / f"{name}.csv", tracked_px[idx])
+                written[f"{name}_truth"] = write_csv(out / f"{name}_truth.csv", truth_px[idx])
+    return written
+
+
+def _shard(shards: Path, index: int) -> Path:
+    return shards / f"episode_{index:05d}.parquet"
+
+
+def _tmp_shard(shards: Path, index: int) -> Path:
+    return shards / f".episode_{index:05d}.parquet.part"
+
+
+def _local_results(specs: list[EpisodeSpec], workers: int) -> Iterator[tuple]:
+    """In this process for one worker; else a spawn-started process pool (no forked GL)."""
+    if workers == 1 or len(specs) <= 1:
+        for spec in specs:
+            yield run_episode(spec)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+        futures = [pool.submit(run_episode, s) for s in specs]
+        for fut in as_completed(futures):
+            yield fut.result()
+
+
+def _ray_executor(address: str) -> Callable[[list[EpisodeSpec], int], Iterator[tuple]]:
+    """Connect to Ray (`local` starts one in-process, `auto` finds this machine's cluster)."""
+    try:
+        import ray
+    except ImportError:
+        raise UserError("--ray needs Ray: pip install 'macrostate-mj[ray]' (or pip install ray)"
+                        ) from None
+    if address not in ("local", "auto"):
+        host, _, port = address.removeprefix("ray://").rpartition(":")
+        try:
+            socket.create_connection((host or "127.0.0.1", int(port)), timeout=3).close()
+        except (OSError, ValueError):
+            raise UserError(f"cannot reach a Ray cluster at {address}; start one with "
+                            "`ray start --head` or pass --ray local") from None
+    try:
+        ray.init(address=None if address == "local" else address, ignore_reinit_error=True,
+                 log_to_driver=False, include_dashboard=False)
+    except (ConnectionError, RuntimeError) as err:
+        raise UserError(f"cannot connect to Ray at {address}: {err}".splitlines()[0]) from None
+
+    def results(specs: list[EpisodeSpec], workers: int) -> Iterator[tuple]:
+        remote = ray.remote(num_cpus=1)(run_episode)
+        pending = [remote.remote(s) for s in specs]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(ready[0])
+
+    return results
