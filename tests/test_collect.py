@@ -1,0 +1,129 @@
+"""`collect`: instances, ThymioLoc layout, determinism across workers and Ray, kill and resume."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from macrostate_mj.instances import instance_starts, split_indices, to_thymioloc_pixels
+from macrostate_mj.thymioloc import read_csv
+
+TINY = ["--robots", "3", "--minutes", "0.75", "--episode-minutes", "0.25", "--seed", "5"]
+
+
+def cli(*args: str, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "macrostate_mj.cli", *args],
+                          capture_output=True, text=True, timeout=900, **kw)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ref")
+    res = cli("collect", *TINY, "--workers", "1", "--split", "60/10/30", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def test_instances_are_26_steps_at_least_7_s_apart():
+    starts = instance_starts(600, 2.0, first=20)
+    assert starts[0] == 20
+    gaps_s = (np.diff(starts) - 25) / 2.0
+    assert np.all(gaps_s >= 7.0) and np.all(gaps_s < 7.5)
+    assert starts[-1] + 26 <= 600
+    assert len(instance_starts(600, 2.0)) == 15          # 5 min: 31 of them give 465
+
+
+def test_thymioloc_pixel_conventions():
+    arena = (2.5, 1.9)
+    poses = np.array([[-1.25, 0.95, 0.0], [1.25, -0.95, np.pi / 2], [0, 0, -np.pi / 2]])
+    px = to_thymioloc_pixels(poses, arena, 3.0)
+    assert np.allclose(px[0], [0, 0, 0])                 # top-left corner, facing right
+    assert np.allclose(px[1], [750, 570, 90])            # facing world +y = image up: o = 90
+    assert np.allclose(px[2], [375, 285, -90])
+
+
+def test_split_is_a_seeded_partition():
+    parts = split_indices(100, (60, 10, 30), np.random.default_rng(0))
+    assert [len(p) for p in parts] == [60, 10, 30]
+    assert sorted(np.concatenate(parts).tolist()) == list(range(100))
+
+
+def test_collect_writes_thymioloc_truth_splits_and_manifest(reference):
+    tracked = read_csv(reference / "instances.csv")
+    truth = read_csv(reference / "instances_truth.csv")
+    assert tracked.poses.shape == truth.poses.shape == (3, 26, 3, 3)   # one per episode
+    diff = np.abs(tracked.poses[..., :2] - truth.poses[..., :2])
+    assert 0 < np.median(diff) <= 3                      # tracked, not a copy of the truth
+    assert tracked.poses[..., 0].min() >= 0 and tracked.poses[..., 0].max() <= 750
+    sizes = [read_csv(reference / f"{s}.csv").n_instances for s in ("Train", "Test")]
+    assert sum(sizes) + (read_csv(reference / "Val.csv").n_instances
+                         if (reference / "Val.csv").exists() else 0) == 3
+    manifest = json.loads((reference / "manifest.json").read_text())
+    assert manifest["px_per_cm"] == 3.0 and manifest["config"]["episodes"] == 3
+
+
+def test_worker_count_does_not_change_the_csv(reference, tmp_path):
+    res = cli("collect", *TINY, "--workers", "2", "--split", "60/10/30", "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    for name in ("instances.csv", "instances_truth.csv", "Train.csv", "Test.csv"):
+        assert (tmp_path / name).read_bytes() == (reference / name).read_bytes()
+
+
+def test_ray_gives_the_same_csv(reference, tmp_path):
+    pytest.importorskip("ray")
+    res = cli("collect", *TINY, "--ray", "local", "--split", "60/10/30", "--out", str(tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "instances.csv").read_bytes() == (reference / "instances.csv").read_bytes()
+
+
+def test_sigkill_then_same_command_resumes_without_loss(reference, tmp_path):
+    args = [sys.executable, "-m", "macrostate_mj.cli", "collect", *TINY, "--split", "60/10/30",
+            "--out", str(tmp_path)]
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    shard = tmp_path / "shards" / "episode_00000.parquet"
+    deadline = time.time() + 300
+    while not shard.exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert shard.exists() and not (tmp_path / "instances.csv").exists()
+    kept = shard.stat().st_mtime_ns
+    res = cli(*args[3:])
+    assert res.returncode == 0, res.stderr
+    assert shard.stat().st_mtime_ns == kept              # finished work is not redone
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["resumed_episodes"] >= 1
+    for name in ("instances.csv", "instances_truth.csv", "Train.csv"):
+        assert (tmp_path / name).read_bytes() == (reference / name).read_bytes()
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--policy", "wild"], ["wild", "passive"]),
+    (["--split", "60/40"], ["--split"]),
+    (["--minutes", "0"], ["positive"]),
+    (["--minutes", "0.1"], ["too short"]),
+    (["--workers", "0"], ["--workers"]),
+    (["--ray", "127.0.0.1:1"], ["Ray", "127.0.0.1:1"]),
+])
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, words):
+    base = ["--robots", "3", "--minutes", "1"]
+    out = tmp_path / "never"
+    res = cli("collect", "--out", str(out), *base, *args)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in res.stderr
+    assert all(w in lines[0] for w in words), lines[0]
+    assert not out.exists()
+
+
+def test_stats_prints_our_dataset_beside_real_data(reference, reference_data):
+    real = reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
+    res = cli("stats", str(reference / "instances.csv"), str(real))
+    assert res.returncode == 0, res.stderr
+    assert "instances.csv" in res.stdout and "Train.csv" in res.stdout
