@@ -10,6 +10,7 @@ import sys
 import typer
 from typer._click import exceptions as click  # typer 0.29 vendors click; pinned
 
+from macrostate_mj.cli import ants as _ants  # noqa: F401
 from macrostate_mj.cli import bench as _bench  # noqa: F401  (registers commands)
 from macrostate_mj.cli import collect as _collect  # noqa: F401
 from macrostate_mj.cli import colony as _colony  # noqa: F401

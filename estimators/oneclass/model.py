@@ -1,0 +1,201 @@
+"""One fitted pipeline that scores every one-class method it was trained for (higher = unstable).
+
+| method | score |
+|---|---|
+| ofw   | optical-flow weight: mean flow magnitude (px) over pixels and sub-frames; no training |
+| dcae  | reconstruction MSE of the DCAE |
+| ocsvm | −decision of a ν-OC-SVM (RBF) on DCAE codes; ν fixed (never chosen on test data) |
+| dsvdd | ‖φ(x) − c‖² |
+| iogen | Classifier logit on φ(x), trained on real stable (label 1) vs IO-GEN codes (label 0) |
+| gen   | the same with a feature-matching GAN that never sees DSVDD |
+| ngen  | the same with codes drawn from N(0, α), α = global variance of φ(G(z)) of IO-GEN |
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from estimators.oneclass import train as T
+from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
+from macrostate_mj.errors import UserError
+
+METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
+# stages each method needs, in training order
+NEEDS: dict[str, tuple[str, ...]] = {
+    "ofw": (), "dcae": ("dcae",), "ocsvm": ("dcae", "ocsvm"), "dsvdd": ("dcae", "dsvdd"),
+    "iogen": ("dcae", "dsvdd", "iogen", "cls_iogen"), "gen": ("dcae", "dsvdd", "gen", "cls_gen"),
+    "ngen": ("dcae", "dsvdd", "iogen", "cls_ngen")}
+FLOW_PX = 20.0  # ±20 px maps onto [−1, 1]
+
+
+def flow_weight(x: np.ndarray) -> np.ndarray:
+    """Mean flow magnitude (px) per sample of an N × 2m × H × W input in [−1, 1]."""
+    fx, fy = x[:, 0::2] * FLOW_PX, x[:, 1::2] * FLOW_PX
+    return np.sqrt(fx ** 2 + fy ** 2).reshape(len(x), -1).mean(1)
+
+
+@dataclass
+class OCModel:
+    cfg: T.OCConfig
+    methods: tuple[str, ...]
+    channels: int
+    ae: DCAE | None = None
+    dsvdd: Encoder | None = None
+    c: torch.Tensor | None = None
+    generators: dict[str, Generator] = field(default_factory=dict)
+    classifiers: dict[str, Classifier] = field(default_factory=dict)
+    ocsvm: dict[str, torch.Tensor] = field(default_factory=dict)
+    history: dict[str, list[float]] = field(default_factory=dict)
+
+    def score(self, method: str, x: np.ndarray) -> np.ndarray:
+        """Novelty score per sample; larger means more likely unstable."""
+        if method not in self.methods:
+            raise UserError(f"this model was trained for {', '.join(self.methods)}, not {method}; "
+                            f"train it with --method {method}")
+        if x.shape[1] != self.channels:
+            raise UserError(f"model expects m = {self.channels // 2} but got inputs with m = "
+                            f"{x.shape[1] // 2}; use --m {self.channels // 2}")
+        if method == "ofw":
+            return flow_weight(x)
+        xt = torch.from_numpy(np.ascontiguousarray(x)).to(self.cfg.device)
+        with torch.no_grad():
+            if method == "dcae":
+                return T.reconstruction_error(self.ae, xt).cpu().numpy()
+            if method == "ocsvm":
+                return -self._svm_decision(T.encode(self.ae.encoder, xt).cpu())
+            codes = T.encode(self.dsvdd, xt)
+            if method == "dsvdd":
+                return ((codes - self.c) ** 2).sum(1).cpu().numpy()
+            return torch.cat([self.classifiers[method](v) for v in codes.split(512)]).cpu().numpy()
+
+    def _svm_decision(self, codes: torch.Tensor) -> np.ndarray:
+        s = self.ocsvm
+        z = codes.double()
+        k = torch.exp(-s["gamma"] * torch.cdist(z, s["sv"]) ** 2)
+        return (k @ s["dual"] + s["intercept"]).numpy()
+
+    # --- persistence: tensors in weights.pt (loadable with weights_only), the rest in JSON ---
+    def save(self, out: Path) -> None:
+        from macrostate_mj.io import atomic_path, write_json_atomic
+
+        tensors: dict[str, torch.Tensor] = {}
+        for name, mod in self._modules().items():
+            tensors.update({f"{name}.{k}": v.cpu() for k, v in mod.state_dict().items()})
+        if self.c is not None:
+            tensors["c"] = self.c.cpu()
+        tensors.update({f"ocsvm.{k}": v for k, v in self.ocsvm.items()})
+        with atomic_path(out / "weights.pt") as tmp:
+            torch.save(tensors, tmp)
+        write_json_atomic(out / "model.json", {"methods": list(self.methods),
+                                               "channels": self.channels,
+                                               "config": asdict(self.cfg),
+                                               "history": self.history})
+
+    def _modules(self) -> dict[str, torch.nn.Module]:
+        mods: dict[str, torch.nn.Module] = {}
+        if self.ae is not None:
+            mods["ae"] = self.ae
+        if self.dsvdd is not None:
+            mods["dsvdd"] = self.dsvdd
+        mods.update({f"gen_{k}": v for k, v in self.generators.items()})
+        mods.update({f"cls_{k}": v for k, v in self.classifiers.items()})
+        return mods
+
+    @classmethod
+    def load(cls, path: Path) -> OCModel:
+        path = Path(path)
+        try:
+            meta = json.loads((path / "model.json").read_text())
+            tensors = torch.load(path / "weights.pt", weights_only=True)
+        except (OSError, ValueError, RuntimeError) as err:
+            raise UserError(f"{path} is not a trained model folder ({err.__class__.__name__}); "
+                            "train one with `macrostate-mj oc train`") from None
+        ch = int(meta["channels"])
+        cfg = T.OCConfig(**{**meta["config"], "device": "cpu"})
+        model = cls(cfg, tuple(meta["methods"]), ch,
+                    history=meta.get("history", {}))
+        stages = {s for m in model.methods for s in NEEDS[m]}
+        if "dcae" in stages:
+            model.ae = DCAE(ch).to(memory_format=torch.channels_last)
+        if "dsvdd" in stages:
+            model.dsvdd = Encoder(ch).to(memory_format=torch.channels_last)
+            model.c = tensors["c"]
+        for g in ("iogen", "gen"):
+            if g in stages:
+                model.generators[g] = Generator(ch)
+        for m in ("iogen", "gen", "ngen"):
+            if f"cls_{m}" in stages:
+                model.classifiers[m] = Classifier()
+        for name, mod in model._modules().items():
+            mod.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items()
+                                 if k.startswith(name + ".")})
+            mod.eval()
+        model.ocsvm = {k[6:]: v for k, v in tensors.items() if k.startswith("ocsvm.")}
+        return model
+
+
+def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | None = None,
+        ) -> OCModel:
+    """Train every stage `methods` need on stable training inputs x (N × 2m × 64 × 64)."""
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise UserError(f"unknown method {unknown[0]!r}; choose from {', '.join(METHODS)}")
+    tick = tick or (lambda stage, frac: None)
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)  # weight initialisation
+    gen = torch.Generator().manual_seed(cfg.seed)
+    perm = np.random.default_rng(cfg.seed).permutation(len(x))
+    n_val = max(1, round(len(x) * cfg.val_fraction))
+    xall = torch.from_numpy(np.ascontiguousarray(x)).to(cfg.device)
+    xtr, xval = xall[perm[n_val:]], xall[perm[:n_val]]
+    model = OCModel(cfg, tuple(methods), x.shape[1])
+    stages = {s for m in methods for s in NEEDS[m]}
+    if "dcae" in stages:
+        model.ae, model.history["dcae_val"] = T.train_dcae(xtr, xval, cfg, gen, tick)
+    if "ocsvm" in stages:
+        model.ocsvm = fit_ocsvm(T.encode(model.ae.encoder, xall).cpu(), cfg.ocsvm_nu)
+    if "dsvdd" in stages:
+        model.dsvdd, model.c, model.history["dsvdd_val"] = T.train_dsvdd(
+            model.ae, xtr, xval, cfg, gen, tick)
+    for kind in ("iogen", "gen"):
+        if kind in stages:
+            model.generators[kind], log = T.train_generator(
+                model.ae, model.dsvdd, model.c, xtr, cfg, gen, tick, kind)
+            model.history.update({f"{kind}_{k}": v[::10] for k, v in log.items()})
+    if any(s.startswith("cls_") for s in stages):
+        real, real_val = T.encode(model.dsvdd, xtr), T.encode(model.dsvdd, xval)
+        for kind in ("iogen", "gen", "ngen"):
+            if f"cls_{kind}" not in stages:
+                continue
+            fake, fake_val = _synthetic(model, kind, 2 * len(xtr), len(xval), gen)
+            model.classifiers[kind], model.history[f"cls_{kind}_val"] = T.train_classifier(
+                real, real_val, fake, fake_val, model.c, cfg, gen, tick, f"CLS-{kind.upper()}")
+    return model
+
+
+def _synthetic(model: OCModel, kind: str, n: int, n_val: int, gen: torch.Generator,
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Codes of the 'most stable' class: generated (IO-GEN, GEN) or Gaussian noise (N-GEN)."""
+    if kind != "ngen":
+        codes = T.generated_codes(model.generators[kind], model.dsvdd, n + n_val, gen)
+    else:
+        ref = T.generated_codes(model.generators["iogen"], model.dsvdd, 512, gen)
+        codes = ref.var().sqrt() * T.randn((n + n_val, ref.shape[1]), gen, ref)
+    return codes[:n], codes[n:]
+
+
+def fit_ocsvm(codes: torch.Tensor, nu: float) -> dict[str, torch.Tensor]:
+    """ν-OC-SVM (RBF, gamma='scale') on the codes, kept as plain arrays (no pickle to load)."""
+    from sklearn.svm import OneClassSVM
+
+    svm = OneClassSVM(nu=nu, gamma="scale").fit(codes.double().numpy())
+    return {"sv": torch.from_numpy(svm.support_vectors_),
+            "dual": torch.from_numpy(svm.dual_coef_.ravel()),
+            "intercept": torch.tensor(float(svm.intercept_[0]), dtype=torch.float64),
+            "gamma": torch.tensor(float(svm._gamma), dtype=torch.float64)}

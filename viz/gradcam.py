@@ -1,0 +1,125 @@
+"""Grad-CAM (seed §4.6.5) on the DSVDD feature map through the Classifier, and how to show it.
+
+α_k = mean_ij ∂y'/∂F^k_ij (y' = Classifier logit, F = DSVDD feature map), h = ReLU(Σ_k α_k F^k):
+where motion pushes the "unstable" likelihood up. For display (§4.7.4) the position-wise minimum
+over all shown samples is subtracted and only the top 5 % of each frame is coloured.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from macrostate_mj.errors import UserError
+
+Box = tuple[float, float, float, float]  # x, y, w, h in heatmap pixels, (0, 0) = top-left corner
+
+
+def gradcam(dsvdd, classifier, x: np.ndarray, batch: int = 128) -> np.ndarray:
+    """N × 8 × 8 Grad-CAM maps for inputs x (N × 2m × 64 × 64 in [−1, 1])."""
+    import torch
+
+    maps = []
+    for i in range(0, len(x), batch):
+        xb = torch.from_numpy(np.ascontiguousarray(x[i:i + batch]))
+        fmap = dsvdd.feature_map(xb).detach().requires_grad_(True)
+        logit = classifier(fmap.flatten(1))
+        (grad,) = torch.autograd.grad(logit.sum(), fmap)  # samples are independent
+        alpha = grad.mean(dim=(2, 3), keepdim=True)
+        maps.append(torch.relu((alpha * fmap).sum(1)).detach().numpy())
+    return np.concatenate(maps).astype(np.float32)
+
+
+def upsample(maps: np.ndarray, size: int = 64) -> np.ndarray:
+    """Resize N × h × w maps to N × size × size (bilinear), for overlays on the `img` frames."""
+    return np.stack([cv2.resize(m, (size, size), interpolation=cv2.INTER_LINEAR) for m in maps])
+
+
+def top_share(maps: np.ndarray, share: float = 0.05) -> np.ndarray:
+    """§4.7.4 display: subtract the position-wise minimum over samples, keep each map's top share.
+
+    Returns the shifted maps with everything below each map's (1 − share) quantile set to 0.
+    """
+    shifted = maps - maps.min(axis=0, keepdims=True)
+    q = np.quantile(shifted.reshape(len(maps), -1), 1.0 - share, axis=1)
+    keep = (shifted >= q[:, None, None]) & (shifted > 0)
+    return np.where(keep, shifted, 0.0).astype(np.float32)
+
+
+def overlay(img: np.ndarray, heat: np.ndarray, alpha: float = 0.5) -> np.ndarray:
+    """Colour the non-zero part of `heat` (JET, scaled to its max) over an RGB uint8 frame."""
+    peak = float(heat.max())
+    if peak <= 0:
+        return img.copy()
+    colour = cv2.applyColorMap(np.uint8(255 * heat / peak), cv2.COLORMAP_JET)[..., ::-1]
+    mask = (heat > 0)[..., None]
+    blend = (1 - alpha) * img.astype(np.float32) + alpha * colour.astype(np.float32)
+    return np.where(mask, blend, img).astype(np.uint8)
+
+
+def overlay_grid(imgs: np.ndarray, heats: np.ndarray, scale: int = 3) -> np.ndarray:
+    """One RGB image: a row per sample (N × m frames), each frame with its heatmap overlaid."""
+    rows = [np.concatenate([overlay(f, heats[i]) for f in imgs[i]], axis=1)
+            for i in range(len(imgs))]
+    grid = np.concatenate(rows, axis=0)
+    return cv2.resize(grid, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+
+
+def write_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
+    """Atomically write an RGB image as PNG."""
+    from macrostate_mj.io import atomic_path
+
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise UserError(f"could not encode {path}")
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(buf.tobytes())
+
+
+def write_mp4(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: float = 2.0) -> None:
+    """Write RGB frames as an 'mp4v' MP4; the file appears under its name only when complete."""
+    path = Path(path)
+    h, w = frames[0].shape[:2]
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".mp4", dir=path.parent)
+    os.close(fd)
+    try:
+        writer = cv2.VideoWriter(tmp, cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+        if not writer.isOpened():
+            raise UserError(f"OpenCV cannot write MP4 video {path}; write PNGs instead")
+        for f in frames:
+            writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+        writer.release()
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def pointing_game(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]],
+                  tolerance: float = 0.0) -> float:
+    """Share of samples whose heatmap peak lies in one of their ground-truth boxes.
+
+    heatmaps: N × H × W; boxes[i]: (x, y, w, h) boxes in the same pixel frame (pixel (r, c) has
+    its centre at (c + 0.5, r + 0.5)), grown by `tolerance` px on each side. Samples without a
+    box are left out; a map with no positive value points nowhere and counts as a miss.
+    Returns NaN when no sample has a box.
+    """
+    heatmaps = np.asarray(heatmaps)
+    if len(heatmaps) != len(boxes):
+        raise ValueError(f"{len(heatmaps)} heatmaps but {len(boxes)} box lists")
+    hits = total = 0
+    for heat, bxs in zip(heatmaps, boxes, strict=True):
+        if len(bxs) == 0:
+            continue
+        total += 1
+        if not np.any(heat > 0):
+            continue
+        r, c = np.unravel_index(int(np.argmax(heat)), heat.shape)
+        px, py = c + 0.5, r + 0.5
+        hits += any(x - tolerance <= px <= x + w + tolerance and
+                    y - tolerance <= py <= y + h + tolerance for x, y, w, h in bxs)
+    return hits / total if total else float("nan")
