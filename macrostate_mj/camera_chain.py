@@ -41,7 +41,8 @@ class CameraChain:
         camera = PinholeCamera.from_model(sim.model, sim.data)
         self.tracker = Tracker(camera, sim.world.colours, sim.world.marker_height, self._area)
         self.rng = rng
-        self.episode = draw_episode(self.noise, rng)
+        shape = (self.renderer.height, self.renderer.width, 3)
+        self.episode = draw_episode(self.noise, rng, shape)
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
         self.latest[:] = np.nan

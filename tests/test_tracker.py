@@ -92,11 +92,13 @@ def test_partial_occlusion_and_lost_markers():
 def test_imaging_noise_is_seeded_and_drops_frames():
     rgb = np.full((60, 80, 3), 128, np.uint8)
     cfg = NoiseConfig()
-    a = degrade(rgb, draw_episode(cfg, np.random.default_rng(1)), cfg, np.random.default_rng(2))
-    b = degrade(rgb, draw_episode(cfg, np.random.default_rng(1)), cfg, np.random.default_rng(2))
+    a = degrade(rgb, draw_episode(cfg, np.random.default_rng(1), rgb.shape), cfg,
+                np.random.default_rng(2))
+    b = degrade(rgb, draw_episode(cfg, np.random.default_rng(1), rgb.shape), cfg,
+                np.random.default_rng(2))
     assert np.array_equal(a, b) and not np.array_equal(a, rgb)
     dropping = NoiseConfig(drop_prob=1.0)
-    assert degrade(rgb, draw_episode(dropping, np.random.default_rng(1)), dropping,
+    assert degrade(rgb, draw_episode(dropping, np.random.default_rng(1), rgb.shape), dropping,
                    np.random.default_rng(2)) is None
 
 

@@ -13,6 +13,8 @@ from macrostate_mj.cli.app import app
 SUITES: dict[str, str] = {
     "sim": "macrostate_mj.benchmarks:bench_sim",
     "render": "macrostate_mj.benchmarks:bench_render",
+    "tracker": "macrostate_mj.bench_tracking:bench_tracker",
+    "collect": "macrostate_mj.bench_tracking:bench_collect",
     "colony": "macrostate_mj.bench_colony:bench_colony",
     "retlo": "macrostate_mj.bench_retlo:bench_retlo",
 }
