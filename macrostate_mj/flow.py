@@ -142,7 +142,8 @@ def _extract(frames: Iterable[np.ndarray], fps: float, stage: Path, every: float
             if n in idx:
                 open_samples[s][n] = _crop(frame, crop)
             if n == idx[-1]:
-                _write_sample(stage, start_id + s, [open_samples.pop(s)[j] for j in idx], computer)
+                got = open_samples.pop(s)
+                _write_sample(stage, start_id + s, [got[j] for j in idx], computer)
                 written.append(start_id + s)
     if shape is None:
         raise UserError("the video or frame folder holds no frames; check the input")

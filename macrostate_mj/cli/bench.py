@@ -17,6 +17,7 @@ SUITES: dict[str, str] = {
     "collect": "macrostate_mj.bench_tracking:bench_collect",
     "colony": "macrostate_mj.bench_colony:bench_colony",
     "retlo": "macrostate_mj.bench_retlo:bench_retlo",
+    "flow": "macrostate_mj.bench_flow:bench_flow",
 }
 
 

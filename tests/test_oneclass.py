@@ -1,0 +1,150 @@
+"""One-class models: every method trains a few steps and scores; AUC and bins; label switch;
+save/load; determinism; Grad-CAM and the pointing game; CLI train/evaluate and bad input."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from estimators.oneclass import METHODS, OCConfig, OCModel, fit
+from estimators.oneclass.metrics import auc_report, roc_auc
+from estimators.oneclass.train import train_classifier
+from macrostate_mj.errors import UserError
+from viz.gradcam import gradcam, pointing_game, top_share
+
+REPO = Path(__file__).resolve().parents[1]
+TINY = OCConfig(m=1, seed=3, batch=16, dcae_epochs=1, dsvdd_epochs=1, gan_steps=2, gan_batch=4,
+                cls_epochs=1)
+
+
+def _flows(n: int, motion: float, seed: int) -> np.ndarray:
+    """N × 2 × 64 × 64 inputs: noise around `motion` px, scaled like the loader (±20 px = ±1)."""
+    rng = np.random.default_rng(seed)
+    return ((motion + rng.normal(0, 0.3, (n, 2, 64, 64))) / 20).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    x = _flows(40, 0.0, 0)
+    return fit(x, METHODS, TINY), x
+
+
+def test_every_method_trains_and_scores(fitted, tmp_path):
+    model, x = fitted
+    stable, unstable = _flows(12, 0.0, 1), _flows(12, 3.0, 2)
+    for meth in METHODS:
+        s, u = model.score(meth, stable), model.score(meth, unstable)
+        assert s.shape == (12,) and u.shape == (12,) and np.isfinite(np.r_[s, u]).all(), meth
+    assert roc_auc(model.score("ofw", stable), model.score("ofw", unstable)) == 1.0
+    model.save(tmp_path)
+    again = OCModel.load(tmp_path)
+    for meth in METHODS:
+        np.testing.assert_allclose(again.score(meth, unstable), model.score(meth, unstable),
+                                   rtol=1e-5, atol=1e-6)
+    with pytest.raises(UserError, match="m = 1"):
+        model.score("dsvdd", _flows(2, 0.0, 0).repeat(2, axis=1))
+
+
+def test_same_seed_same_model(fitted):
+    model, x = fitted
+    again = fit(x, ("dsvdd",), TINY)
+    probe = _flows(5, 1.0, 9)
+    assert np.array_equal(again.score("dsvdd", probe), model.score("dsvdd", probe))
+
+
+def test_ocsvm_matches_sklearn(fitted):
+    from sklearn.svm import OneClassSVM
+
+    from estimators.oneclass.model import fit_ocsvm
+
+    codes = torch.from_numpy(np.random.default_rng(0).random((60, 16)).astype(np.float32))
+    ours = fit_ocsvm(codes, 0.1)
+    ref = OneClassSVM(nu=0.1, gamma="scale").fit(codes.double().numpy())
+    model, _ = fitted
+    model_svm = OCModel(model.cfg, ("ocsvm",), 2, ocsvm=ours)
+    np.testing.assert_allclose(model_svm._svm_decision(codes[:7]),
+                               ref.decision_function(codes[:7].double().numpy()), rtol=1e-6)
+
+
+def test_auc_and_bins():
+    assert roc_auc([0, 1, 2], [3, 4]) == 1.0 and roc_auc([3, 4], [0, 1, 2]) == 0.0
+    assert roc_auc([1, 1], [1, 1]) == 0.5  # ties count half
+    from sklearn.metrics import roc_auc_score
+
+    rng = np.random.default_rng(0)
+    neg, pos = rng.integers(0, 5, 30), rng.integers(1, 6, 20)
+    assert roc_auc(neg, pos) == pytest.approx(roc_auc_score([0] * 30 + [1] * 20, np.r_[neg, pos]))
+    rep = auc_report(np.zeros(4), np.array([1.0, -1.0, 2.0]), ["D+1", "D+2", "D+1"],
+                     ["D+1", "D+2", "D+3-6"])
+    assert rep["auc_bins"] == {"D+1": 1.0, "D+2": 0.0, "D+3-6": None}
+    assert rep["auc_all"] == pytest.approx(2 / 3) and rep["n_unstable_bins"]["D+1"] == 2
+
+
+def test_label_switch_makes_farther_codes_more_unstable():
+    """Real stable codes (label 1) vs inner outliers near c (label 0): a code farther from c than
+    the real ones must score higher, i.e. the classifier's 'unstable' grows with distance."""
+    g = torch.Generator().manual_seed(0)
+    c = torch.full((2048,), 0.5)
+    real = c + 0.05 * torch.randn(200, 2048, generator=g)
+    fake = c + 0.01 * torch.randn(400, 2048, generator=g)
+    cfg = OCConfig(cls_epochs=6, cls_lr=1e-3)
+    clf, hist = train_classifier(real[:160], real[160:], fake[:300], fake[300:], c, cfg, g,
+                                 lambda s, f: None, "cls")
+    far = c + 0.15 * torch.randn(40, 2048, generator=g)
+    with torch.no_grad():
+        assert clf(fake[300:]).mean() < clf(real[160:]).mean() < clf(far).mean()
+    assert min(hist) < 0.3
+
+
+def test_gradcam_and_pointing_game(fitted):
+    model, _ = fitted
+    x = _flows(3, 2.0, 5)
+    maps = gradcam(model.dsvdd, model.classifiers["iogen"], x)
+    assert maps.shape == (3, 8, 8) and (maps >= 0).all()
+    shown = top_share(np.random.default_rng(0).random((4, 64, 64)))
+    assert ((shown > 0).mean(axis=(1, 2)) <= 0.06).all()
+    heat = np.zeros((3, 64, 64))
+    heat[0, 10, 20] = heat[1, 50, 50] = 1.0  # sample 2: a flat map points nowhere
+    boxes = [[(15, 5, 10, 10)], [(0, 0, 10, 10)], [(0, 0, 64, 64)]]
+    assert pointing_game(heat, boxes) == pytest.approx(1 / 3)
+    assert pointing_game(heat, [[], [(40, 40, 5, 5)], []], tolerance=6) == 1.0
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "macrostate_mj.cli", *args],
+                          capture_output=True, text=True, cwd=REPO)
+
+
+def test_cli_train_evaluate_and_bad_input(tmp_path):
+    from test_antflow import make_layout
+
+    data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000, 3000, 9500))
+    model = tmp_path / "model"
+    run = _cli("oc", "train", "--method", "dsvdd", "--data", str(data), "--split", "2", "--m",
+               "2", "--out", str(model), "--seed", "1", "--epochs", "0.05", "--threads", "1")
+    assert run.returncode == 0, run.stderr
+    assert {"weights.pt", "model.json", "manifest.json"} <= {p.name for p in model.iterdir()}
+    report = tmp_path / "report.json"
+    run = _cli("oc", "evaluate", "--model", str(model), "--data", str(data), "--split", "2",
+               "--out", str(report))
+    assert run.returncode == 0, run.stderr
+    rep = json.loads(report.read_text())
+    assert set(rep["auc_bins"]) == {"D+1", "D+2", "D+3-6", "D+7-10", "D+11-14", "D+15-18"}
+    # n_stable = 20: ids 1333, 2000, 3000, 9500 sit at positions 1313, 1980, 2980, 9480
+    assert rep["n_unstable_bins"]["D+3-6"] == 2 and rep["auc_bins"]["D+1"] is None
+    assert rep["auc_all"] > 0.9  # 4 px of motion against 0: any sane model separates them
+
+    for args, words in ((("oc", "train", "--method", "svm", "--data", str(data), "--out",
+                          str(tmp_path / "m2")), "--method 'svm'"),
+                        (("oc", "evaluate", "--model", str(tmp_path), "--data", str(data),
+                          "--out", str(tmp_path / "r.json")), "not a trained model"),
+                        (("oc", "evaluate", "--model", str(model), "--data", str(data),
+                          "--out", str(report)), "already exists")):
+        run = _cli(*args)
+        assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+        assert run.stderr.strip().count("\n") == 0 and words in run.stderr, run.stderr
+    assert not (tmp_path / "m2").exists() or not any((tmp_path / "m2").iterdir())
