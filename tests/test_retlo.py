@@ -59,7 +59,7 @@ class ConstantVelocity:
     """Extrapolates the Head from the last two history steps: exact for a rigid translating chain
     only if fed-back estimates and frame changes are handled right."""
 
-    history, cos_sin, mark_estimates = 10, False, False
+    history, cos_sin, mark_estimates, rotate = 10, False, False, True
 
     def predict(self, obs, hist):
         pos = 2 * hist[:, -1, 0:2] - hist[:, -2, 0:2]
@@ -83,18 +83,21 @@ def test_heuristic_is_exact_on_a_straight_rigid_chain_of_any_length(n_robots):
     assert sum(v is not None for v in report["per_robot_step_cm"]["H"]) == 26 - 10 - (n_robots - 2)
 
 
+@pytest.mark.parametrize("rotate", [True, False])
 @pytest.mark.parametrize("n_robots", [3, 5, 6])
-def test_fed_back_estimates_and_frames_are_exact_on_a_translating_zigzag(n_robots):
+def test_fed_back_estimates_and_frames_are_exact_on_a_translating_zigzag(n_robots, rotate):
     world = _rigid(n_robots, "zigzag")
     assert evaluate_chain(Heuristic2X(), world)["mean_error_cm"] > 5  # shape matters here
-    est = predict_chain(ConstantVelocity(), world)
+    pred = ConstantVelocity()
+    pred.rotate = rotate
+    est = predict_chain(pred, world)
     seen = ~np.isnan(est[..., 0])
     assert seen.sum() > 0 and np.allclose(est[seen], world[seen], atol=1e-8)
     # truth after τ is never read: scrambling it changes nothing
     scrambled = world.copy()
     scrambled[:, 10:, :-2] += 1000.0  # every robot but the Tail and its neighbour
     scrambled[:, 10:, -2, 2] += 1.0  # the neighbour's heading is not observed either
-    assert np.allclose(predict_chain(ConstantVelocity(), scrambled)[seen], est[seen])
+    assert np.allclose(predict_chain(pred, scrambled)[seen], est[seen])
 
 
 def test_chain_refuses_short_chains_and_short_instances():
@@ -231,3 +234,25 @@ def test_bad_input_exits_2_with_one_line(tmp_path, monkeypatch, capsys, case):
 def test_to_world_matches_synthetic_units():
     world = synthetic_chains(2, 3, seed=0)
     assert np.allclose(to_world(from_world(world, 3.0), 3.0), world)
+
+
+@pytest.mark.parametrize("cos_sin", [False, True])
+def test_mirror_signs_reflect_samples_like_a_reflected_chain(cos_sin):
+    from estimators.retlo.train import make_samples, mirror_signs
+
+    cfg = ModelConfig(cos_sin=cos_sin)
+    world = synthetic_chains(4, 4, seed=5)
+    reflected = world.copy()
+    reflected[..., 1:] *= -1  # y → -y, θ → -θ
+    signs = mirror_signs(cfg)
+    ours, theirs = make_samples([world], cfg), make_samples([reflected], cfg)
+    for key in ours:
+        assert np.allclose(ours[key] * signs[key], theirs[key], atol=1e-4), key
+
+
+def test_heuristic_on_the_real_data_matches_the_dissertation(reference_data):
+    from macrostate_mj.thymioloc import read_csv
+
+    train_csv = reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
+    report = evaluate_chain(Heuristic2X(), to_world(read_csv(train_csv).poses, 3.0))
+    assert 23.0 < report["per_robot_cm"]["H"] < 26.0  # "about 24 cm" (§2.6.3.1, Fig 2.7)

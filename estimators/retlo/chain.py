@@ -54,8 +54,9 @@ def predict_chain(pred: Predictor, world: np.ndarray,
         ref, head = track[:, :, k], track[:, :, k + 2]
         fol = track[:, :, k + 1].copy()  # this module's own estimates of θ_F go in its history
         for t in range(hist, n_steps - 1 - k):
-            obs, x_hist, origin, alpha = module_inputs(ref, fol, head, t, hist, pred.cos_sin,
-                                                       hist if pred.mark_estimates else None)
+            obs, x_hist, origin, alpha = module_inputs(
+                ref, fol, head, t, hist, pred.cos_sin, hist if pred.mark_estimates else None,
+                pred.rotate)
             pos, ang = pred.predict(obs, x_hist)
             if samples is not None:
                 y_pos, y_ang = module_targets(truth[:, :, k + 1], truth[:, :, k + 2], t, origin,

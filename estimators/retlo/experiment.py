@@ -46,7 +46,7 @@ class ExperimentConfig:
     test: list[str] = field(default_factory=list)
     holdout: float = 0.0  # fraction of each training file held out as a test set
     seeds: int = 5
-    epochs: int = 150
+    epochs: int = 60
     px_per_cm: float = 3.0
     video_instances: int = 3
 

@@ -21,10 +21,15 @@ def wrap(a: np.ndarray) -> np.ndarray:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
-def frame_of(ref_xy: np.ndarray, fol_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Origin (B, 2) and x-axis angle α (B,) of the module frame at one time step."""
+def frame_of(ref_xy: np.ndarray, fol_xy: np.ndarray, rotate: bool = True,
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Origin (B, 2) and x-axis angle α (B,) of the module frame at one time step.
+
+    rotate=False keeps compass axes (α = 0), the dissertation's own choice (§2.5.1.1).
+    """
     d = fol_xy - ref_xy
-    return ref_xy, np.arctan2(d[..., 1], d[..., 0])
+    alpha = np.arctan2(d[..., 1], d[..., 0])
+    return ref_xy, alpha if rotate else np.zeros_like(alpha)
 
 
 def to_frame(xy: np.ndarray, origin: np.ndarray, alpha: np.ndarray) -> np.ndarray:
@@ -49,7 +54,7 @@ def angle_features(theta: np.ndarray, cos_sin: bool) -> np.ndarray:
 
 
 def module_inputs(ref: np.ndarray, fol: np.ndarray, head: np.ndarray, t: int, history: int,
-                  cos_sin: bool, first_estimate: int | None = None,
+                  cos_sin: bool, first_estimate: int | None = None, rotate: bool = True,
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Inputs to predict the module's Head at step t, from world tracks (B, S, 3) of its robots.
 
@@ -59,7 +64,7 @@ def module_inputs(ref: np.ndarray, fol: np.ndarray, head: np.ndarray, t: int, hi
     τ (§2.4), and the flag lets the model learn how far to trust its own past output. Also
     returns the frame (origin, α) for decoding.
     """
-    origin, alpha = frame_of(ref[:, t, :2], fol[:, t, :2])
+    origin, alpha = frame_of(ref[:, t, :2], fol[:, t, :2], rotate)
     obs = to_frame(fol[:, t:t + 2, :2], origin, alpha).reshape(len(ref), 4)
     win = slice(t - history, t)
     parts = []

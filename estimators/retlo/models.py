@@ -31,6 +31,7 @@ class ModelConfig:
     bidirectional: bool = True  # §2.6; §3.3 found a unidirectional LSTM as good and faster
     cos_sin: bool = False  # §3.3: angles as (cos, sin) instead of radians
     mark_estimates: bool = True  # flag fed-back history steps (an addition; see frames)
+    rotate: bool = True  # frame axes along Tail→Follower; False: compass axes as in §2.5.1.1
 
     def __post_init__(self) -> None:
         if self.kind not in MODEL_KINDS:
@@ -45,6 +46,7 @@ class Predictor(Protocol):
     history: int
     cos_sin: bool
     mark_estimates: bool
+    rotate: bool
 
     def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
@@ -55,6 +57,7 @@ class Heuristic2X:
     history = 10  # uses no history, but starts predicting where the learned models do
     cos_sin = False
     mark_estimates = False
+    rotate = True
 
     def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return 2.0 * obs[:, :2], np.zeros((len(obs), 3))
@@ -115,6 +118,7 @@ class TorchPredictor:
         self.history = net.cfg.history
         self.cos_sin = net.cfg.cos_sin
         self.mark_estimates = net.cfg.mark_estimates
+        self.rotate = net.cfg.rotate
 
     @torch.no_grad()
     def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -61,10 +61,12 @@ def train_retlo(
     val: Path = typer.Option(..., help="Validation CSV: selects the checkpoint, stops early."),
     out: Path = typer.Option(..., help="Checkpoint to write (.pt)."),
     seed: int = typer.Option(0, help="Seed of every random draw."),
-    epochs: int = typer.Option(150, help="Most epochs; training stops earlier on a plateau."),
-    patience: int = typer.Option(25, help="Epochs without a better validation error to stop."),
+    epochs: int = typer.Option(60, help="Epochs of the cosine schedule; may stop earlier."),
+    patience: int = typer.Option(20, help="Epochs without a better validation error to stop."),
     unidirectional: bool = typer.Option(False, help="§3.3: a unidirectional LSTM."),
     cos_sin: bool = typer.Option(False, "--cos-sin", help="§3.3: angles as cos/sin."),
+    compass_frame: bool = typer.Option(False, help="§2.5.1.1's frame: Tail-centred, compass "
+                                       "axes (default: x axis along Tail→Follower)."),
     px_per_cm: float = typer.Option(3.0, "--px-per-cm", help=PX_HELP),
     overwrite: bool = typer.Option(False, help="Replace an existing checkpoint."),
 ) -> None:
@@ -79,7 +81,8 @@ def train_retlo(
     if epochs < 1 or patience < 1:
         raise UserError("--epochs and --patience must be at least 1")
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, model=ModelConfig(
-        kind=model, bidirectional=not unidirectional, cos_sin=cos_sin))
+        kind=model, bidirectional=not unidirectional, cos_sin=cos_sin,
+        rotate=not compass_frame))
     px = _checked_px(px_per_cm)
     check_writable_file(out, overwrite, "--out")
     worlds = [to_world(read_csv(p).poses, px) for p in train]
@@ -127,7 +130,7 @@ def experiment_retlo(
     holdout: float = typer.Option(0.0, help="Also hold out this fraction of the training "
                                   "instances as a test set (when no test file exists)."),
     seeds: int = typer.Option(5, help="Training seeds per model (0..seeds-1)."),
-    epochs: int = typer.Option(150, help="Most epochs per training."),
+    epochs: int = typer.Option(60, help="Epochs per training (cosine schedule, early stop)."),
     px_per_cm: float = typer.Option(3.0, "--px-per-cm", help=PX_HELP),
     out: Path = typer.Option(..., help="Output folder."),
     overwrite: bool = typer.Option(False, help="Replace existing outputs."),
