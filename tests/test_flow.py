@@ -109,3 +109,21 @@ def test_cli_mixed_frame_sizes_exit_2_one_line_nothing_written(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "Traceback" not in proc.stderr
     assert "mixed sizes" in proc.stderr and "003.png" in proc.stderr
     assert not [p for p in out.rglob("*") if p.is_file()]
+
+
+def test_cli_writes_layout_and_refuses_to_clobber(tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, f in enumerate(_shifting_frames(6, dx=2)):
+        cv2.imwrite(str(folder / f"f{i}.png"), cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+    out = tmp_path / "ds"
+    args = [sys.executable, "-m", "macrostate_mj.cli", "flow", "--frames", str(folder), "--out",
+            str(out), "--fps", "4", "--every", "0.25", "--gap", "0.25", "--m", "1", "--label",
+            "Unstable", "--start-id", "1333", "--crop", "8,8,80,80"]
+    proc = subprocess.run(args, capture_output=True, text=True, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr
+    names = {p.name for p in (out / "Unstable").iterdir()}
+    assert {"flow_x_01333-0.jpg", "flow_y_01337-0.jpg", "img_01337-0.jpg", "manifest.json"} <= names
+    assert "flow_x_01338-0.jpg" not in names  # 6 frames, pairs (0,1)..(4,5): 5 samples
+    again = subprocess.run(args, capture_output=True, text=True, cwd=REPO)
+    assert again.returncode == 2 and "already exists" in again.stderr

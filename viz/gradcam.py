@@ -94,6 +94,9 @@ def write_mp4(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: float 
         for f in frames:
             writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
         writer.release()
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp made it 0600
         os.replace(tmp, path)
     finally:
         Path(tmp).unlink(missing_ok=True)

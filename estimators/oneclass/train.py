@@ -41,7 +41,8 @@ class OCConfig:
     lam: float = 10.0  # weight of the DSVDD term in the IO-GEN loss
     # "mean": ‖mean φ(G(z)) − c‖² as the seed writes it; "sample": mean ‖φ(G(z)) − c‖², every
     # synthetic code pulled inside the sphere (Fig 4.2d). Measured on splits 1-3 (smoke unstable
-    # set, seed 0): IO-GEN AUC .76/.76/.70 with "sample" against .63/.62/.54 with "mean".
+    # set, seed 0, GPU): IO-GEN AUC .76/.76/.70 with "sample" against .63/.62/.54 with "mean"
+    # (a repeat of "sample" gave .66/.74/.73: the GAN stage is the noisy one).
     io_term: str = "sample"
     cls_epochs: int = 30
     cls_lr: float = 1.25e-4
