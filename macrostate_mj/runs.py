@@ -32,6 +32,7 @@ class SimulateRequest:
     video_fps: float = 10.0
     head_speed: float | None = None
     track: bool = False
+    overlays: str = "ids,waypoint,trails"
 
 
 def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
@@ -58,9 +59,20 @@ def imaging_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, 1])
 
 
+def parse_overlays(text: str) -> tuple[str, ...]:
+    from viz.video import OVERLAYS
+
+    names = () if text.strip() == "none" else tuple(n.strip() for n in text.split(",") if n)
+    bad = [n for n in names if n not in OVERLAYS]
+    if bad:
+        raise UserError(f"unknown overlay {bad[0]!r}; choose from {', '.join(OVERLAYS)} or none")
+    return names
+
+
 def check_request(req: SimulateRequest) -> ScenarioConfig:
     """Every check of a simulate request, before anything is built or written."""
     cfg = scenario_for(req.scenario, req.head_speed)
+    parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
     prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
     for path, flag in ((req.video, "--video"), (req.rerun, "--rerun")):
@@ -103,7 +115,8 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     if req.video is not None:
         from viz.video import VideoRecorder
 
-        rec = VideoRecorder(req.video, sim, fps=req.video_fps)
+        rec = VideoRecorder(req.video, sim, fps=req.video_fps,
+                            overlays=parse_overlays(req.overlays))
         recorders.append(rec)
         hooks.append(Periodic(1 / req.video_fps, rec.capture))
     if req.rerun is not None:

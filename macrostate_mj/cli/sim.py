@@ -19,6 +19,8 @@ def simulate(
     out: Path = typer.Option(..., help="Output folder (poses.parquet, manifest.json)."),
     video: Path = typer.Option(None, help="Also render the overhead camera to this MP4."),
     rerun: Path = typer.Option(None, help="Also log the run to this rerun .rrd file."),
+    overlays: str = typer.Option("ids,waypoint,trails", help="Video overlays, comma-separated "
+                                 "from ids, waypoint, trails; 'none' for the bare camera."),
     head_speed: float = typer.Option(None, help="Override the scenario's Head speed (m/s)."),
     track: bool = typer.Option(False, help="Film with the overhead camera and track the "
                                "markers at the command rate: adds x_trk, y_trk, theta_trk, "
@@ -29,7 +31,7 @@ def simulate(
     from macrostate_mj.runs import SimulateRequest, check_request, simulate_run
 
     req = SimulateRequest(scenario, robots, seconds, seed, out, video, rerun, overwrite,
-                          head_speed=head_speed, track=track)
+                          head_speed=head_speed, track=track, overlays=overlays)
     check_request(req)
     with sim_progress(seconds, "simulating") as advance:
         written = simulate_run(req, advance)
