@@ -1,0 +1,7 @@
+"""ReTLo (remote teammate localization, dissertation ch. 2-3): a 3-robot module, applied along
+chains of any length.
+
+`frames` (the reference-robot frame and module inputs), `models` (2X heuristic, FC, LSTM),
+`chain` (modular inference and its errors), `train` (training, checkpoints), `experiment`
+(Fig 2.7-2.9), `synthetic` (chains with a known law for tests and benchmarks).
+"""
