@@ -15,6 +15,7 @@ from macrostate_mj.cli import bench as _bench  # noqa: F401  (registers commands
 from macrostate_mj.cli import collect as _collect  # noqa: F401
 from macrostate_mj.cli import colony as _colony  # noqa: F401
 from macrostate_mj.cli import retlo as _retlo  # noqa: F401
+from macrostate_mj.cli import retlo_sim as _retlo_sim  # noqa: F401
 from macrostate_mj.cli import sim as _sim  # noqa: F401
 from macrostate_mj.cli.app import app
 from macrostate_mj.errors import UserError

@@ -1,0 +1,93 @@
+"""Modular estimation along a chain (§2.5.1.2) and its errors (§2.5.3), pure numpy.
+
+Robots are indexed from the Tail here (0 = Tail, 1 = Follower 1, which the Tail senses, ...,
+N-1 = Head); pose logs list them from the Head. Module k takes robot k as its (fictitious)
+Tail, robot k+1 as its Follower and estimates robot k+2's position at t and robot k+1's heading
+at t+1. Robot k+1's position at t+1 comes from module k-1 one step later, so a far robot's
+estimate lags by one step per robot (the linear delay of §2.5.1.2); offline, the modules simply
+run in order over the whole run, module k stopping k steps before the end.
+
+What the Tail knows: its own position and Follower 1's position at every step, and every
+robot's true pose at step 0 (τ) and, with intermittent communication (§2.5.3.2), at every
+`comm_every`-th step. Nothing else from the truth enters the loop.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from estimators.retlo_sim.frames import decode, module_base
+
+Predict = Callable[[np.ndarray], np.ndarray]   # base (B, 5) → (B, 3): x_H, y_H, θ_F@t+1
+
+
+def sync_steps(steps: int, comm_every: int | None) -> np.ndarray:
+    """Steps at which the Tail holds every true pose: τ = 0, then every `comm_every` steps."""
+    return np.arange(0, steps, comm_every) if comm_every else np.array([0])
+
+
+def estimate_chain(predict: Predict, sensed: np.ndarray, synced: np.ndarray,
+                   sync: np.ndarray) -> np.ndarray:
+    """Estimated positions (S, N, 2), Tail first, NaN where nothing is estimated.
+
+    sensed (S, 2, 2): the Tail's own and Follower 1's positions at every step, as sensed.
+    synced (len(sync), N, 3): every pose (Tail first) received at the `sync` steps.
+    """
+    steps, n = len(sensed), synced.shape[1]
+    pos = np.full((steps, n, 2), np.nan)
+    theta = np.full((steps, n), np.nan)
+    pos[:, :2] = sensed
+    pos[sync, 2:] = synced[:, 2:, :2]
+    theta[sync] = synced[:, :, 2]
+    is_sync = np.zeros(steps + 1, bool)
+    is_sync[sync] = True
+    for k in range(n - 2):
+        for t in range(steps - 1 - k):
+            fol = np.append(pos[t, k + 1], theta[t, k + 1])[None]
+            base, origin, alpha = module_base(pos[t, k][None], fol, pos[t + 1, k + 1][None])
+            head_xy, fol_theta = decode(predict(base), origin, alpha)
+            if not is_sync[t]:
+                pos[t, k + 2] = head_xy[0]
+            if not is_sync[t + 1]:
+                theta[t + 1, k + 1] = fol_theta[0]
+    return pos
+
+
+def estimate_heuristic(sensed: np.ndarray, synced: np.ndarray, sync: np.ndarray) -> np.ndarray:
+    """The 2X heuristic applied modularly (robot k+2 ≈ robot k + 2 (robot k+1 − robot k)),
+    with the knowledge of `estimate_chain` (memoryless between syncs): a reference for how much
+    the networks add."""
+    steps, n = len(sensed), synced.shape[1]
+    pos = np.full((steps, n, 2), np.nan)
+    pos[:, :2] = sensed
+    for k in range(n - 2):
+        pos[:, k + 2] = 2 * pos[:, k + 1] - pos[:, k]
+        pos[sync, k + 2] = synced[:, k + 2, :2]
+    return pos
+
+
+def chain_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Euclidean error (S, N-2) of every robot the Tail cannot see (robots 2.., Tail first),
+    NaN at τ and where no estimate exists (the last steps of far robots)."""
+    err = np.linalg.norm(est[:, 2:] - truth[:, 2:, :2], axis=-1)
+    err[0] = np.nan
+    return err
+
+
+def summarize(err: np.ndarray, names: list[str], threshold: float) -> dict:
+    """Per robot and overall: mean error and the share of steps under `threshold`."""
+    def stats(e: np.ndarray) -> dict:
+        e = e[np.isfinite(e)]
+        return {"mean_error": float(e.mean()), "max_error": float(e.max()),
+                "share_under": float((e < threshold).mean()), "steps": int(e.size)}
+
+    return {"per_robot": {nm: stats(err[:, j]) for j, nm in enumerate(names)},
+            "all": stats(err.ravel())}
+
+
+def unseen_names(n: int) -> list[str]:
+    """Names of robots 2.. (Tail first): Followers counted from the Tail as in §2.5.3
+    (Follower 1 is the Tail's neighbour), then the Head."""
+    return [*(f"F{j}" for j in range(2, n - 1)), "H"]
