@@ -18,6 +18,7 @@ from estimators.retlo_sim.estimate import (
     chain_errors,
     estimate_chain,
     estimate_heuristic,
+    one_step_errors,
     sync_steps,
 )
 from estimators.retlo_sim.frames import frame_of, from_frame, to_frame, training_pairs
@@ -93,6 +94,7 @@ def test_modular_estimation_is_exact_with_the_known_module(n):
     assert np.isfinite(err[1:40 - (n - 2), -1]).all() and np.isnan(err[40 - (n - 2):, -1]).all()
     h_err = chain_errors(estimate_heuristic(sensed, synced, sync), truth)
     assert np.nanmax(h_err) < 1e-12
+    assert one_step_errors(_exact_straight, truth).max() < 1e-12
 
 
 def _rigid_training(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -149,7 +151,9 @@ def test_experiment_end_to_end_is_deterministic(tmp_path, monkeypatch, capsys):
     assert manifest["seed"] == 5 and manifest["config"]["epochs"] == 1
     code, _, err = _cli(monkeypatch, capsys, *args, "--out", str(tmp_path / "b"))
     assert code == 0, err
-    for name in ["results.json", "case_c.png", "trajectories.png"]:
+    per_step = json.loads((tmp_path / "a" / "per_step_errors.json").read_text())
+    assert len(per_step["c"]["H"]) == 40 and per_step["c"]["H"][0] is None
+    for name in ["results.json", "per_step_errors.json", "case_c.png", "trajectories.png"]:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
 
 

@@ -68,6 +68,14 @@ def estimate_heuristic(sensed: np.ndarray, synced: np.ndarray, sync: np.ndarray)
     return pos
 
 
+def one_step_errors(predict: Predict, truth: np.ndarray) -> np.ndarray:
+    """Error (S - 1,) of robot 2 when module 0 gets true inputs at every step (true θ_F, no
+    recursion): separates what the networks get wrong from what the recursion accumulates."""
+    base, origin, alpha = module_base(truth[:-1, 0, :2], truth[:-1, 1], truth[1:, 1, :2])
+    head_xy, _ = decode(predict(base), origin, alpha)
+    return np.linalg.norm(head_xy - truth[:-1, 2, :2], axis=-1)
+
+
 def chain_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """Euclidean error (S, N-2) of every robot the Tail cannot see (robots 2.., Tail first),
     NaN at τ and where no estimate exists (the last steps of far robots)."""

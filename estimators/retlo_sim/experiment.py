@@ -3,7 +3,9 @@
 Pipeline: 20 clean 3-robot treatments (5 Head presets × 4 k_t) → 5 noisy replicas → the three
 chained networks → the six cases of Fig 2.2 (straight with 6 robots, a curve with 5 and 6, the
 6-robot curve with true poses every 150 steps, and the 5-robot curve and the communicating case
-with noisy inputs), estimated modularly. results.json holds only deterministic numbers
+with noisy inputs), estimated modularly. F2_one_step_mean_error is module 0 fed true inputs
+(no recursion), to tell network error from accumulated error. per_step_errors.json holds every
+case's error per robot and step. Both hold only deterministic numbers
 (timings go to the manifest), so the same command gives the same file.
 """
 
@@ -27,6 +29,7 @@ from estimators.retlo_sim.estimate import (
     chain_errors,
     estimate_chain,
     estimate_heuristic,
+    one_step_errors,
     summarize,
     sync_steps,
     unseen_names,
@@ -38,7 +41,7 @@ from macrostate_mj.io import write_json_atomic, write_manifest
 from macrostate_mj.scenarios import ROBOTARIUM_HEAD_PRESETS, get_scenario
 
 THRESHOLD = 0.03   # the robot diameter: estimates closer than this are accurate (§2.5.3)
-PRODUCTS = ["results.json", "manifest.json", "trajectories.png",
+PRODUCTS = ["results.json", "per_step_errors.json", "manifest.json", "trajectories.png",
             *(f"case_{c.key}.png" for c in CASES)]
 Progress = Callable[[str, int, int], None]     # (stage, done, total)
 
@@ -105,6 +108,7 @@ def run_experiment(cfg: SimExperimentConfig, out: Path, progress: Progress | Non
                                            np.sqrt(mse(model, clean_base, clean_targets)).tolist(),
                                            strict=True))},
         "cases": {}}
+    per_step: dict = {}
     paths: dict[tuple[int, str], tuple[np.ndarray, str]] = {}
     needed = sorted({(c.n_robots, c.path) for c in CASES})
     for i, (n, path) in enumerate(needed):
@@ -127,8 +131,9 @@ def run_experiment(cfg: SimExperimentConfig, out: Path, progress: Progress | Non
             "head_schedule": [list(s) for s in schedule(case.path, cfg.test_steps)],
             "comm_every": cfg.comm_every if case.comm else None, "noisy": case.noisy,
             **summary, "heuristic2x": summarize(h_err, names, THRESHOLD),
-            "per_step_error": {nm: [None if not np.isfinite(e) else round(float(e), 6)
-                                    for e in err[:, j]] for j, nm in enumerate(names)}}
+            "F2_one_step_mean_error": float(one_step_errors(model.predict, truth).mean())}
+        per_step[case.key] = {nm: [None if not np.isfinite(e) else round(float(e), 6)
+                                   for e in err[:, j]] for j, nm in enumerate(names)}
         plot_case(err, names, sync[1:], THRESHOLD, f"({case.key}) {title}",
                   out / f"case_{case.key}.png")
         per = ", ".join(f"{nm} {v['mean_error']:.4f}/{100 * v['share_under']:.0f}%"
@@ -140,6 +145,7 @@ def run_experiment(cfg: SimExperimentConfig, out: Path, progress: Progress | Non
                       out / "trajectories.png")
     timings["estimate"] = time.perf_counter() - tick
     write_json_atomic(out / "results.json", results)
+    write_json_atomic(out / "per_step_errors.json", per_step)
     write_manifest(out, "experiment retlo-sim", cfg, cfg.seed, timings,
                    products=PRODUCTS, floors={f"{n}-{p}": paths[(n, p)][1] for n, p in needed})
     lines.append(f"mean error / share of steps under {THRESHOLD} m; results in {out}")
