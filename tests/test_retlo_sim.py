@@ -157,7 +157,8 @@ def test_experiment_end_to_end_is_deterministic(tmp_path, monkeypatch, capsys):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
 
 
-@pytest.mark.parametrize("bad", [["--epochs", "0"], ["--test-steps", "5"], ["--existing"]])
+@pytest.mark.parametrize("bad", [["--epochs", "0"], ["--test-steps", "5"], ["--existing"],
+                                 ["--train-steps", "2000"]])
 def test_bad_input_exits_2_with_one_line(tmp_path, monkeypatch, capsys, bad):
     if bad == ["--existing"]:
         (tmp_path / "results.json").write_text("{}")

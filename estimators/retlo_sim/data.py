@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from macrostate_mj.errors import UserError
 from macrostate_mj.scenarios import ROBOTARIUM_HEAD_PRESETS, ScenarioConfig
 from macrostate_mj.sim import ChainSim, Periodic, PoseLog
 from macrostate_mj.world import World, build_world
@@ -145,8 +146,8 @@ def training_runs(cfg: ScenarioConfig, steps: int, k_t_factors: tuple[float, ...
         sched = ((0, tr.preset),)
         start, room = fit_start(cfg, 3, twists_of(sched, steps))
         if room < 0:
-            raise RuntimeError(f"a {steps}-step run of preset {tr.preset} does not fit the "
-                               "arena; use fewer steps")
+            raise UserError(f"a {steps}-step run of Head preset {tr.preset} does not fit the "
+                            f"{cfg.name} arena; use fewer --train-steps")
         runs.append(run_chain(world, start, steps, tr.k_t, sched))
         if progress:
             progress(i + 1, len(todo))
