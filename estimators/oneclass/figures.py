@@ -83,7 +83,7 @@ def model_figures(path49: Path, path410: Path, model: OCModel, x: np.ndarray, xs
     dist = {k: ((v - model.c) ** 2).sum(1).sqrt().numpy() for k, v in codes.items()}
     scale = float(dist["stable test"].max())
     like = {k: torch.sigmoid(model.classifiers["iogen"](v)).numpy() for k, v in codes.items()}
-    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.5))
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.5), constrained_layout=True)
     a.boxplot([d / scale for d in dist.values()], tick_labels=list(dist))
     a.set(ylabel="distance to c (÷ max stable)")
     b.boxplot(list(like.values()), tick_labels=list(like))
