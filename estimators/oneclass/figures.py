@@ -109,9 +109,30 @@ def gradcam_outputs(folder: Path, model: OCModel, d: AntFlowData, xu: np.ndarray
                                                for f in frames], fps=2.0)
     with atomic_path(folder / "heatmaps.npy") as tmp, open(tmp, "wb") as fh:
         np.save(fh, maps)
-    return {"samples": [int(d.unstable_ids[i]) for i in order],
-            "peak_rc": [list(map(int, np.unravel_index(np.argmax(maps[i]), maps[i].shape)))
-                        for i in order]}
+    out = {"samples": [int(d.unstable_ids[i]) for i in order],
+           "peak_rc": [list(map(int, np.unravel_index(np.argmax(maps[i]), maps[i].shape)))
+                       for i in order]}
+    boxes = read_boxes(d.root / "boxes.csv")
+    if boxes is not None:   # a simulated colony: score Grad-CAM where the seed judged by eye
+        per_sample = [boxes.get(i, []) for i in d.unstable_ids]
+        motion = np.abs(xu).sum(axis=1)          # baseline: point at the strongest flow
+        out["pointing_game"] = {
+            "gradcam": gc.pointing_game(maps, per_sample),
+            "flow_magnitude_baseline": gc.pointing_game(motion, per_sample),
+            "samples_with_boxes": sum(1 for b in per_sample if b)}
+    return out
+
+
+def read_boxes(path: Path) -> dict[int, list[tuple[float, float, float, float]]] | None:
+    """`boxes.csv` of a simulated colony (sample_id, k, x, y, w, h in 64 x 64 sample pixels)
+    -> boxes per sample over all its sub-frames; None for data without ground truth (real)."""
+    if not path.exists():
+        return None
+    rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    boxes: dict[int, list[tuple[float, float, float, float]]] = {}
+    for sid, _k, x, y, w, h in rows:
+        boxes.setdefault(int(sid), []).append((x, y, w, h))
+    return boxes
 
 
 def write_tables(path: Path, t41: dict, t42: dict, f48: dict, n_unstable: int) -> None:

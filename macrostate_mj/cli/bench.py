@@ -18,6 +18,7 @@ SUITES: dict[str, str] = {
     "colony": "macrostate_mj.bench_colony:bench_colony",
     "retlo": "macrostate_mj.bench_retlo:bench_retlo",
     "flow": "macrostate_mj.bench_flow:bench_flow",
+    "iogen": "macrostate_mj.bench_flow:bench_iogen",
 }
 
 
