@@ -107,7 +107,7 @@ def test_chain_refuses_short_chains_and_short_instances():
         predict_chain(Heuristic2X(), _rigid(3, "straight", n_steps=11))
 
 
-def _fit(kind: str, seed: int = 0, epochs: int = 4):
+def _fit(kind: str, seed: int = 0, epochs: int = 10):
     cfg = TrainConfig(epochs=epochs, patience=10, seed=seed, batch=64, lr=3e-3,
                       model=ModelConfig(kind=kind, **TINY))
     return train([synthetic_chains(40, 3, seed=1)], synthetic_chains(12, 3, seed=2), cfg,
@@ -170,28 +170,31 @@ def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, monkeypatch, 
         assert len(report["per_step_cm"]) == 16
 
 
-def test_experiment_writes_figures_video_and_results(tmp_path, monkeypatch, capsys):
+def test_experiment_writes_figures_video_and_results_identically(tmp_path, monkeypatch, capsys):
     import cv2
 
     train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(24, 3, 1), 3.0))
     val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(6, 3, 2), 3.0))
     five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(4, 5, 3), 3.0))
-    out = tmp_path / "exp"
-    code, stdout, err = _cli(monkeypatch, capsys, "experiment", "retlo", "--train",
-                             str(train_csv), "--val", str(val_csv), "--test", str(five),
-                             "--holdout", "0.25", "--seeds", "2", "--epochs", "1",
-                             "--out", str(out))
-    assert code == 0, err
+    for out in (tmp_path / "exp", tmp_path / "again"):
+        code, stdout, err = _cli(monkeypatch, capsys, "experiment", "retlo", "--train",
+                                 str(train_csv), "--val", str(val_csv), "--test", str(five),
+                                 "--holdout", "0.25", "--seeds", "2", "--epochs", "1",
+                                 "--out", str(out))
+        assert code == 0, err
     results = json.loads((out / "results.json").read_text())
     assert [t["n_robots"] for t in results["tests"]] == [3, 5]
     lstm = results["results"]["five.csv"]["lstm"]
     assert len(lstm["per_seed_cm"]) == 2 and set(lstm["per_robot_cm"]) == {"F2", "F3", "H"}
-    for name in ("fig2_7.png", "fig2_8.png", "manifest.json", "models/lstm_seed1.pt"):
+    for name in ("results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4",
+                 "models/lstm_seed1.pt"):
         assert (out / name).stat().st_size > 0
+        assert (out / name).read_bytes() == (tmp_path / "exp" / name).read_bytes(), name
+    assert (out / "manifest.json").is_file()
     video = cv2.VideoCapture(str(out / "fig2_9.mp4"))
     assert int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 3 * 26
     video.release()
-    assert "LSTM" in stdout and "% below FC" in stdout
+    assert "lstm" in stdout and "% below FC" in stdout
 
 
 def _bad_checkpoint(tmp_path):

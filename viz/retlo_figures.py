@@ -30,7 +30,7 @@ def plot_overall(results: dict, path: str | os.PathLike) -> None:
     import matplotlib.pyplot as plt
 
     tests = results["tests"]
-    fig, ax = plt.subplots(figsize=(1.2 + 2.4 * len(tests), 3.6))
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.2 + 2.4 * len(tests)), 3.6))
     width = 0.8 / len(MODEL_STYLE)
     for i, (model, (label, colour)) in enumerate(MODEL_STYLE.items()):
         means = [results["results"][t["name"]][model]["mean_error_cm"]["mean"] for t in tests]
