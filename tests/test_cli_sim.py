@@ -1,32 +1,18 @@
 """`simulate`, `export-mjcf` and `bench` from the command line, as a user runs them."""
 
 import json
-import subprocess
-import sys
 
 import cv2
 import mujoco
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from clitools import assert_clean_error, cli
 
 from macrostate_mj.camera import OverheadRenderer, PinholeCamera
 from macrostate_mj.scenarios import get_scenario
 from macrostate_mj.sim import ChainSim
 from macrostate_mj.world import build_world
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "macrostate_mj.cli", *args],
-                          capture_output=True, text=True, timeout=600)
-
-
-def assert_clean_error(res: subprocess.CompletedProcess, *words: str) -> None:
-    assert res.returncode == 2, res.stderr
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
-    for w in words:
-        assert w in lines[0]
 
 
 def test_simulate_writes_long_format_poses_and_manifest(tmp_path):

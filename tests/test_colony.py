@@ -2,11 +2,11 @@
 
 import csv
 import json
-import sys
 
 import cv2
 import numpy as np
 import pytest
+from clitools import cli_inprocess
 
 import macrostate_mj  # noqa: F401  (sets MUJOCO_GL before mujoco loads)
 from macrostate_mj.colony import (
@@ -109,13 +109,7 @@ def test_same_seed_same_trajectory_other_seed_differs():
 
 
 def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    from macrostate_mj.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["macrostate-mj", "ants", "simulate", *args])
-    with pytest.raises(SystemExit) as exc:
-        main()
-    out, err = capsys.readouterr()
-    return int(exc.value.code or 0), out, err
+    return cli_inprocess(monkeypatch, capsys, "ants", "simulate", *args)
 
 
 SMALL = ["--ants", "12", "--days", "D-1,D+1", "--seconds-per-day", "3", "--size", "64",

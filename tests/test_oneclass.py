@@ -2,13 +2,12 @@
 save/load; determinism; Grad-CAM and the pointing game; CLI train/evaluate and bad input."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from clitools import cli as _cli
 
 from estimators.oneclass import METHODS, OCConfig, OCModel, fit
 from estimators.oneclass.metrics import auc_report, roc_auc
@@ -112,11 +111,6 @@ def test_gradcam_and_pointing_game(fitted):
     boxes = [[(15, 5, 10, 10)], [(0, 0, 10, 10)], [(0, 0, 64, 64)]]
     assert pointing_game(heat, boxes) == pytest.approx(1 / 3)
     assert pointing_game(heat, [[], [(40, 40, 5, 5)], []], tolerance=6) == 1.0
-
-
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "macrostate_mj.cli", *args],
-                          capture_output=True, text=True, cwd=REPO)
 
 
 def test_cli_train_evaluate_and_bad_input(tmp_path):

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 import pytest
 import torch
+from clitools import cli_inprocess as _cli
 
 from estimators.retlo.chain import evaluate_chain, predict_chain
 from estimators.retlo.frames import from_frame, to_frame
@@ -24,19 +24,6 @@ from macrostate_mj.errors import UserError
 from macrostate_mj.thymioloc import from_world, to_world, write_csv
 
 TINY = dict(k=16, m=16, d=16)
-
-
-def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    from macrostate_mj.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["macrostate-mj", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _rigid(n_robots: int, shape: str, n_inst: int = 2, n_steps: int = 26) -> np.ndarray:

@@ -1,10 +1,10 @@
 """`experiment retlo-sim` (§2.5): data generation, the chained MLPs, modular estimation, CLI."""
 
 import json
-import sys
 
 import numpy as np
 import pytest
+from clitools import cli_inprocess as _cli
 
 from estimators.retlo_sim.cases import tail_view
 from estimators.retlo_sim.data import (
@@ -35,19 +35,6 @@ def rigid_straight(n: int, steps: int, heading: float, spacing: float,
     u = np.array([np.cos(heading), np.sin(heading)])
     xy = (np.arange(steps)[:, None, None] * speed - np.arange(n)[None, :, None] * spacing) * u
     return np.concatenate([xy, np.full((steps, n, 1), heading)], axis=-1)
-
-
-def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    from macrostate_mj.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["macrostate-mj", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_training_data_shapes_and_determinism():

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
+from clitools import cli_inprocess as _cli
 
 from macrostate_mj.errors import UserError
 from macrostate_mj.thymioloc import (
@@ -19,19 +18,6 @@ from macrostate_mj.thymioloc import (
 )
 
 REAL = ["Train.csv", "Val.csv"]
-
-
-def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    from macrostate_mj.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["macrostate-mj", *args])
-    try:
-        main()
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.mark.parametrize("name", REAL)
