@@ -29,8 +29,9 @@ def stats(
     found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
     table = Table(title=f"ThymioLoc statistics ({px_per_cm:g} px/cm, 2 Hz)")
     table.add_column("")
-    for path, _ in found:
-        table.add_column(path.name if len({p.name for p, _ in found}) == len(found) else str(path),
+    unique = len({p.name for p, _ in found}) == len(found)
+    for path, _ in found:       # the shortest label that tells the files apart
+        table.add_column(path.name if unique else f"{path.parent.name}/{path.name}",
                          justify="right")
     table.add_row("instances x steps", *(f"{s.n_instances} x {s.n_steps}" for _, s in found))
     table.add_row("robots", *(str(len(s.robots)) for _, s in found))
