@@ -47,7 +47,7 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table, dict]:
     world = build_world(cfg, spec.robots)
     sim = ChainSim(world)
     sim.reset(spec.rng(0))
-    chain = CameraChain(sim, spec.noise)
+    chain = CameraChain(sim, spec.noise, pipelined=True)
     try:
         chain.start(spec.rng(1))
         log = PoseLog(world.names, tracker=chain)

@@ -8,6 +8,8 @@ tracked pose (NaN before its first detection) with `detected` False.
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
+
 import mujoco
 import numpy as np
 
@@ -18,10 +20,18 @@ from macrostate_mj.tracker import Tracker, marker_area
 
 
 class CameraChain:
-    """Owns a renderer; `start(sim, rng)` once per episode, then `capture` as a hook."""
+    """Owns a renderer; `start(sim, rng)` once per episode, then `capture` as a hook.
 
-    def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None):
+    With `pipelined`, the imaging chain and the tracker of one frame run on a helper thread
+    (OpenCV releases the GIL) while the physics moves on; `sync()` waits for them, and readers
+    of `latest` must call it first. Frames are still processed in order, with the same draws,
+    so the results are identical either way.
+    """
+
+    def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None, pipelined: bool = False):
         self.sim = sim
+        self._pool = ThreadPoolExecutor(1) if pipelined else None
+        self._pending: Future | None = None
         self.noise = noise or NoiseConfig()
         self.renderer = OverheadRenderer(sim.model)
         self.conditions = SceneConditions(sim.model)
@@ -35,6 +45,7 @@ class CameraChain:
 
     def start(self, rng: np.random.Generator) -> None:
         """Calibrate on the nominal camera, then draw this episode's conditions."""
+        self.sync()
         sim = self.sim
         self.conditions.restore()
         mujoco.mj_forward(sim.model, sim.data)
@@ -50,17 +61,34 @@ class CameraChain:
         self.detected[:] = False
 
     def capture(self, sim: ChainSim) -> None:
+        rgb = self.renderer.render(sim.data)         # GL work stays on this thread
+        if self._pool is None:
+            self._process(rgb, sim.time)
+            return
+        self.sync()
+        self._pending = self._pool.submit(self._process, rgb, sim.time)
+
+    def sync(self) -> None:
+        """Wait for the frame in flight (pipelined mode); a no-op otherwise."""
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            pending.result()
+
+    def _process(self, rgb: np.ndarray, t: float) -> None:
         self.frames += 1
-        frame = degrade(self.renderer.render(sim.data), self.episode, self.noise, self.rng)
+        frame = degrade(rgb, self.episode, self.noise, self.rng)
         if frame is None:
             self.dropped += 1
             self.detected[:] = False
             return
         det = self.tracker.track(frame)
         self.latest[det.detected] = det.poses[det.detected]
-        self.latest_time[det.detected] = sim.time
+        self.latest_time[det.detected] = t
         self.detected[:] = det.detected
 
     def close(self) -> None:
+        self.sync()
+        if self._pool is not None:
+            self._pool.shutdown()
         self.conditions.restore()
         self.renderer.close()

@@ -116,3 +116,25 @@ def test_camera_error_unknown_to_the_tracker_biases_it(shift):
         det = tracker.track(renderer.render(sim.data))
     err = det.poses[0, 0] - sim.poses()[0, 0]
     assert err == pytest.approx(-shift, abs=0.001)    # the scene appears shifted the other way
+
+
+def test_pipelined_camera_chain_gives_the_same_log():
+    """Imaging and tracking on a helper thread overlap the physics, but change nothing."""
+    from macrostate_mj.sim import PoseLog
+
+    logs = []
+    for pipelined in (False, True):
+        world = build_world(get_scenario("lab"), 3)
+        sim = ChainSim(world)
+        sim.reset(np.random.default_rng(8))
+        chain = CameraChain(sim, pipelined=pipelined)
+        chain.start(np.random.default_rng([8, 1]))
+        log = PoseLog(world.names, tracker=chain)
+        try:
+            sim.run(8.0, [Periodic(0.25, chain.capture), Periodic(0.5, log.append, 0.1)])
+        finally:
+            chain.close()
+        logs.append(log.tracked_arrays())
+    for key in ("tracked", "tracked_time", "detected"):
+        assert np.array_equal(logs[0][key], logs[1][key], equal_nan=key != "detected")
+    assert np.isfinite(logs[0]["tracked"][2:]).all()
