@@ -5,10 +5,9 @@ from __future__ import annotations
 import time
 
 import cv2
-import mujoco
 import numpy as np
 
-from macrostate_mj.benchmarks import _best_of, figure
+from macrostate_mj.benchmarks import _best_of, figure, record_commands, replay_bare
 from macrostate_mj.camera import OverheadRenderer
 from macrostate_mj.camera_chain import CameraChain
 from macrostate_mj.motion import wrap_angle
@@ -84,20 +83,9 @@ def bench_collect(minutes: float = 1.0, robots: int = 3) -> list[dict]:
 
     cfg = get_scenario("lab")
     world = build_world(cfg, robots)
-    sim = ChainSim(world)
-    sim.reset(spec.rng(0))
-    start = sim.data.qpos.copy()
-    dt = world.model.opt.timestep
-    ticks: list[tuple[int, np.ndarray]] = []
-    sim.run(spec.warmup + spec.seconds, [Periodic(1 / cfg.command_hz, lambda s: ticks.append(
-        (int(round(s.time / dt)), s.data.ctrl.copy())))])
-    data = mujoco.MjData(world.model)
-    data.qpos[:] = start
-    ends = [t[0] for t in ticks[1:]] + [stats["steps"]]
+    start, ticks = record_commands(ChainSim(world), spec.warmup + spec.seconds, spec.rng(0))
     t0 = time.perf_counter()
-    for (step, ctrl), end in zip(ticks, ends, strict=True):
-        data.ctrl[:] = ctrl
-        mujoco.mj_step(world.model, data, nstep=end - step)
+    data = replay_bare(world.model, start, ticks, stats["steps"])
     t_phys = time.perf_counter() - t0
     with OverheadRenderer(world.model) as renderer:
         renderer.render(data)

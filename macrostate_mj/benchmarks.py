@@ -30,6 +30,30 @@ def figure(name: str, value: float, unit: str, limit: float | None = None, **ext
     return fig
 
 
+def record_commands(sim: ChainSim, seconds: float, rng: np.random.Generator
+                    ) -> tuple[np.ndarray, list[tuple[int, np.ndarray]]]:
+    """Run `sim` from a reset and keep its start qpos and (step, wheel commands) per tick."""
+    dt = sim.model.opt.timestep
+    sim.reset(rng)
+    start = sim.data.qpos.copy()
+    ticks: list[tuple[int, np.ndarray]] = []
+    sim.run(seconds, [Periodic(1 / sim.cfg.command_hz, lambda s: ticks.append(
+        (int(round(s.time / dt)), s.data.ctrl.copy())))])
+    return start, ticks
+
+
+def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int, np.ndarray]],
+                end: int) -> mujoco.MjData:
+    """The physics alone: bare `mj_step(nstep)` replaying recorded commands, same contacts."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = start
+    ends = [t[0] for t in ticks[1:]] + [end]
+    for (step, ctrl), nxt in zip(ticks, ends, strict=True):
+        data.ctrl[:] = ctrl
+        mujoco.mj_step(model, data, nstep=nxt - step)
+    return data
+
+
 def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> list[dict]:
     """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
     wheel commands from the same start state: the physics cost alone, same contacts."""
@@ -38,26 +62,16 @@ def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> 
     dt = world.model.opt.timestep
     steps = int(round(seconds / dt))
     sim = ChainSim(world)
-    data = mujoco.MjData(world.model)
-    commands: list[tuple[int, np.ndarray]] = []   # (step index, wheel commands) per tick
 
     def ours() -> None:
         sim.reset(np.random.default_rng(0))
         log = PoseLog(world.names)
         sim.run(seconds, [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)])
 
-    sim.reset(np.random.default_rng(0))
-    start_qpos = sim.data.qpos.copy()
-    sim.run(seconds, [Periodic(1 / cfg.command_hz, lambda s: commands.append(
-        (int(round(s.time / dt)), s.data.ctrl.copy())))])
-    ticks = [c[0] for c in commands] + [steps]
+    start, ticks = record_commands(sim, seconds, np.random.default_rng(0))
 
     def bare() -> None:
-        mujoco.mj_resetData(world.model, data)
-        data.qpos[:] = start_qpos
-        for (step, ctrl), nxt in zip(commands, ticks[1:], strict=True):
-            data.ctrl[:] = ctrl
-            mujoco.mj_step(world.model, data, nstep=nxt - step)
+        replay_bare(world.model, start, ticks, steps)
 
     t_ours, t_bare = _best_of(ours), _best_of(bare)
     tag = f"{scenario}, {robots} robots, dt={dt}"

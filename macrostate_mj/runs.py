@@ -75,11 +75,10 @@ def check_request(req: SimulateRequest) -> ScenarioConfig:
     parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
     prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
-    for path, flag in ((req.video, "--video"), (req.rerun, "--rerun")):
+    for path, flag, suffix in ((req.video, "--video", ".mp4"), (req.rerun, "--rerun", ".rrd")):
         if path is not None:
-            if path.suffix != {"--video": ".mp4", "--rerun": ".rrd"}[flag]:
-                raise UserError(f"{flag} {path} needs the "
-                                f"{ {'--video': '.mp4', '--rerun': '.rrd'}[flag]} extension")
+            if path.suffix != suffix:
+                raise UserError(f"{flag} {path} needs the {suffix} extension")
             check_writable_file(path, req.overwrite, flag)
     return cfg
 
