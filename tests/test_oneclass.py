@@ -85,18 +85,25 @@ def test_auc_and_bins():
 
 def test_label_switch_makes_farther_codes_more_unstable():
     """Real stable codes (label 1) vs inner outliers near c (label 0): a code farther from c than
-    the real ones must score higher, i.e. the classifier's 'unstable' grows with distance."""
+    the real ones must score higher, i.e. the classifier's 'unstable' grows with distance. The
+    second case is the simulated colony's trap: synthetic codes leave c in the direction in which
+    unstable codes lie farther out; a classifier on signed deviations scores those as synthetic."""
     g = torch.Generator().manual_seed(0)
     c = torch.full((2048,), 0.5)
-    real = c + 0.05 * torch.randn(200, 2048, generator=g)
-    fake = c + 0.01 * torch.randn(400, 2048, generator=g)
+    lean = torch.zeros(2048)
+    lean[::2] = 0.02
     cfg = OCConfig(cls_epochs=6, cls_lr=1e-3)
-    clf, hist = train_classifier(real[:160], real[160:], fake[:300], fake[300:], c, cfg, g,
-                                 lambda s, f: None, "cls")
-    far = c + 0.15 * torch.randn(40, 2048, generator=g)
-    with torch.no_grad():
-        assert clf(fake[300:]).mean() < clf(real[160:]).mean() < clf(far).mean()
-    assert min(hist) < 0.3
+    for fake_lean, far_lean, far_sd in ((0.0, 0.0, 0.15), (1.0, 3.0, 0.05)):
+        real = c + 0.05 * torch.randn(200, 2048, generator=g)
+        fake = c + fake_lean * lean + 0.01 * torch.randn(400, 2048, generator=g)
+        torch.manual_seed(0)
+        clf, hist = train_classifier(real[:160], real[160:], fake[:300], fake[300:], c, cfg, g,
+                                     lambda s, f: None, "cls")
+        far = c + far_lean * lean + far_sd * torch.randn(40, 2048, generator=g)
+        with torch.no_grad():
+            assert clf(fake[300:]).max() < clf(real[160:]).min(), fake_lean
+            assert clf(real[160:]).mean() < clf(far).min(), fake_lean
+        assert min(hist) < 0.3
 
 
 def test_gradcam_and_pointing_game(fitted):
