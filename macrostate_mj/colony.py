@@ -80,6 +80,7 @@ def regime(a: float) -> Regime:
     )
 
 
+DUEL_SWAY_M, DUEL_SWAY_HZ = 0.005, 1.2  # duelers' joint back-and-forth along their axis
 PAIR_SECONDS = {ANTENNATE: (0.8, 2.0), DUEL: (4.0, 14.0), BITE: (1.5, 4.0)}  # uniform ranges
 
 
@@ -114,9 +115,13 @@ def pair_targets(pos: np.ndarray, yaw: np.ndarray, beh: np.ndarray, partner: np.
     """Target thorax positions, their velocities, and headings for ants in a pair behaviour.
 
     Antennating and dueling ants face each other on the line through their thoraxes, head tips a
-    few mm apart; duelers also sway together along that line (±2 mm at 1.6 Hz, one advancing as
-    the other retreats). A biter aims its head tip at the partner's head and lunges (±1.2 mm,
-    2.5 Hz); the bitten ant stays put. Rows of solo ants are returned as NaN.
+    few mm apart; duelers also jerk together back and forth along that line (±5 mm at 1.2 Hz, one
+    advancing as the other retreats: Fig 4.3's "moving back and forth"), up to 9 mm between two
+    frames 0.5 s apart, more than a walker covers at peak agitation (7 mm), so that the flow of a
+    duel stands out as it does in the seed's Grad-CAM. The sway is a velocity feed-forward; the
+    position term only holds the pair's spacing, so the pair's midpoint swings by ±5 mm. A biter
+    aims its head tip at the partner's head and lunges (±1.2 mm, 2.5 Hz); the bitten ant stays
+    put. Rows of solo ants are returned as NaN.
     """
     n = pos.shape[0]
     tgt, vel, head = np.full((n, 2), np.nan), np.zeros((n, 2)), np.full(n, np.nan)
@@ -138,13 +143,12 @@ def pair_targets(pos: np.ndarray, yaw: np.ndarray, beh: np.ndarray, partner: np.
         u = pos[i] - pos[j]
         u /= max(np.linalg.norm(u), 1e-6)
         mid = 0.5 * (pos[i] + pos[j])
-        gap, sway, vsway = 0.003, 0.0, 0.0
+        gap, vsway = 0.003, 0.0
         if beh[i] == DUEL:
-            w = 2 * np.pi * 1.6
+            w = 2 * np.pi * DUEL_SWAY_HZ
             ph = phase[min(i, j)] + (0.0 if i < j else np.pi)
-            gap, sway = 0.0012, 0.002 * math.sin(w * t + ph)
-            vsway = 0.002 * w * math.cos(w * t + ph)
-        tgt[i] = mid + u * (HEAD_TIP + gap + sway)
+            gap, vsway = 0.0012, DUEL_SWAY_M * w * math.cos(w * t + ph)
+        tgt[i] = mid + u * (HEAD_TIP + gap)
         vel[i] = u * vsway
         head[i] = math.atan2(-u[1], -u[0])
     return tgt, vel, head

@@ -65,10 +65,11 @@ def test_duel_faces_ants_and_drums_antennae_fast():
     colony = Colony(ColonyConfig(n_ants=4, fps=60.0, warmup_s=0.0, seed=1))
     colony.reset(1)
     _force_duel(colony)
-    ant_l = []
+    ant_l, thorax = [], []
     for _ in range(150):  # 2.5 s; antennae sampled at 60 Hz
         colony.advance_frame()
         ant_l.append(colony.data.qpos[colony.qa].copy())
+        thorax.append(colony.poses()[0][:2].copy())
     pos, yaw = colony.poses()
     u = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
     head = np.stack([np.cos(yaw), np.sin(yaw)], 1)
@@ -84,6 +85,10 @@ def test_duel_faces_ants_and_drums_antennae_fast():
     assert swing[0] > 0.5 and swing[1] > 0.5  # over half a radian peak to peak
     assert crossings[2] < 2 and swing[2] < 0.4  # a resting ant barely moves its antennae
     assert np.isfinite(colony.data.qpos).all() and np.abs(pos).max() < 0.075
+    p = np.array(thorax)[60:]  # the pair jerks back and forth together, spacing held
+    moved = np.linalg.norm(p[30:] - p[:-30], axis=2).max(axis=0)  # over 0.5 s, the flow gap
+    assert (moved > 0.007).all() and (moved < 0.011).all()
+    assert np.ptp(np.linalg.norm(p[:, 0] - p[:, 1], axis=1)) < 0.001
 
 
 def _trace(seed: int, frames: int = 20) -> tuple[np.ndarray, list]:
