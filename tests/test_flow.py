@@ -37,7 +37,11 @@ def test_encoding_is_tsn_linear_map():
     assert abs(flow.decode_flow(fx)[0, 0] - 3.0) < 40 / 255
 
 
-@pytest.mark.parametrize("method", ["dis", "farneback"])
+TVL1 = pytest.param("tvl1", marks=pytest.mark.skipif(
+    not hasattr(cv2, "optflow"), reason="TV-L1 needs opencv-contrib-python-headless (README)"))
+
+
+@pytest.mark.parametrize("method", ["dis", "farneback", TVL1])
 def test_known_shift_is_recovered(tmp_path, method):
     frames = _shifting_frames(5, dx=3)
     ids = flow.extract_flow_samples(frames, fps=2.0, out_dir=tmp_path, every=1.0, gap=0.5, m=2,
