@@ -13,7 +13,7 @@ from estimators.oneclass import METHODS, OCConfig, OCModel, fit
 from estimators.oneclass.metrics import auc_report, roc_auc
 from estimators.oneclass.train import train_classifier
 from macrostate_mj.errors import UserError
-from viz.gradcam import gradcam, pointing_game, top_share
+from viz.gradcam import box_share, gradcam, pointing_game, top_share
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = OCConfig(m=1, seed=3, batch=16, dcae_epochs=1, dsvdd_epochs=1, gan_steps=2, gan_batch=4,
@@ -118,6 +118,9 @@ def test_gradcam_and_pointing_game(fitted):
     boxes = [[(15, 5, 10, 10)], [(0, 0, 10, 10)], [(0, 0, 64, 64)]]
     assert pointing_game(heat, boxes) == pytest.approx(1 / 3)
     assert pointing_game(heat, [[], [(40, 40, 5, 5)], []], tolerance=6) == 1.0
+    # chance: box (15, 5, 10, 10) holds 100 of 4096 pixel centres, the full frame all of them
+    assert box_share([[(15, 5, 10, 10)], [], [(0, 0, 64, 64)]], (64, 64)) == pytest.approx(
+        (100 / 4096 + 1) / 2)
 
 
 def test_cli_train_evaluate_and_bad_input(tmp_path):

@@ -102,6 +102,24 @@ def write_mp4(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: float 
         Path(tmp).unlink(missing_ok=True)
 
 
+def _in_boxes(px: np.ndarray, py: np.ndarray, bxs: Sequence[Box], tolerance: float) -> np.ndarray:
+    """Which of the points (px, py) lie in at least one box grown by `tolerance` px."""
+    inside = np.zeros(np.broadcast(px, py).shape, bool)
+    for x, y, w, h in bxs:
+        inside |= ((x - tolerance <= px) & (px <= x + w + tolerance) &
+                   (y - tolerance <= py) & (py <= y + h + tolerance))
+    return inside
+
+
+def box_share(boxes: Sequence[Sequence[Box]], shape: tuple[int, int],
+              tolerance: float = 0.0) -> float:
+    """Chance level of the pointing game: the mean share of pixel centres inside a sample's boxes
+    (what a peak placed uniformly at random would score). NaN when no sample has a box."""
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    shares = [_in_boxes(cols + 0.5, rows + 0.5, bxs, tolerance).mean() for bxs in boxes if bxs]
+    return float(np.mean(shares)) if shares else float("nan")
+
+
 def pointing_game(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]],
                   tolerance: float = 0.0) -> float:
     """Share of samples whose heatmap peak lies in one of their ground-truth boxes.
@@ -122,7 +140,5 @@ def pointing_game(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]],
         if not np.any(heat > 0):
             continue
         r, c = np.unravel_index(int(np.argmax(heat)), heat.shape)
-        px, py = c + 0.5, r + 0.5
-        hits += any(x - tolerance <= px <= x + w + tolerance and
-                    y - tolerance <= py <= y + h + tolerance for x, y, w, h in bxs)
+        hits += bool(_in_boxes(np.array(c + 0.5), np.array(r + 0.5), bxs, tolerance))
     return hits / total if total else float("nan")

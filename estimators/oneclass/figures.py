@@ -119,6 +119,7 @@ def gradcam_outputs(folder: Path, model: OCModel, d: AntFlowData, xu: np.ndarray
         out["pointing_game"] = {
             "gradcam": gc.pointing_game(maps, per_sample),
             "flow_magnitude_baseline": gc.pointing_game(motion, per_sample),
+            "chance": gc.box_share(per_sample, maps.shape[1:]),
             "samples_with_boxes": sum(1 for b in per_sample if b)}
     return out
 
