@@ -48,6 +48,19 @@ def test_every_method_trains_and_scores(fitted, tmp_path):
         model.score("dsvdd", _flows(2, 0.0, 0).repeat(2, axis=1))
 
 
+def test_ngen_noise_sits_around_c_with_iogen_spread(fitted):
+    from estimators.oneclass.model import _synthetic
+    from estimators.oneclass.train import generated_codes
+
+    model, _ = fitted
+    noise, _ = _synthetic(model, "ngen", 4000, 1, torch.Generator().manual_seed(0))
+    ref = generated_codes(model.generators["iogen"], model.dsvdd, 512,
+                          torch.Generator().manual_seed(1))
+    spread = float(((ref - model.c) ** 2).mean().sqrt())
+    assert float((noise.mean(0) - model.c).abs().max()) < 5 * spread / 4000 ** 0.5
+    assert float(((noise - model.c) ** 2).mean().sqrt()) == pytest.approx(spread, rel=0.02)
+
+
 def test_same_seed_same_model(fitted):
     model, x = fitted
     again = fit(x, ("dsvdd",), TINY)
