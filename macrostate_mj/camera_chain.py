@@ -23,9 +23,9 @@ class CameraChain:
     """Owns a renderer; `start(sim, rng)` once per episode, then `capture` as a hook.
 
     With `pipelined`, the imaging chain and the tracker of one frame run on a helper thread
-    (OpenCV releases the GIL) while the physics moves on; `sync()` waits for them, and readers
-    of `latest` must call it first. Frames are still processed in order, with the same draws,
-    so the results are identical either way.
+    (OpenCV releases the GIL) while the physics moves on; reading `latest`, `latest_time`,
+    `detected`, `frames` or `dropped` waits for the frame in flight first. Frames are still
+    processed in order, with the same draws, so the results are identical either way.
     """
 
     def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None, pipelined: bool = False):
@@ -38,10 +38,10 @@ class CameraChain:
         world = sim.world
         self._area = marker_area(world.spec, f"{world.names[0]}/marker")
         n = len(world.names)
-        self.latest = np.full((n, 3), np.nan)
-        self.latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
-        self.detected = np.zeros(n, bool)
-        self.frames = self.dropped = 0
+        self._latest = np.full((n, 3), np.nan)
+        self._latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
+        self._detected = np.zeros(n, bool)
+        self._frames = self._dropped = 0
 
     def start(self, rng: np.random.Generator) -> None:
         """Calibrate on the nominal camera, then draw this episode's conditions."""
@@ -56,9 +56,9 @@ class CameraChain:
         self.episode = draw_episode(self.noise, rng, shape)
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
-        self.latest[:] = np.nan
-        self.latest_time[:] = np.nan
-        self.detected[:] = False
+        self._latest[:] = np.nan
+        self._latest_time[:] = np.nan
+        self._detected[:] = False
 
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)         # GL work stays on this thread
@@ -74,17 +74,43 @@ class CameraChain:
             pending, self._pending = self._pending, None
             pending.result()
 
+    @property
+    def latest(self) -> np.ndarray:
+        """(n, 3) latest tracked pose per robot (x, y, θ), NaN before its first detection."""
+        self.sync()
+        return self._latest
+
+    @property
+    def latest_time(self) -> np.ndarray:
+        self.sync()
+        return self._latest_time
+
+    @property
+    def detected(self) -> np.ndarray:
+        self.sync()
+        return self._detected
+
+    @property
+    def frames(self) -> int:
+        self.sync()
+        return self._frames
+
+    @property
+    def dropped(self) -> int:
+        self.sync()
+        return self._dropped
+
     def _process(self, rgb: np.ndarray, t: float) -> None:
-        self.frames += 1
+        self._frames += 1
         frame = degrade(rgb, self.episode, self.noise, self.rng)
         if frame is None:
-            self.dropped += 1
-            self.detected[:] = False
+            self._dropped += 1
+            self._detected[:] = False
             return
         det = self.tracker.track(frame)
-        self.latest[det.detected] = det.poses[det.detected]
-        self.latest_time[det.detected] = t
-        self.detected[:] = det.detected
+        self._latest[det.detected] = det.poses[det.detected]
+        self._latest_time[det.detected] = t
+        self._detected[:] = det.detected
 
     def close(self) -> None:
         self.sync()

@@ -76,8 +76,6 @@ class PoseLog:
         wp = sim.planner.target
         self.waypoints.append(np.array(wp, float) if wp is not None else np.full(2, np.nan))
         if self.tracker is not None:
-            if hasattr(self.tracker, "sync"):
-                self.tracker.sync()                 # a pipelined camera chain's frame in flight
             self.tracked.append(self.tracker.latest.copy())
             self.tracked_time.append(self.tracker.latest_time.copy())
             self.detected.append(self.tracker.detected.copy())
