@@ -48,17 +48,23 @@ def test_every_method_trains_and_scores(fitted, tmp_path):
         model.score("dsvdd", _flows(2, 0.0, 0).repeat(2, axis=1))
 
 
-def test_ngen_noise_sits_around_c_with_iogen_spread(fitted):
+def test_ngen_noise_has_iogen_spread_per_coordinate_around_c(fitted):
     from estimators.oneclass.model import _synthetic
     from estimators.oneclass.train import generated_codes
 
     model, _ = fitted
     noise, _ = _synthetic(model, "ngen", 4000, 1, torch.Generator().manual_seed(0))
-    ref = generated_codes(model.generators["iogen"], model.dsvdd, 512,
+    ref = generated_codes(model.generators["iogen"], model.dsvdd, 4000,
                           torch.Generator().manual_seed(1))
-    spread = float(((ref - model.c) ** 2).mean().sqrt())
-    assert float((noise.mean(0) - model.c).abs().max()) < 5 * spread / 4000 ** 0.5
-    assert float(((noise - model.c) ** 2).mean().sqrt()) == pytest.approx(spread, rel=0.02)
+    spread = ((ref - model.c) ** 2).mean(0).sqrt()
+    assert float(noise.min()) >= 0.0  # codes are ReLU outputs
+    free = model.c > 4 * spread  # coordinates the clamp at 0 never reaches
+    assert int(free.sum()) > 50
+    got = ((noise - model.c) ** 2).mean(0).sqrt()
+    np.testing.assert_allclose(got[free], spread[free], rtol=0.15, atol=1e-3)
+    assert float((noise.mean(0) - model.c)[free].abs().max()) < 5 * float(spread.max()) / 4000 ** .5
+    # busy coordinates get busy noise, quiet ones stay quiet: not one global spread
+    assert np.corrcoef(got.numpy(), spread.numpy())[0, 1] > 0.9
 
 
 def test_same_seed_same_model(fitted):
