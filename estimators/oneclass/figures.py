@@ -12,7 +12,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from estimators.oneclass import train as T  # noqa: E402
-from estimators.oneclass.model import METHODS, OCModel  # noqa: E402
+from estimators.oneclass.model import METHODS, OCModel, flow_magnitude  # noqa: E402
 from macrostate_mj.antflow import AntFlowData, load_images  # noqa: E402
 from macrostate_mj.io import atomic_path, write_text_atomic  # noqa: E402
 from viz import gradcam as gc  # noqa: E402
@@ -115,7 +115,7 @@ def gradcam_outputs(folder: Path, model: OCModel, d: AntFlowData, xu: np.ndarray
     boxes = read_boxes(d.root / "boxes.csv")
     if boxes is not None:   # a simulated colony: score Grad-CAM where the seed judged by eye
         per_sample = [boxes.get(i, []) for i in d.unstable_ids]
-        motion = np.abs(xu).sum(axis=1)          # baseline: point at the strongest flow
+        motion = flow_magnitude(xu).sum(axis=1)  # baseline: point at the strongest flow
         out["pointing_game"] = {
             "gradcam": gc.pointing_game(maps, per_sample),
             "flow_magnitude_baseline": gc.pointing_game(motion, per_sample),

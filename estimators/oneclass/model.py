@@ -34,10 +34,14 @@ NEEDS: dict[str, tuple[str, ...]] = {
 FLOW_PX = 20.0  # ±20 px maps onto [−1, 1]
 
 
+def flow_magnitude(x: np.ndarray) -> np.ndarray:
+    """Flow magnitude (px), N × m × H × W, of an N × 2m × H × W input in [−1, 1]."""
+    return FLOW_PX * np.hypot(x[:, 0::2], x[:, 1::2])
+
+
 def flow_weight(x: np.ndarray) -> np.ndarray:
-    """Mean flow magnitude (px) per sample of an N × 2m × H × W input in [−1, 1]."""
-    fx, fy = x[:, 0::2] * FLOW_PX, x[:, 1::2] * FLOW_PX
-    return np.sqrt(fx ** 2 + fy ** 2).reshape(len(x), -1).mean(1)
+    """Mean flow magnitude (px) per sample: the optical-flow weight of Fig 4.7 and OFW."""
+    return flow_magnitude(x).reshape(len(x), -1).mean(1)
 
 
 @dataclass
