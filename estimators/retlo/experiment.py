@@ -90,8 +90,7 @@ def _aggregate(reports: list[dict]) -> dict:
 
 def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
     """Train, test, plot, draw; return summary lines. `out` has been checked by the caller."""
-    from rich.progress import Progress
-
+    from macrostate_mj.progress import LoggedProgress
     from viz.retlo_figures import plot_overall, plot_stepwise, write_video
 
     px = cfg.px_per_cm
@@ -108,7 +107,7 @@ def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
                for t in tests}
     timings: dict[str, float] = {}
     runs = [(kind, seed) for seed in range(cfg.seeds) for kind in LEARNED]
-    with Progress(transient=True) as bar:
+    with LoggedProgress(transient=True) as bar:
         overall = bar.add_task("experiment retlo", total=len(runs))
         for kind, seed in runs:
             epoch_task = bar.add_task(f"{kind} seed {seed}", total=cfg.epochs)

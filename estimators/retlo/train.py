@@ -129,9 +129,9 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     curve: list[dict] = []
     batches = 0
     start = time.perf_counter()
-    from rich.progress import Progress
+    from macrostate_mj.progress import LoggedProgress
 
-    with Progress(disable=not progress, transient=True) as bar:
+    with LoggedProgress(disable=not progress, transient=True) as bar:
         task = bar.add_task(f"train {cfg.model.kind}", total=cfg.epochs)
         for epoch in range(cfg.epochs):
             data = {k: torch.from_numpy(v) for k, v in base.items()}

@@ -11,6 +11,7 @@ import typer
 
 from macrostate_mj.cli.app import app, experiment_app, oc_app
 from macrostate_mj.errors import UserError
+from macrostate_mj.progress import stage_progress
 
 Opt = typer.Option
 METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
@@ -34,22 +35,6 @@ def _crop(text: str | None) -> tuple[int, int, int, int] | None:
 
 def _default_threads() -> int:
     return min(2, os.cpu_count() or 1)
-
-
-def _stage_bar():
-    """A rich progress bar with one task per training stage; returns (progress, tick)."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-    bar = Progress(TextColumn("{task.description:<28}"), BarColumn(), TimeElapsedColumn(),
-                   transient=False)
-    tasks: dict[str, int] = {}
-
-    def tick(stage: str, frac: float) -> None:
-        if stage not in tasks:
-            tasks[stage] = bar.add_task(stage, total=1.0)
-        bar.update(tasks[stage], completed=frac)
-
-    return bar, tick
 
 
 @app.command("flow")
@@ -95,9 +80,9 @@ def flow(
                             "larger --start-id")
     t0 = time.perf_counter()
     stream, rate = read_video_frames(video, fps) if video else read_frame_folder(frames, fps)
-    from rich.progress import Progress
+    from macrostate_mj.progress import LoggedProgress
 
-    with Progress(transient=True) as bar:
+    with LoggedProgress(transient=True) as bar:
         task = bar.add_task("reading frames", total=None)
 
         def counted():
@@ -148,8 +133,7 @@ def oc_train(
     x = d.load("Stable", train, m)
     cfg = OCConfig(m=m, seed=seed, threads=threads, device=device).scaled(epochs)
     t0 = time.perf_counter()
-    bar, tick = _stage_bar()
-    with bar:
+    with stage_progress() as tick:
         model = fit(x, methods, cfg, tick)
     out.mkdir(parents=True, exist_ok=True)
     model.save(out)
@@ -227,8 +211,7 @@ def experiment_oc(
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    bar, tick = _stage_bar()
-    with bar:
+    with stage_progress() as tick:
         results = run_experiment(exp, out, tick)
     write_json_atomic(out / "results.json", results)
     write_manifest(out, "experiment oc", exp, seed, {"total": time.perf_counter() - t0})

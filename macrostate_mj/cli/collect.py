@@ -29,7 +29,7 @@ def collect(
     """Collect tracked pose datasets in the ThymioLoc layout; resumes after an interruption."""
     from collectors.runner import CollectRequest, plan
     from collectors.runner import collect as run_collect
-    from macrostate_mj.cli.progress import sim_progress
+    from macrostate_mj.progress import sim_progress
 
     req = CollectRequest(scenario, robots, minutes, seed, out, policy, sigma, workers, ray,
                          split, overwrite, episode_minutes, px_per_cm=px_per_cm,

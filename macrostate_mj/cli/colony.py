@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from macrostate_mj.cli.app import ants_app
-from macrostate_mj.cli.progress import sim_progress
+from macrostate_mj.progress import sim_progress
 
 Opt = typer.Option
 

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import contextlib
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import typer
 
 from macrostate_mj.cli.app import experiment_app
+from macrostate_mj.progress import stage_progress
 
 
 @experiment_app.command("retlo-sim")
@@ -37,25 +36,3 @@ def experiment_retlo_sim(
         typer.echo(line)
     typer.echo(f"took {time.perf_counter() - start:.0f} s")
 
-
-@contextlib.contextmanager
-def stage_progress() -> Iterator[Callable[[str, int, int], None]]:
-    """Yield `report(stage, done, total)`: one rich bar per pipeline stage."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeRemainingColumn(), transient=True) as bar:
-        tasks: dict[str, int] = {}
-
-        def report(stage: str, done: int, total: int) -> None:
-            if stage not in tasks:
-                tasks[stage] = bar.add_task(stage, total=total)
-            bar.update(tasks[stage], completed=done)
-
-        yield report

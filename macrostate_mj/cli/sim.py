@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.cli.app import app
-from macrostate_mj.cli.progress import sim_progress
+from macrostate_mj.progress import sim_progress
 
 
 @app.command()
