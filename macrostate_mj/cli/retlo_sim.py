@@ -35,4 +35,3 @@ def experiment_retlo_sim(
     for line in lines:
         typer.echo(line)
     typer.echo(f"took {time.perf_counter() - start:.0f} s")
-
