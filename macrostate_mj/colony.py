@@ -121,8 +121,8 @@ def pair_targets(pos: np.ndarray, yaw: np.ndarray, beh: np.ndarray, partner: np.
     walkers around a few duels, the peak of the flow magnitude falls in a duel or bite box in .31
     of 523 unstable samples, against .20 by chance: duels are often, not always, the strongest
     motion. The sway is a velocity feed-forward; the position term only holds the pair's
-    spacing, so the pair's midpoint swings by ±5 mm. A biter aims its head tip at the partner's head and lunges
-    (±1.2 mm, 2.5 Hz); the bitten ant stays put. Rows of solo ants are returned as NaN.
+    spacing, so the pair's midpoint swings by ±5 mm. A biter aims its head tip at the partner's
+    head and lunges (±1.2 mm, 2.5 Hz); the bitten ant stays put. Rows of solo ants are NaN.
     """
     n = pos.shape[0]
     tgt, vel, head = np.full((n, 2), np.nan), np.zeros((n, 2)), np.full(n, np.nan)
