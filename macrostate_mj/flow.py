@@ -27,6 +27,7 @@ SIZE = 64  # side of the written images
 METHODS = ("dis", "farneback", "tvl1")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm")
 JPEG_QUALITY = 95
+MEDIUM_MAX_PX = 256 * 256  # largest frame DIS runs with its MEDIUM preset (dis_preset)
 
 _TVL1_HINT = ("TV-L1 needs OpenCV's contrib build: pip uninstall opencv-python-headless && "
               "pip install opencv-contrib-python-headless (replace it, never install both), "
@@ -46,9 +47,6 @@ def encode_flow(flow: np.ndarray, size: int = SIZE) -> tuple[np.ndarray, np.ndar
 def decode_flow(img: np.ndarray) -> np.ndarray:
     """Inverse of the linear map of `encode_flow`: uint8 image -> flow in px (clipped at ±BOUND)."""
     return img.astype(np.float32) * (2 * BOUND / 255.0) - BOUND
-
-
-MEDIUM_MAX_PX = 256 * 256  # largest frame DIS runs with its MEDIUM preset
 
 
 def dis_preset(shape: tuple[int, ...]) -> int:

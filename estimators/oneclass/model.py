@@ -24,6 +24,7 @@ import torch
 from estimators.oneclass import train as T
 from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
 from macrostate_mj.errors import UserError
+from macrostate_mj.flow import BOUND
 
 METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
 # stages each method needs, in training order
@@ -31,12 +32,9 @@ NEEDS: dict[str, tuple[str, ...]] = {
     "ofw": (), "dcae": ("dcae",), "ocsvm": ("dcae", "ocsvm"), "dsvdd": ("dcae", "dsvdd"),
     "iogen": ("dcae", "dsvdd", "iogen", "cls_iogen"), "gen": ("dcae", "dsvdd", "gen", "cls_gen"),
     "ngen": ("dcae", "dsvdd", "iogen", "cls_ngen")}
-FLOW_PX = 20.0  # ±20 px maps onto [−1, 1]
-
-
 def flow_magnitude(x: np.ndarray) -> np.ndarray:
-    """Flow magnitude (px), N × m × H × W, of an N × 2m × H × W input in [−1, 1]."""
-    return FLOW_PX * np.hypot(x[:, 0::2], x[:, 1::2])
+    """Flow magnitude (px), N × m × H × W, of an N × 2m × H × W input in [−1, 1] (±BOUND px)."""
+    return BOUND * np.hypot(x[:, 0::2], x[:, 1::2])
 
 
 def flow_weight(x: np.ndarray) -> np.ndarray:
