@@ -26,7 +26,7 @@ class LoggedProgress(Progress):
 
     Where stderr is no terminal (nohup, CI, a batch job) rich's live bars show nothing until the
     end, so a two-hour `experiment oc` would leave an empty log; there each task with a known
-    total also logs one line as it starts and each time it completes another LOG_EVERY percent.
+    total also logs one line each time it completes another LOG_EVERY percent.
     """
 
     def __init__(self, *columns: Any, console: Console | None = None, **kwargs: Any) -> None:
@@ -35,12 +35,7 @@ class LoggedProgress(Progress):
         self._quiet = bool(kwargs.pop("disable", False))
         # no live display off a terminal: its final render would only repeat the logged lines
         super().__init__(*columns, console=console, disable=self._quiet or self._plain, **kwargs)
-        self._logged: dict[TaskID, int] = {}
-
-    def add_task(self, description: str, *args: Any, **kwargs: Any) -> TaskID:
-        task_id = super().add_task(description, *args, **kwargs)
-        self._log(task_id)
-        return task_id
+        self._logged: dict[TaskID, int] = {}  # last tenth logged; 0 % is not (see _log)
 
     def update(self, task_id: TaskID, **kwargs: Any) -> None:
         super().update(task_id, **kwargs)
@@ -57,7 +52,8 @@ class LoggedProgress(Progress):
         if task is None or not task.total:
             return
         step = int(min(task.percentage, 100.0) // LOG_EVERY)
-        if step > self._logged.get(task_id, -1):
+        # nothing at 0 %: a bad input found as the work starts then stays a one-line error
+        if step > self._logged.get(task_id, 0):
             self._logged[task_id] = step
             elapsed = task.elapsed or 0.0
             self.console.print(f"{time.strftime('%H:%M:%S')} {task.description.strip()}: "
