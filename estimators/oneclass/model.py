@@ -32,6 +32,8 @@ NEEDS: dict[str, tuple[str, ...]] = {
     "ofw": (), "dcae": ("dcae",), "ocsvm": ("dcae", "ocsvm"), "dsvdd": ("dcae", "dsvdd"),
     "iogen": ("dcae", "dsvdd", "iogen", "cls_iogen"), "gen": ("dcae", "dsvdd", "gen", "cls_gen"),
     "ngen": ("dcae", "dsvdd", "iogen", "cls_ngen")}
+
+
 def flow_magnitude(x: np.ndarray) -> np.ndarray:
     """Flow magnitude (px), N × m × H × W, of an N × 2m × H × W input in [−1, 1] (±BOUND px)."""
     return BOUND * np.hypot(x[:, 0::2], x[:, 1::2])
