@@ -34,10 +34,12 @@ class EpisodeSpec:
         return np.random.default_rng([self.seed, self.index, stream])
 
 
-def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table, dict]:
+def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     """Simulate, film and track one episode; return its long-format log with an `episode`
-    column and timing figures. Runs anywhere: a local process or a Ray worker."""
+    column and timing figures, or no table and `{"failure": ...}` when its physics failed.
+    Runs anywhere: a local process or a Ray worker."""
     from macrostate_mj.camera_chain import CameraChain
+    from macrostate_mj.health import PhysicsError
     from macrostate_mj.runs import scenario_for
     from macrostate_mj.sim import ChainSim, Periodic, PoseLog
     from macrostate_mj.world import build_world
@@ -57,6 +59,8 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table, dict]:
                  Periodic(step, policy, sim.log_phase),
                  Periodic(step, log.append, sim.log_phase)]
         sim.run(spec.warmup + spec.seconds, hooks)
+    except PhysicsError as err:
+        return spec.index, None, {"failure": str(err)}
     finally:
         chain.close()
     times, poses, waypoints = log.arrays()

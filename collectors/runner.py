@@ -11,9 +11,8 @@ from __future__ import annotations
 import json
 import math
 import shutil
-import socket
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -23,7 +22,7 @@ import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig
-from macrostate_mj.errors import UserError
+from macrostate_mj.errors import RunFailure, UserError
 from macrostate_mj.instances import (
     INSTANCE_STEPS,
     cut_instances,
@@ -32,6 +31,7 @@ from macrostate_mj.instances import (
     to_thymioloc_pixels,
 )
 from macrostate_mj.io import prepare_out_dir, write_manifest, write_text_atomic
+from macrostate_mj.parallel import runner_for
 from macrostate_mj.poses_io import table_arrays, write_poses
 from macrostate_mj.runs import scenario_for, validate_chain
 from macrostate_mj.thymioloc import write_csv
@@ -96,7 +96,7 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
     specs = plan(req)
     fractions = parse_split(req.split)
     out = prepare_out_dir(req.out, PRODUCTS, req.overwrite)
-    executor = _ray_executor(req.ray) if req.ray else None
+    runner = runner_for(req.ray)
     shards = out / "shards"
     plan_json = json.dumps([asdict(s) for s in specs], sort_keys=True, default=str)
     if req.overwrite and shards.exists():
@@ -113,8 +113,11 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
     if progress:
         progress(done, done * specs[0].seconds / 60)
     episode_stats: dict[int, dict] = {}
-    runner = executor or _local_results
-    for index, table, stats in runner(todo, req.workers):
+    failures: dict[int, str] = {}
+    for index, table, stats in runner(run_episode, todo, req.workers):
+        if table is None:
+            failures[index] = stats["failure"]
+            continue
         pq.write_table(table, _tmp_shard(shards, index), compression="zstd")
         _tmp_shard(shards, index).replace(_shard(shards, index))
         episode_stats[index] = stats
@@ -122,6 +125,12 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
         if progress:
             progress(done, done * specs[0].seconds / 60)
     t_run = time.perf_counter() - t0
+    if failures:
+        index = min(failures)
+        raise RunFailure(
+            f"episode {index} (seeds [{req.seed}, {index}, 0..2]) failed: {failures[index]}; "
+            f"{len(failures)} of {len(specs)} episodes failed; {done} finished episode(s) kept in "
+            f"{shards}")
     written = assemble(req, specs, out, fractions)
     cfg = scenario_for(req.scenario, req.head_speed)
     written["manifest"] = write_manifest(
@@ -171,48 +180,3 @@ def _shard(shards: Path, index: int) -> Path:
 
 def _tmp_shard(shards: Path, index: int) -> Path:
     return shards / f".episode_{index:05d}.parquet.part"
-
-
-def _local_results(specs: list[EpisodeSpec], workers: int) -> Iterator[tuple]:
-    """In this process for one worker; else a spawn-started process pool (no forked GL)."""
-    if workers == 1 or len(specs) <= 1:
-        for spec in specs:
-            yield run_episode(spec)
-        return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-        futures = [pool.submit(run_episode, s) for s in specs]
-        for fut in as_completed(futures):
-            yield fut.result()
-
-
-def _ray_executor(address: str) -> Callable[[list[EpisodeSpec], int], Iterator[tuple]]:
-    """Connect to Ray (`local` starts one in-process, `auto` finds this machine's cluster)."""
-    try:
-        import ray
-    except ImportError:
-        raise UserError("--ray needs Ray: pip install 'macrostate-mj[ray]' (or pip install ray)"
-                        ) from None
-    if address not in ("local", "auto"):
-        host, _, port = address.removeprefix("ray://").rpartition(":")
-        try:
-            socket.create_connection((host or "127.0.0.1", int(port)), timeout=3).close()
-        except (OSError, ValueError):
-            raise UserError(f"cannot reach a Ray cluster at {address}; start one with "
-                            "`ray start --head` or pass --ray local") from None
-    try:
-        ray.init(address=None if address == "local" else address, ignore_reinit_error=True,
-                 log_to_driver=False, include_dashboard=False)
-    except (ConnectionError, RuntimeError) as err:
-        raise UserError(f"cannot connect to Ray at {address}: {err}".splitlines()[0]) from None
-
-    def results(specs: list[EpisodeSpec], workers: int) -> Iterator[tuple]:
-        remote = ray.remote(num_cpus=1)(run_episode)
-        pending = [remote.remote(s) for s in specs]
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(ready[0])
-
-    return results

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.errors import UserError
+from macrostate_mj.errors import RunFailure, UserError
+from macrostate_mj.health import PhysicsError
 from macrostate_mj.io import check_writable_file, prepare_out_dir, write_manifest
 from macrostate_mj.poses_io import poses_table, write_poses
 from macrostate_mj.scenarios import ScenarioConfig, get_scenario
@@ -125,8 +126,11 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         recorders.append(rrd)
         hooks.append(Periodic(1 / cfg.log_hz, rrd.capture, sim.log_phase))
     t0 = time.perf_counter()
+    failure: PhysicsError | None = None
     try:
         sim.run(req.seconds, hooks, progress)
+    except PhysicsError as err:
+        failure = err           # keep what was simulated: poses and video up to the fault
     except BaseException:
         for r in recorders:
             r.abort()
@@ -150,7 +154,26 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, timings,
         robots=world.names, outputs={k: str(v) for k, v in written.items()},
         timestep=world.model.opt.timestep,
-        realtime_factor=req.seconds / max(timings["run"], 1e-9),
+        realtime_factor=sim.time / max(timings["run"], 1e-9),
+        status="ok" if failure is None else "failed",
+        failure=None if failure is None else {**asdict(failure.fault),
+                                              "fault": failure.fault.fault.name,
+                                              "reason": str(failure)},
+        simulated_seconds=sim.time, health=asdict(sim.monitor.stats),
         tracking=None if chain is None else {"frames": chain.frames, "dropped": chain.dropped,
                                              "noise": chain.noise})
+    if failure is not None:
+        raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up to "
+                         f"then are in {out}; reproduce: {reproduce_command(req)}")
     return written
+
+
+def reproduce_command(req: SimulateRequest) -> str:
+    """The CLI line that reruns this request's simulation (same trajectory on this machine)."""
+    parts = ["macrostate-mj simulate", f"--scenario {req.scenario}", f"--robots {req.robots}",
+             f"--seconds {req.seconds:g}", f"--seed {req.seed}"]
+    if req.head_speed is not None:
+        parts.append(f"--head-speed {req.head_speed:g}")
+    if req.track:
+        parts.append("--track")
+    return " ".join([*parts, f"--out {req.out}", "--overwrite"])

@@ -4,8 +4,12 @@ Lifecycle (dm_control-style names say when things happen):
   `ChainSim(world)`        compile once;
   `reset(rng)`             full MuJoCo reset (warm start included), start poses, planner, log phase;
   `run(seconds, hooks)`    step physics in C between events (`mj_step(..., nstep=k)`), firing
-                           each periodic hook (controller, logger, renderer, tracker) on its tick.
-Event times are whole physics steps, so runs are bit-identical for the same seed.
+                           each periodic hook (controller, logger, renderer, tracker) on its tick,
+                           and check the physics' health after every stretch of steps.
+Event times are whole physics steps (a scenario whose rates do not divide into whole steps is
+rejected), so runs are bit-identical for the same seed. A fault (NaN, tip, lift, escape) is
+pinned to the physics step where it first appears: the stretch is replayed step by step from
+its saved state, which on one machine reproduces it exactly.
 """
 
 from __future__ import annotations
@@ -16,6 +20,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from macrostate_mj.errors import UserError
+from macrostate_mj.health import DIVERGED, PhysicsError, PhysicsFault, PhysicsMonitor
 from macrostate_mj.motion import (
     avoidance_velocities,
     chain_velocities,
@@ -27,8 +33,14 @@ from macrostate_mj.planners import Planner, make_planner
 from macrostate_mj.world import World, place_chain
 
 
-class PhysicsError(RuntimeError):
-    """The physics left the valid regime (NaN state, tipped robot): never silently logged."""
+def steps_per_tick(period: float, dt: float, what: str) -> int:
+    """Whole physics steps per tick, or a clear error (dm_control's divisibility check): a rate
+    that is not a whole number of steps makes its ticks jitter between two step counts."""
+    steps = period / dt
+    if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+        raise UserError(f"{what} period {period:g} s is {steps:.3f} physics steps of {dt:g} s; "
+                        "choose a rate or timestep that divides into whole steps")
+    return int(round(steps))
 
 
 @dataclass
@@ -112,12 +124,21 @@ class ChainSim:
         self.tail_offset = np.zeros(2)
         self.n = len(world.names)
         self._body = np.array([self.model.joint(f"{nm}/root").bodyid[0] for nm in world.names])
+        dt = self.model.opt.timestep
+        steps_per_tick(1 / self.cfg.command_hz, dt, f"{self.cfg.name} command")
+        steps_per_tick(1 / self.cfg.log_hz, dt, f"{self.cfg.name} log")
+        self.monitor = PhysicsMonitor(world)
+        # Health checks at least this often (physics steps); events bound the stretches too.
+        self.check_steps = 10**9
+        self._state_spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        self._saved = np.empty(mujoco.mj_stateSize(self.model, self._state_spec))
 
     # -- lifecycle ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator, start: np.ndarray | None = None) -> None:
         """Full reset: a fresh state (warm start included), start poses drawn from `rng`."""
         self.rng = rng
         mujoco.mj_resetData(self.model, self.data)
+        self.monitor.reset()
         self.tail_offset = np.zeros(2)
         start = place_chain(self.cfg, self.n, rng) if start is None else np.asarray(start)
         for adr, (x, y, th) in zip(self.world.qpos_adr, start, strict=True):
@@ -138,14 +159,6 @@ class ChainSim:
         xmat = self.data.xmat[self._body]
         theta = np.arctan2(xmat[:, 3], xmat[:, 0])
         return np.column_stack([self.data.xpos[self._body, :2], theta])
-
-    def check_physics(self) -> None:
-        if not np.all(np.isfinite(self.data.qpos)):
-            raise PhysicsError(f"physics diverged at t={self.time:.3f} s (NaN state)")
-        up = self.data.xmat[self._body, 8]
-        if np.any(up < np.cos(np.radians(45))):
-            name = self.world.names[int(np.argmin(up))]
-            raise PhysicsError(f"robot {name} tipped over at t={self.time:.3f} s")
 
     # -- control ------------------------------------------------------------------------------
     def command(self) -> None:
@@ -183,15 +196,34 @@ class ChainSim:
         for ev in events:
             ev.start(self.time, dt)
         end = step + int(round(seconds / dt))
+        m, d = self.model, self.data
         while step < end:
             for ev in events:
                 ev.fire_if_due(self, step)
-            nxt = min(end, *(ev.next_step for ev in events))
-            mujoco.mj_step(self.model, self.data, nstep=nxt - step)
+            nxt = min(end, step + self.check_steps, *(ev.next_step for ev in events))
+            mujoco.mj_getState(m, d, self._saved, self._state_spec)
+            mujoco.mj_step(m, d, nstep=nxt - step)
+            fault = self.monitor.check(d, nxt * dt)
+            if fault is not None:
+                raise PhysicsError(self._replay_to_fault(step, nxt) or fault)
             step = nxt
             if progress is not None:
                 progress(self.time)
-        self.check_physics()
+        self.monitor.record_warnings(d)
+
+    def _replay_to_fault(self, start: int, end: int) -> PhysicsFault | None:
+        """Rewind to the stretch's start and step one by one to the first unhealthy step."""
+        m, d = self.model, self.data
+        mujoco.mj_setState(m, d, self._saved, self._state_spec)
+        for w in DIVERGED:
+            d.warning[w].number = 0          # they were 0 when the stretch began
+        for k in range(start + 1, end + 1):
+            mujoco.mj_step(m, d)
+            fault = self.monitor.check(d, k * m.opt.timestep)
+            if fault is not None:
+                self.monitor.record_warnings(d)
+                return fault
+        return None
 
 
 def simulate_poses(world: World, seconds: float, seed: int,
@@ -201,12 +233,7 @@ def simulate_poses(world: World, seconds: float, seed: int,
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(seed))
     log = PoseLog(world.names)
-
-    def log_and_check(s: ChainSim) -> None:
-        s.check_physics()
-        log.append(s)
-
-    hooks = [Periodic(1 / world.scenario.log_hz, log_and_check, sim.log_phase),
+    hooks = [Periodic(1 / world.scenario.log_hz, log.append, sim.log_phase),
              *(extra_hooks or [])]
     sim.run(seconds, hooks, progress)
     return sim, log

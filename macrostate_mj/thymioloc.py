@@ -119,7 +119,9 @@ def format_csv(poses: np.ndarray) -> str:
         raise UserError("ThymioLoc poses must be (instances>=1, steps, robots, 3), "
                         f"got {poses.shape}")
     n_inst, n_steps, n_robots, _ = poses.shape
-    values = np.rint(poses).astype(np.int64).reshape(n_inst, -1)
+    values = np.rint(poses)
+    values[..., 2] = wrap_degrees(values[..., 2])    # after rounding: -179.6 is 180, not -180
+    values = values.astype(np.int64).reshape(n_inst, -1)
     lines = [",".join(header(n_robots, n_steps))]
     lines += [",".join(map(str, row)) for row in values.tolist()]
     return "\n".join(lines) + "\n"
@@ -154,9 +156,13 @@ def from_world(world: np.ndarray, px_per_cm: float) -> np.ndarray:
     out = np.empty_like(world)
     out[..., 0] = world[..., 0] * px_per_cm
     out[..., 1] = -world[..., 1] * px_per_cm
-    deg = np.rad2deg(world[..., 2])
-    out[..., 2] = -((-deg + 180.0) % 360.0 - 180.0)  # wrap to (-180, 180]
+    out[..., 2] = wrap_degrees(np.rad2deg(world[..., 2]))
     return out
+
+
+def wrap_degrees(deg: np.ndarray) -> np.ndarray:
+    """Wrap to (-180, 180], the real files' convention (180 appears in them, -180 never)."""
+    return -((-np.asarray(deg, dtype=np.float64) + 180.0) % 360.0 - 180.0)
 
 
 @dataclass(frozen=True)

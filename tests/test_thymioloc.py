@@ -7,6 +7,7 @@ import pytest
 from clitools import cli_inprocess as _cli
 
 from macrostate_mj.errors import UserError
+from macrostate_mj.instances import to_thymioloc_pixels
 from macrostate_mj.thymioloc import (
     chain_stats,
     format_csv,
@@ -29,6 +30,23 @@ def test_real_files_read_unchanged_and_round_trip_byte_identical(reference_data,
     assert out.read_bytes() == src.read_bytes()
 
 
+@pytest.mark.parametrize("name", REAL)
+def test_real_headings_lie_in_minus_180_exclusive_to_180(reference_data, name):
+    o = read_csv(reference_data / "ReTLo" / "Datasets" / "3Robots" / name).poses[..., 2]
+    assert o.min() > -180 and o.max() <= 180
+    if name == "Train.csv":
+        assert np.sum(o == 180) == 104      # the published file's count
+
+
+def test_headings_are_written_in_the_real_convention(tmp_path):
+    """A heading a hair past -180 rounds to -180, which the real files never hold: it is 180."""
+    world = np.zeros((1, 26, 3, 3))
+    world[..., 2] = np.radians([-179.7, 179.7, -180.0])
+    px = to_thymioloc_pixels(world, (2.5, 1.9), 3.0)
+    o = read_csv(write_csv(tmp_path / "o.csv", px)).poses[..., 2]
+    assert np.all(o == 180)
+
+
 def test_real_train_statistics_match_the_published_calibration(reference_data):
     data = read_csv(reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv")
     s = chain_stats(data.poses, 3.0)
@@ -41,6 +59,7 @@ def test_real_train_statistics_match_the_published_calibration(reference_data):
 def test_synthetic_round_trip_any_chain_length(tmp_path):
     rng = np.random.default_rng(1)
     poses = rng.integers(-200, 800, size=(4, 7, 5, 3))
+    poses[..., 2] = rng.integers(-179, 181, size=(4, 7, 5))     # o in (-180, 180]
     path = write_csv(tmp_path / "five.csv", poses)
     back = read_csv(path)
     assert np.array_equal(back.poses, poses)

@@ -17,8 +17,9 @@ from macrostate_mj.cli import colony as _colony  # noqa: F401
 from macrostate_mj.cli import retlo as _retlo  # noqa: F401
 from macrostate_mj.cli import retlo_sim as _retlo_sim  # noqa: F401
 from macrostate_mj.cli import sim as _sim  # noqa: F401
+from macrostate_mj.cli import soak as _soak  # noqa: F401
 from macrostate_mj.cli.app import app
-from macrostate_mj.errors import UserError
+from macrostate_mj.errors import RunFailure, UserError
 
 
 def main() -> None:
@@ -34,6 +35,9 @@ def main() -> None:
     except UserError as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(2)
+    except RunFailure as err:
+        print(f"failed: {err}", file=sys.stderr)
+        sys.exit(1)
     except (typer.Abort, KeyboardInterrupt):
         print("interrupted", file=sys.stderr)
         sys.exit(130)
