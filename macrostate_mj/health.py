@@ -82,7 +82,7 @@ class PhysicsMonitor:
         model = world.model
         self.names = world.names
         self.limits = limits or HealthLimits()
-        self.body = np.array([model.joint(f"{nm}/root").bodyid[0] for nm in world.names])
+        self.body = world.body
         self.rest_z = model.qpos0[world.qpos_adr + 2].copy()
         self.half = np.array(world.scenario.arena) / 2
         self.min_up = float(np.cos(np.radians(self.limits.max_tilt_deg)))

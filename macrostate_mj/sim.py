@@ -123,7 +123,7 @@ class ChainSim:
         # Displacement of the Tail's destination (m), set by a data-collection policy (SRS).
         self.tail_offset = np.zeros(2)
         self.n = len(world.names)
-        self._body = np.array([self.model.joint(f"{nm}/root").bodyid[0] for nm in world.names])
+        self._body = world.body
         dt = self.model.opt.timestep
         steps_per_tick(1 / self.cfg.command_hz, dt, f"{self.cfg.name} command")
         steps_per_tick(1 / self.cfg.log_hz, dt, f"{self.cfg.name} log")

@@ -79,6 +79,7 @@ class World:
     colours: np.ndarray
     spec: mujoco.MjSpec
     model: mujoco.MjModel
+    body: np.ndarray            # each robot's root body (the freejoint's)
     qpos_adr: np.ndarray        # start of each robot's freejoint in qpos
     qvel_adr: np.ndarray
     ctrl_left: np.ndarray       # actuator index of each robot's left wheel
@@ -115,6 +116,7 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
         spec.attach(robot, prefix=f"{name}/", frame=frame)
         spec.geom(f"{name}/marker").rgba = [*colour, 1.0]
     model = spec.compile()
+    body = np.array([model.joint(f"{nm}/root").bodyid[0] for nm in names])
     qpos_adr = np.array([model.joint(f"{nm}/root").qposadr[0] for nm in names])
     qvel_adr = np.array([model.joint(f"{nm}/root").dofadr[0] for nm in names])
     left = np.array([model.actuator(f"{nm}/wheel_left").id for nm in names])
@@ -127,5 +129,5 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
     mujoco.mj_forward(model, data)
     # The marker mesh is re-centred by MuJoCo: its geom centre is mid-thickness (1 mm prism).
     marker_top = float(data.geom_xpos[model.geom(f"{h}/marker").id][2]) + 0.0005
-    return World(cfg, names, colours, spec, model, qpos_adr, qvel_adr, left, right,
+    return World(cfg, names, colours, spec, model, body, qpos_adr, qvel_adr, left, right,
                  wheel_radius, track, max_wheel, marker_top)
