@@ -23,12 +23,14 @@ $(STAMP): pyproject.toml requirements.lock
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
+	# The one-way data flow (pyproject.toml [tool.importlinter]): a forbidden import fails here.
+	$(VENV)/bin/lint-imports
 
 test: $(STAMP) lint
 	$(VENV)/bin/pytest
 
 demo: $(STAMP)
-	$(PY) -m macrostate_mj.demo --out $(OUT)
+	$(PY) -m macrostate_mj.app.demo --out $(OUT)
 
 clean:
 	rm -rf $(VENV) out

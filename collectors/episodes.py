@@ -13,8 +13,8 @@ import numpy as np
 import pyarrow as pa
 
 from collectors.policies import PolicyConfig, TailPolicy
-from macrostate_mj.imaging import NoiseConfig
-from macrostate_mj.poses_io import poses_table
+from macrostate_mj.formats.poses import poses_table
+from macrostate_mj.vision.imaging import NoiseConfig
 
 
 @dataclass(frozen=True)
@@ -38,11 +38,11 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     """Simulate, film and track one episode; return its long-format log with an `episode`
     column and timing figures, or no table and `{"failure": ...}` when its physics failed.
     Runs anywhere: a local process or a Ray worker."""
-    from macrostate_mj.camera_chain import CameraChain
-    from macrostate_mj.health import PhysicsError
-    from macrostate_mj.runs import scenario_for
-    from macrostate_mj.sim import ChainSim, Periodic, PoseLog
-    from macrostate_mj.world import build_world
+    from macrostate_mj.chain.health import PhysicsError
+    from macrostate_mj.chain.scenarios import scenario_for
+    from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+    from macrostate_mj.chain.world import build_world
+    from macrostate_mj.vision.camera_chain import CameraChain
 
     t0 = time.perf_counter()
     cfg = scenario_for(spec.scenario, spec.head_speed)

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from macrostate_mj.errors import UserError
-from macrostate_mj.sim import ChainSim
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.core.errors import UserError
 
 ROBOT_SIZE_M = 0.11        # Thymio II size used by the seed to scale sigma (§3.3)
 POLICIES = ("passive", "random")

@@ -22,19 +22,20 @@ import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig
-from macrostate_mj.errors import RunFailure, UserError
-from macrostate_mj.instances import (
+from macrostate_mj.chain.scenarios import scenario_for
+from macrostate_mj.chain.world import validate_chain
+from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.io import prepare_out_dir, write_manifest, write_text_atomic
+from macrostate_mj.core.parallel import runner_for
+from macrostate_mj.formats.instances import (
     INSTANCE_STEPS,
     cut_instances,
     instance_starts,
     split_indices,
     to_thymioloc_pixels,
 )
-from macrostate_mj.io import prepare_out_dir, write_manifest, write_text_atomic
-from macrostate_mj.parallel import runner_for
-from macrostate_mj.poses_io import table_arrays, write_poses
-from macrostate_mj.runs import scenario_for, validate_chain
-from macrostate_mj.thymioloc import write_csv
+from macrostate_mj.formats.poses import table_arrays, write_poses
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, write_csv
 
 SPLIT_NAMES = ("Train", "Val", "Test")
 PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.json",
@@ -56,7 +57,7 @@ class CollectRequest:
     overwrite: bool = False
     episode_minutes: float = 5.0
     warmup: float = 10.0
-    px_per_cm: float = 3.0
+    px_per_cm: float = DEFAULT_PX_PER_CM
     head_speed: float | None = None
 
 

@@ -9,13 +9,13 @@ import sys
 def cli(*args: str, **kw) -> subprocess.CompletedProcess:
     """`macrostate-mj ARGS` in a fresh interpreter: exit code, stdout and stderr as a user sees
     them, tracebacks included."""
-    return subprocess.run([sys.executable, "-m", "macrostate_mj.cli", *args],
+    return subprocess.run([sys.executable, "-m", "macrostate_mj.app.cli", *args],
                           capture_output=True, text=True, timeout=900, **kw)
 
 
 def cli_inprocess(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
     """The same command in this process (faster): (exit code, stdout, stderr)."""
-    from macrostate_mj.cli import main
+    from macrostate_mj.app.cli import main
 
     monkeypatch.setattr(sys, "argv", ["macrostate-mj", *args])
     try:

@@ -7,8 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from macrostate_mj.antflow import BIN_NAMES, open_dataset
-from macrostate_mj.errors import UserError
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.formats.hsants import BIN_NAMES, open_dataset
 
 
 def make_layout(root: Path, stable: int = 10, unstable=(1333, 1999, 5000), subframes: int = 2,

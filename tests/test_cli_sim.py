@@ -9,10 +9,10 @@ import pyarrow.parquet as pq
 import pytest
 from clitools import assert_clean_error, cli
 
-from macrostate_mj.camera import OverheadRenderer, PinholeCamera
-from macrostate_mj.scenarios import get_scenario
-from macrostate_mj.sim import ChainSim
-from macrostate_mj.world import build_world
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.world import build_world
+from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
 
 
 def test_simulate_writes_long_format_poses_and_manifest(tmp_path):

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from clitools import assert_clean_error, cli
 
-from macrostate_mj.instances import instance_starts, split_indices, to_thymioloc_pixels
-from macrostate_mj.thymioloc import read_csv
+from macrostate_mj.formats.instances import instance_starts, split_indices, to_thymioloc_pixels
+from macrostate_mj.formats.thymioloc import read_csv
 
 TINY = ["--robots", "3", "--minutes", "0.75", "--episode-minutes", "0.25", "--seed", "5"]
 
@@ -78,7 +78,7 @@ def test_ray_gives_the_same_csv(reference, tmp_path):
 
 
 def test_sigkill_then_same_command_resumes_without_loss(reference, tmp_path):
-    args = [sys.executable, "-m", "macrostate_mj.cli", "collect", *TINY, "--split", "60/10/30",
+    args = [sys.executable, "-m", "macrostate_mj.app.cli", "collect", *TINY, "--split", "60/10/30",
             "--out", str(tmp_path)]
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)

@@ -9,7 +9,7 @@ import pytest
 from clitools import cli_inprocess
 
 import macrostate_mj  # noqa: F401  (sets MUJOCO_GL before mujoco loads)
-from macrostate_mj.colony import (
+from macrostate_mj.colony.sim import (
     BEHAVIOURS,
     DUEL,
     HEAD_TIP,
@@ -21,7 +21,7 @@ from macrostate_mj.colony import (
     project,
     regime,
 )
-from macrostate_mj.errors import UserError
+from macrostate_mj.core.errors import UserError
 
 
 def test_aggression_peaks_after_removal_and_fades_by_day_10():

@@ -7,7 +7,7 @@ import pyarrow.parquet as pq
 import pytest
 from clitools import cli_inprocess
 
-from macrostate_mj.health import Fault, PhysicsFault, PhysicsMonitor
+from macrostate_mj.chain.health import Fault, PhysicsFault, PhysicsMonitor
 
 FAULT_AT = 3.0
 
@@ -29,7 +29,7 @@ def strict_after(monkeypatch, healthy: int) -> None:
         built.append(world)
         return (PhysicsMonitor if len(built) <= healthy else TipsAt)(world)
 
-    monkeypatch.setattr("macrostate_mj.sim.PhysicsMonitor", monitor)
+    monkeypatch.setattr("macrostate_mj.chain.sim.PhysicsMonitor", monitor)
 
 
 def one_line(err: str) -> str:

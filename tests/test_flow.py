@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from macrostate_mj import flow
-from macrostate_mj.errors import UserError
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.vision import flow
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -106,7 +106,7 @@ def test_cli_mixed_frame_sizes_exit_2_one_line_nothing_written(tmp_path):
         cv2.imwrite(str(folder / f"{i:03d}.png"), _texture(size, size, i))
     out = tmp_path / "out"
     out.mkdir()
-    proc = subprocess.run([sys.executable, "-m", "macrostate_mj.cli", "flow", "--frames",
+    proc = subprocess.run([sys.executable, "-m", "macrostate_mj.app.cli", "flow", "--frames",
                            str(folder), "--out", str(out), "--fps", "2", "--every", "0.5",
                            "--m", "1"], capture_output=True, text=True, cwd=REPO)
     assert proc.returncode == 2
@@ -121,7 +121,7 @@ def test_cli_writes_layout_and_refuses_to_clobber(tmp_path):
     for i, f in enumerate(_shifting_frames(6, dx=2)):
         cv2.imwrite(str(folder / f"f{i}.png"), cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
     out = tmp_path / "ds"
-    args = [sys.executable, "-m", "macrostate_mj.cli", "flow", "--frames", str(folder), "--out",
+    args = [sys.executable, "-m", "macrostate_mj.app.cli", "flow", "--frames", str(folder), "--out",
             str(out), "--fps", "4", "--every", "0.25", "--gap", "0.25", "--m", "1", "--label",
             "Unstable", "--start-id", "1333", "--crop", "8,8,80,80"]
     proc = subprocess.run(args, capture_output=True, text=True, cwd=REPO)

@@ -7,9 +7,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from macrostate_mj.scenarios import SCENARIOS
-from macrostate_mj.sim import ChainSim
-from macrostate_mj.world import ASSETS, build_world
+from macrostate_mj.chain.scenarios import SCENARIOS
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.world import build_world
+from macrostate_mj.core.paths import ASSETS
 
 FILES = sorted(p.relative_to(ASSETS) for p in ASSETS.rglob("*.xml"))
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from macrostate_mj.motion import (
+from macrostate_mj.chain.motion import (
     avoidance_velocities,
     body_twist,
     chain_velocities,
@@ -14,7 +14,7 @@ from macrostate_mj.motion import (
     wheel_speeds,
     wrap_angle,
 )
-from macrostate_mj.planners import CellPlanner, Grid, GridPlanner, psi_candidates
+from macrostate_mj.chain.planners import CellPlanner, Grid, GridPlanner, psi_candidates
 
 
 def test_wrap_angle_range_and_pi():

@@ -12,7 +12,7 @@ from clitools import cli as _cli
 from estimators.oneclass import METHODS, OCConfig, OCModel, fit
 from estimators.oneclass.metrics import auc_report, roc_auc
 from estimators.oneclass.train import train_classifier
-from macrostate_mj.errors import UserError
+from macrostate_mj.core.errors import UserError
 from viz.gradcam import box_share, gradcam, pointing_game, top_share
 
 REPO = Path(__file__).resolve().parents[1]

@@ -6,14 +6,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from macrostate_mj.errors import UserError
-from macrostate_mj.health import Fault, PhysicsError
-from macrostate_mj.motion import body_twist, wrap_angle
-from macrostate_mj.planners import FixedWaypoint
-from macrostate_mj.scenarios import SCENARIOS, get_scenario
-from macrostate_mj.sim import ChainSim, Periodic, PoseLog, simulate_poses, steps_per_tick
-from macrostate_mj.soak import soak, soak_tasks, summary
-from macrostate_mj.world import build_world
+from macrostate_mj.chain.health import Fault, PhysicsError
+from macrostate_mj.chain.motion import body_twist
+from macrostate_mj.chain.planners import FixedWaypoint
+from macrostate_mj.chain.scenarios import SCENARIOS, get_scenario
+from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog, simulate_poses, steps_per_tick
+from macrostate_mj.chain.soak import soak, soak_tasks, summary
+from macrostate_mj.chain.world import build_world
+from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.core.errors import UserError
 
 GOLDEN = Path(__file__).parent / "golden" / "lab3_seed7.npz"
 

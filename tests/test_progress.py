@@ -5,7 +5,7 @@ import re
 
 from rich.console import Console
 
-from macrostate_mj.progress import LoggedProgress
+from macrostate_mj.core.progress import LoggedProgress
 
 
 def _run(console: Console) -> str:

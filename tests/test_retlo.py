@@ -20,8 +20,8 @@ from estimators.retlo.train import (
     save_checkpoint,
     train,
 )
-from macrostate_mj.errors import UserError
-from macrostate_mj.thymioloc import from_world, to_world, write_csv
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.formats.thymioloc import from_world, to_world, write_csv
 
 TINY = dict(k=16, m=16, d=16)
 
@@ -241,7 +241,7 @@ def test_mirror_signs_reflect_samples_like_a_reflected_chain(cos_sin):
 
 
 def test_heuristic_on_the_real_data_matches_the_dissertation(reference_data):
-    from macrostate_mj.thymioloc import read_csv
+    from macrostate_mj.formats.thymioloc import read_csv
 
     train_csv = reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
     report = evaluate_chain(Heuristic2X(), to_world(read_csv(train_csv).poses, 3.0))

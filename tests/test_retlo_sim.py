@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 from clitools import cli_inprocess as _cli
 
-from estimators.retlo_sim.cases import tail_view
-from estimators.retlo_sim.data import (
+from collectors.robotarium import (
     fit_start,
     noisy_replicas,
     run_chain,
     training_runs,
     twists_of,
 )
+from collectors.robotarium_cases import tail_view
 from estimators.retlo_sim.estimate import (
     chain_errors,
     estimate_chain,
@@ -23,8 +23,8 @@ from estimators.retlo_sim.estimate import (
 )
 from estimators.retlo_sim.frames import frame_of, from_frame, to_frame, training_pairs
 from estimators.retlo_sim.mlp import init_mlp, mse, standardize, train_mlp
-from macrostate_mj.scenarios import get_scenario
-from macrostate_mj.world import build_world
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.world import build_world
 
 CFG = get_scenario("robotarium")
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from clitools import cli_inprocess as _cli
 
-from macrostate_mj.errors import UserError
-from macrostate_mj.instances import to_thymioloc_pixels
-from macrostate_mj.thymioloc import (
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.formats.instances import to_thymioloc_pixels
+from macrostate_mj.formats.thymioloc import (
     chain_stats,
     format_csv,
     from_world,

@@ -4,14 +4,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from macrostate_mj.camera import OverheadRenderer, PinholeCamera
-from macrostate_mj.camera_chain import CameraChain
-from macrostate_mj.imaging import NoiseConfig, degrade, draw_episode
-from macrostate_mj.motion import wrap_angle
-from macrostate_mj.scenarios import get_scenario
-from macrostate_mj.sim import ChainSim, Periodic
-from macrostate_mj.tracker import Tracker, marker_area
-from macrostate_mj.world import build_world
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.sim import ChainSim, Periodic
+from macrostate_mj.chain.world import build_world
+from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
+from macrostate_mj.vision.camera_chain import CameraChain
+from macrostate_mj.vision.imaging import NoiseConfig, degrade, draw_episode
+from macrostate_mj.vision.tracker import Tracker, marker_area
 
 
 def errors_over_run(seconds: float, seed: int, noise: NoiseConfig):
@@ -120,7 +120,7 @@ def test_camera_error_unknown_to_the_tracker_biases_it(shift):
 
 def test_pipelined_camera_chain_gives_the_same_log():
     """Imaging and tracking on a helper thread overlap the physics, but change nothing."""
-    from macrostate_mj.sim import PoseLog
+    from macrostate_mj.chain.sim import PoseLog
 
     logs = []
     for pipelined in (False, True):

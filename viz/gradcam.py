@@ -8,14 +8,12 @@ over all shown samples is subtracted and only the top 5 % of each frame is colou
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from macrostate_mj.errors import UserError
+from macrostate_mj.core.errors import UserError
 
 Box = tuple[float, float, float, float]  # x, y, w, h in heatmap pixels, (0, 0) = top-left corner
 
@@ -72,7 +70,7 @@ def overlay_grid(imgs: np.ndarray, heats: np.ndarray, scale: int = 3) -> np.ndar
 
 def write_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
     """Atomically write an RGB image as PNG."""
-    from macrostate_mj.io import atomic_path
+    from macrostate_mj.core.io import atomic_path
 
     ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     if not ok:
@@ -82,24 +80,13 @@ def write_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
 
 
 def write_mp4(path: str | os.PathLike, frames: Sequence[np.ndarray], fps: float = 2.0) -> None:
-    """Write RGB frames as an 'mp4v' MP4; the file appears under its name only when complete."""
-    path = Path(path)
+    """Write RGB frames as an MP4; the file appears under its name only when complete."""
+    from macrostate_mj.core.io import Mp4Writer
+
     h, w = frames[0].shape[:2]
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".mp4", dir=path.parent)
-    os.close(fd)
-    try:
-        writer = cv2.VideoWriter(tmp, cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
-        if not writer.isOpened():
-            raise UserError(f"OpenCV cannot write MP4 video {path}; write PNGs instead")
+    with Mp4Writer(path, fps, (w, h)) as writer:
         for f in frames:
-            writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
-        writer.release()
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp made it 0600
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
+            writer.write(f)
 
 
 def _in_boxes(px: np.ndarray, py: np.ndarray, bxs: Sequence[Box], tolerance: float) -> np.ndarray:

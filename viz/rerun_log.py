@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from macrostate_mj.camera import OverheadRenderer
-from macrostate_mj.io import AtomicFile
-from macrostate_mj.sim import ChainSim
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.core.io import AtomicFile
+from macrostate_mj.vision.camera import OverheadRenderer
 from viz.video import Trails
 
 

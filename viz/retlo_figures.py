@@ -7,19 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.io import atomic_path
+from macrostate_mj.core.io import Mp4Writer
+from viz.figures import save_png
 
 MODEL_STYLE = {"heuristic2x": ("2X heuristic", "#999999"), "fc": ("FC", "#1f77b4"),
                "lstm": ("LSTM (ours)", "#d62728")}
-
-
-def _save(fig, path: str | os.PathLike) -> None:
-    """PNG with no creation metadata, written atomically: reruns give identical files."""
-    import matplotlib.pyplot as plt
-
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120, metadata={"Software": None})
-    plt.close(fig)
 
 
 def plot_overall(results: dict, path: str | os.PathLike) -> None:
@@ -45,7 +37,7 @@ def plot_overall(results: dict, path: str | os.PathLike) -> None:
     ax.set_title(f"ReTLo error, mean ± std over {results['seeds']} seeds")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path)
 
 
 def plot_stepwise(results: dict, test: str, path: str | os.PathLike) -> None:
@@ -74,7 +66,7 @@ def plot_stepwise(results: dict, test: str, path: str | os.PathLike) -> None:
     ax.set_title(f"Step-wise error, {test}")
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path)
 
 
 def _colours(n: int) -> list[tuple[int, int, int]]:
@@ -100,26 +92,19 @@ def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray
     true_px, est_px: (instances, steps, robots, 3) pixels/degrees in file order, est NaN where
     nothing is estimated. Instances play one after another at the 2 Hz log rate.
     """
-    import cv2
 
     size = 11.0 * px_per_cm  # a Thymio is about 11 cm long
     lo = np.floor(np.nanmin(true_px[..., :2], axis=(0, 1, 2)) - size).astype(int)
     hi = np.ceil(np.nanmax(true_px[..., :2], axis=(0, 1, 2)) + size).astype(int)
     w, h = (int(v) + int(v) % 2 for v in hi - lo)
-    with atomic_path(path) as tmp:
-        mp4 = Path(str(tmp) + ".mp4")  # VideoWriter picks the container from the suffix
-        try:
-            _draw(cv2.VideoWriter(str(mp4), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h)),
-                  true_px, est_px, lo, (w, h), size)
-            os.replace(mp4, tmp)
-        finally:
-            mp4.unlink(missing_ok=True)
+    with Mp4Writer(path, fps, (w, h)) as writer:
+        _draw(writer, true_px, est_px, lo, (w, h), size)
     return Path(path)
 
 
 def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
           wh: tuple[int, int], size: float) -> None:
-    """Write every frame of every instance to an open cv2.VideoWriter, then release it."""
+    """Write every frame of every instance to an open `Mp4Writer`."""
     import cv2
 
     colours = _colours(true_px.shape[2])
@@ -144,5 +129,4 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
             known = "true history" if np.all(np.isnan(est_px[inst, step])) else "estimated"
             cv2.putText(frame, f"instance {inst + 1}  t = {step / 2:4.1f} s  ({known})",
                         (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
-            writer.write(frame)
-    writer.release()
+            writer.write_bgr(frame)

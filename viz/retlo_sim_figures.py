@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 
-from macrostate_mj.io import atomic_path
+from viz.figures import save_png
 
 
 def _pyplot():
@@ -16,13 +16,6 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
-
-
-def _save(fig, path: str | os.PathLike) -> None:
-    """PNG with no creation metadata, written atomically: reruns give identical files."""
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
-    _pyplot().close(fig)
 
 
 def plot_case(err: np.ndarray, names: list[str], sync: np.ndarray, threshold: float,
@@ -43,7 +36,7 @@ def plot_case(err: np.ndarray, names: list[str], sync: np.ndarray, threshold: fl
     ax.set_ylim(0, max(2 * threshold, float(np.nanmax(err, initial=0.0)) * 1.05))
     ax.legend(fontsize=8, ncol=len(names) + 1, loc="upper right")
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path, dpi=110)
 
 
 def plot_trajectories(runs: dict[str, tuple[np.ndarray, str]], arena: tuple[float, float],
@@ -62,4 +55,4 @@ def plot_trajectories(runs: dict[str, tuple[np.ndarray, str]], arena: tuple[floa
         ax.set_title(f"{label}, {floor} floor", fontsize=9)
         ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path, dpi=110)

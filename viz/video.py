@@ -8,9 +8,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from macrostate_mj.camera import OverheadRenderer, PinholeCamera
-from macrostate_mj.io import AtomicFile
-from macrostate_mj.sim import ChainSim
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.core.io import Mp4Writer
+from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
 
 OVERLAYS = ("ids", "waypoint", "trails")
 
@@ -39,11 +39,7 @@ class VideoRecorder:
         self.renderer = OverheadRenderer(sim.model)
         self.camera = PinholeCamera.from_model(sim.model, sim.data)
         self.trails = Trails(sim.n, max(2, int(trail_seconds * fps)))
-        self._file = AtomicFile(self.path)
-        size = (self.renderer.width, self.renderer.height)
-        fourcc = cv2.VideoWriter_fourcc(*"mp4v")
-        self._writer = cv2.VideoWriter(str(self._file.tmp), fourcc, fps, size)
-        self.frames = 0
+        self._writer = Mp4Writer(self.path, fps, (self.renderer.width, self.renderer.height))
 
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)
@@ -51,19 +47,20 @@ class VideoRecorder:
         self.trails.add(poses[:, :2])
         bgr = np.ascontiguousarray(rgb[:, :, ::-1])
         draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays)
-        self._writer.write(bgr)
-        self.frames += 1
+        self._writer.write_bgr(bgr)
+
+    @property
+    def frames(self) -> int:
+        return self._writer.frames
 
     def finish(self) -> None:
         """Close the file and move it into place."""
-        self._writer.release()
         self.renderer.close()
-        self._file.commit()
+        self._writer.commit()
 
     def abort(self) -> None:
-        self._writer.release()
         self.renderer.close()
-        self._file.discard()
+        self._writer.discard()
 
 
 def draw_overlays(bgr: np.ndarray, camera: PinholeCamera, sim: ChainSim, poses: np.ndarray,

@@ -23,8 +23,8 @@ import torch
 
 from estimators.oneclass import train as T
 from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
-from macrostate_mj.errors import UserError
-from macrostate_mj.flow import BOUND
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.vision.flow import BOUND
 
 METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
 # stages each method needs, in training order
@@ -86,7 +86,7 @@ class OCModel:
 
     # --- persistence: tensors in weights.pt (loadable with weights_only), the rest in JSON ---
     def save(self, out: Path) -> None:
-        from macrostate_mj.io import atomic_path, write_json_atomic
+        from macrostate_mj.core.io import atomic_path, write_json_atomic
 
         tensors: dict[str, torch.Tensor] = {}
         for name, mod in self._modules().items():

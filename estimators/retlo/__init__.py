@@ -2,6 +2,7 @@
 chains of any length.
 
 `frames` (the reference-robot frame and module inputs), `models` (2X heuristic, FC, LSTM),
-`chain` (modular inference and its errors), `train` (training, checkpoints), `experiment`
-(Fig 2.7-2.9), `synthetic` (chains with a known law for tests and benchmarks).
+`chain` (modular inference and its errors), `train` (training, checkpoints), `synthetic`
+(chains with a known law for tests and benchmarks). Fig 2.7-2.9 are drawn by
+`macrostate_mj.app.experiments.retlo`.
 """

@@ -13,10 +13,11 @@ import warnings
 
 import numpy as np
 
-from estimators.retlo.frames import from_frame, module_inputs, module_targets, wrap
+from estimators.retlo.frames import from_frame, module_inputs, module_targets
 from estimators.retlo.models import Predictor
-from macrostate_mj.errors import UserError
-from macrostate_mj.thymioloc import STEP_S, robot_names
+from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.formats.thymioloc import STEP_S, robot_names
 
 
 def check_chain(shape: tuple[int, ...], history: int, what: str = "data") -> None:
@@ -65,8 +66,8 @@ def predict_chain(pred: Predictor, world: np.ndarray,
                                     strict=True):
                     samples.setdefault(key, []).append(val)
             head[:, t, :2] = from_frame(pos, origin, alpha)
-            head[:, t, 2] = wrap(ang[:, 1] + alpha)
-            fol[:, t, 2] = wrap(ang[:, 0] + alpha)
+            head[:, t, 2] = wrap_angle(ang[:, 1] + alpha)
+            fol[:, t, 2] = wrap_angle(ang[:, 0] + alpha)
             if k == 0:
                 est[:, t, 1, 2] = fol[:, t, 2]
         est[:, hist:, k + 2] = head[:, hist:]

@@ -15,10 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def wrap(a: np.ndarray) -> np.ndarray:
-    """Angles to [-π, π)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+from macrostate_mj.core.angles import wrap_angle
 
 
 def frame_of(ref_xy: np.ndarray, fol_xy: np.ndarray, rotate: bool = True,
@@ -49,7 +46,7 @@ def from_frame(xy: np.ndarray, origin: np.ndarray, alpha: np.ndarray) -> np.ndar
 
 def angle_features(theta: np.ndarray, cos_sin: bool) -> np.ndarray:
     """Relative angles (...,) as (..., 1) radians or (..., 2) cos/sin (§3.3's option)."""
-    theta = wrap(theta)
+    theta = wrap_angle(theta)
     return np.stack([np.cos(theta), np.sin(theta)], -1) if cos_sin else theta[..., None]
 
 
@@ -81,5 +78,5 @@ def module_targets(fol: np.ndarray, head: np.ndarray, t: int, origin: np.ndarray
                    alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Targets of eq. 2.4 in the frame: Head position at t; (θ_F@t, θ_H@t, θ_F@t+1) - α."""
     pos = to_frame(head[:, t, :2], origin, alpha)
-    ang = wrap(np.stack([fol[:, t, 2], head[:, t, 2], fol[:, t + 1, 2]], -1) - alpha[:, None])
+    ang = wrap_angle(np.stack([fol[:, t, 2], head[:, t, 2], fol[:, t + 1, 2]], -1) - alpha[:, None])
     return pos, ang

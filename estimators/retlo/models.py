@@ -14,7 +14,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from macrostate_mj.errors import UserError
+from macrostate_mj.core.errors import UserError
 
 MODEL_KINDS = ("fc", "lstm")
 

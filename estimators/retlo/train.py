@@ -21,8 +21,8 @@ import torch
 from estimators.retlo.chain import check_chain, evaluate_chain, predict_chain
 from estimators.retlo.frames import module_inputs, module_targets
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor
-from macrostate_mj.errors import UserError
-from macrostate_mj.io import atomic_path
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.io import atomic_path
 
 FORMAT = "macrostate-mj/retlo-checkpoint"
 VERSION = 1
@@ -129,7 +129,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     curve: list[dict] = []
     batches = 0
     start = time.perf_counter()
-    from macrostate_mj.progress import LoggedProgress
+    from macrostate_mj.core.progress import LoggedProgress
 
     with LoggedProgress(disable=not progress, transient=True) as bar:
         task = bar.add_task(f"train {cfg.model.kind}", total=cfg.epochs)

@@ -22,10 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def wrap(a: np.ndarray | float) -> np.ndarray:
-    """Angles to [-π, π)."""
-    return (np.asarray(a, dtype=np.float64) + np.pi) % (2 * np.pi) - np.pi
+from macrostate_mj.core.angles import wrap_angle
 
 
 def frame_of(ref_xy: np.ndarray, fol_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,7 +52,7 @@ def module_base(ref_xy: np.ndarray, fol_pose: np.ndarray, fol_xy_next: np.ndarra
     origin, alpha = frame_of(ref_xy, fol_pose[..., :2])
     here = to_frame(fol_pose[..., :2], origin, alpha)
     there = to_frame(fol_xy_next, origin, alpha)
-    theta = wrap(fol_pose[..., 2] - alpha)[..., None]
+    theta = wrap_angle(fol_pose[..., 2] - alpha)[..., None]
     return np.concatenate([here, theta, there], axis=-1), origin, alpha
 
 
@@ -63,14 +60,14 @@ def module_targets(head_xy: np.ndarray, fol_theta_next: np.ndarray, origin: np.n
                    alpha: np.ndarray) -> np.ndarray:
     """Targets (B, 3): the Head's position at t in the frame, the Follower's heading at t+1."""
     return np.concatenate([to_frame(head_xy, origin, alpha),
-                           wrap(fol_theta_next - alpha)[..., None]], axis=-1)
+                           wrap_angle(fol_theta_next - alpha)[..., None]], axis=-1)
 
 
 def decode(out: np.ndarray, origin: np.ndarray, alpha: np.ndarray
            ) -> tuple[np.ndarray, np.ndarray]:
     """Network outputs (B, 3) → the Head's world position (B, 2) and the Follower's world
     heading at t+1 (B,)."""
-    return from_frame(out[..., :2], origin, alpha), wrap(out[..., 2] + alpha)
+    return from_frame(out[..., :2], origin, alpha), wrap_angle(out[..., 2] + alpha)
 
 
 def training_pairs(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

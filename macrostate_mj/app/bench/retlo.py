@@ -1,0 +1,77 @@
+"""`bench --only retlo`: one LSTM training on the real 3-robot data, against its compute floor.
+
+The limit is the bare forward + backward + optimizer step of the same network on the same batch
+shape, times the number of batches the training ran: what the training would cost with no data
+preparation, feedback rollouts or validation. Without the reference data (a fresh clone), the
+same sizes are drawn from `estimators.retlo.synthetic` and the figure names say so.
+"""
+
+from __future__ import annotations
+
+import time
+
+
+def _data() -> tuple[str, list, object]:
+    from macrostate_mj.core.paths import real_thymioloc
+    from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
+
+    root = real_thymioloc("Train.csv").parent
+    if (root / "Train.csv").is_file() and (root / "Val.csv").is_file():
+        def world(name: str) -> object:
+            return to_world(read_csv(root / name).poses, DEFAULT_PX_PER_CM)
+
+        return "real 3-robot Train", [world("Train.csv")], world("Val.csv")
+    from estimators.retlo.synthetic import synthetic_chains
+
+    return "synthetic, real Train's size", [synthetic_chains(280, 3, 0)], synthetic_chains(45, 3, 1)
+
+
+def _bare_batch_seconds(cfg, n_hist_features: int, repeats: int = 30) -> float:
+    """Mean time of one forward + backward + Adam step on a random batch of the training shape."""
+    import torch
+
+    from estimators.retlo.models import RetloNet
+    from estimators.retlo.train import _loss
+
+    net = RetloNet(cfg.model, 31.0)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    gen = torch.Generator().manual_seed(0)
+    batch = {"obs": torch.randn(cfg.batch, 4, generator=gen),
+             "hist": torch.randn(cfg.batch, cfg.model.history, n_hist_features, generator=gen),
+             "pos": torch.randn(cfg.batch, 2, generator=gen),
+             "ang": torch.randn(cfg.batch, 3, generator=gen)}
+    for i in range(repeats + 5):
+        if i == 5:
+            start = time.perf_counter()
+        loss = _loss(net, batch, cfg.angle_weight)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    return (time.perf_counter() - start) / repeats
+
+
+def bench_retlo() -> list[dict]:
+    """Figures: LSTM training wall time (limit: bare network steps), per-batch cost, accuracy."""
+    import torch
+
+    from estimators.retlo.models import ModelConfig
+    from estimators.retlo.train import TrainConfig, make_samples, train
+
+    label, trains, val = _data()
+    cfg = TrainConfig(seed=0, model=ModelConfig(kind="lstm"))
+    start = time.perf_counter()
+    _, info = train(trains, val, cfg, progress=False)
+    seconds = time.perf_counter() - start
+    n_feat = make_samples([trains[0][:1]], cfg.model)["hist"].shape[-1]
+    torch.set_num_threads(cfg.threads)
+    per_batch = _bare_batch_seconds(cfg, n_feat)
+    floor = per_batch * info["batches"]
+    return [
+        {"name": f"retlo lstm training, target <= 300 s ({label})", "value": seconds,
+         "unit": "s", "limit": floor, "ratio": floor / seconds},
+        {"name": "retlo lstm epochs run (early stop)", "value": info["epochs_run"],
+         "unit": "epochs"},
+        {"name": "retlo lstm fwd+bwd+step per batch", "value": per_batch * 1e3, "unit": "ms"},
+        {"name": "retlo lstm best validation Head error", "value": info["best_val_cm"],
+         "unit": "cm"},
+    ]

@@ -1,0 +1,106 @@
+"""Speed figures of the simulation and render paths, each against a limit measured in the same
+run on the same model: bare `mj_step` in C for physics, a bare `mujoco.Renderer` for frames."""
+
+from __future__ import annotations
+
+import time
+
+import mujoco
+import numpy as np
+
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.chain.world import build_world
+
+
+def _best_of(fn, repeats: int = 3) -> float:
+    """Shortest wall time of `repeats` calls: the least disturbed by other processes."""
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def figure(name: str, value: float, unit: str, limit: float | None = None, **extra) -> dict:
+    fig = {"name": name, "value": round(value, 4), "unit": unit, **extra}
+    if limit is not None:
+        fig |= {"limit": round(limit, 4), "ratio": round(value / limit, 4)}
+    return fig
+
+
+def record_commands(sim: ChainSim, seconds: float, rng: np.random.Generator
+                    ) -> tuple[np.ndarray, list[tuple[int, np.ndarray]]]:
+    """Run `sim` from a reset and keep its start qpos and (step, wheel commands) per tick."""
+    dt = sim.model.opt.timestep
+    sim.reset(rng)
+    start = sim.data.qpos.copy()
+    ticks: list[tuple[int, np.ndarray]] = []
+    sim.run(seconds, [Periodic(1 / sim.cfg.command_hz, lambda s: ticks.append(
+        (int(round(s.time / dt)), s.data.ctrl.copy())))])
+    return start, ticks
+
+
+def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int, np.ndarray]],
+                end: int) -> mujoco.MjData:
+    """The physics alone: bare `mj_step(nstep)` replaying recorded commands, same contacts."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = start
+    ends = [t[0] for t in ticks[1:]] + [end]
+    for (step, ctrl), nxt in zip(ticks, ends, strict=True):
+        data.ctrl[:] = ctrl
+        mujoco.mj_step(model, data, nstep=nxt - step)
+    return data
+
+
+def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> list[dict]:
+    """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
+    wheel commands from the same start state: the physics cost alone, same contacts."""
+    cfg = get_scenario(scenario)
+    world = build_world(cfg, robots)
+    dt = world.model.opt.timestep
+    steps = int(round(seconds / dt))
+    sim = ChainSim(world)
+
+    def ours() -> None:
+        sim.reset(np.random.default_rng(0))
+        log = PoseLog(world.names)
+        sim.run(seconds, [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)])
+
+    start, ticks = record_commands(sim, seconds, np.random.default_rng(0))
+
+    def bare() -> None:
+        replay_bare(world.model, start, ticks, steps)
+
+    t_ours, t_bare = _best_of(ours), _best_of(bare)
+    tag = f"{scenario}, {robots} robots, dt={dt}"
+    return [
+        figure("sim_steps_per_s", steps / t_ours, "steps/s", steps / t_bare,
+               limit_name="bare mj_step(nstep) on the same model", config=tag),
+        figure("sim_realtime_factor", seconds / t_ours, "x real time", config=tag),
+    ]
+
+
+def bench_render(scenario: str = "lab", robots: int = 5, frames: int = 60) -> list[dict]:
+    from macrostate_mj.vision.camera import OverheadRenderer
+
+    world = build_world(get_scenario(scenario), robots)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(0))
+    with OverheadRenderer(world.model) as ours:
+        ours.render(sim.data)
+        t_ours = _best_of(lambda: [ours.render(sim.data) for _ in range(frames)])
+        w, h = ours.width, ours.height
+    bare = mujoco.Renderer(world.model, height=h, width=w)
+    try:
+        def bare_frames() -> None:
+            for _ in range(frames):
+                bare.update_scene(sim.data, camera="overhead")
+                bare.render()
+        bare_frames()
+        t_bare = _best_of(bare_frames)
+    finally:
+        bare.close()
+    return [figure("render_fps", frames / t_ours, "frames/s", frames / t_bare,
+                   limit_name="bare mujoco.Renderer, same camera", config=f"{w}x{h}")]

@@ -1,0 +1,48 @@
+"""Command-line entry point: a thin layer over the library API.
+
+Every command lives in a sibling module and imports its heavy dependencies lazily, so that
+`macrostate-mj --help` stays fast. Bad input, whether a `UserError` from the library or a bad
+flag caught by the parser, becomes one line on stderr and exit code 2, never a traceback.
+"""
+
+import sys
+
+import typer
+from typer._click import exceptions as click  # typer 0.29 vendors click; pinned
+
+from macrostate_mj.app.cli import ants as _ants  # noqa: F401
+from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers commands)
+from macrostate_mj.app.cli import collect as _collect  # noqa: F401
+from macrostate_mj.app.cli import oc as _oc  # noqa: F401
+from macrostate_mj.app.cli import retlo as _retlo  # noqa: F401
+from macrostate_mj.app.cli import retlo_sim as _retlo_sim  # noqa: F401
+from macrostate_mj.app.cli import sim as _sim  # noqa: F401
+from macrostate_mj.app.cli import soak as _soak  # noqa: F401
+from macrostate_mj.app.cli.app import app
+from macrostate_mj.core.errors import RunFailure, UserError
+
+
+def main() -> None:
+    try:
+        code = app(standalone_mode=False)
+    except click.NoArgsIsHelpError:
+        sys.exit(0)             # the help text is already printed
+    except click.UsageError as err:
+        where = err.ctx.command_path if err.ctx else "macrostate-mj"
+        message = " ".join(err.format_message().split())
+        print(f"error: {message} (see `{where} --help`)", file=sys.stderr)
+        sys.exit(2)
+    except UserError as err:
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)
+    except RunFailure as err:
+        print(f"failed: {err}", file=sys.stderr)
+        sys.exit(1)
+    except (typer.Abort, KeyboardInterrupt):
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,5 @@
+"""python -m macrostate_mj.app.cli"""
+
+from macrostate_mj.app.cli import main
+
+main()

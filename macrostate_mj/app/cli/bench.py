@@ -1,0 +1,49 @@
+"""`macrostate-mj bench`: speed figures, each a ratio against a limit measured in the same run."""
+
+import importlib
+import json
+
+import typer
+from rich.console import Console
+
+from macrostate_mj.app.cli.app import app
+
+# name -> "module:function"; each function takes no argument and returns a list of figure dicts
+# with at least {"name", "value", "unit"} and, where a limit exists, {"limit", "ratio"}.
+SUITES: dict[str, str] = {
+    "sim": "macrostate_mj.app.bench.sim:bench_sim",
+    "render": "macrostate_mj.app.bench.sim:bench_render",
+    "tracker": "macrostate_mj.app.bench.collect:bench_tracker",
+    "collect": "macrostate_mj.app.bench.collect:bench_collect",
+    "colony": "macrostate_mj.app.bench.colony:bench_colony",
+    "retlo": "macrostate_mj.app.bench.retlo:bench_retlo",
+    "flow": "macrostate_mj.app.bench.iogen:bench_flow",
+    "iogen": "macrostate_mj.app.bench.iogen:bench_iogen",
+}
+
+
+@app.command()
+def bench(
+    only: list[str] = typer.Option(None, "--only", help="Suites to run (repeatable); default all."),
+    as_json: bool = typer.Option(False, "--json", help="One JSON object per line, nothing else."),
+) -> None:
+    """Measure our loops against their bare limits (simulation, rendering, tracking, ...)."""
+    from macrostate_mj.core.errors import UserError
+
+    names = only or list(SUITES)
+    unknown = [n for n in names if n not in SUITES]
+    if unknown:
+        raise UserError(f"unknown bench suite {unknown[0]!r}; choose from {', '.join(SUITES)}")
+    console = Console(stderr=True)
+    for name in names:
+        module, func = SUITES[name].split(":")
+        with console.status(f"bench {name} ..."):
+            figures = getattr(importlib.import_module(module), func)()
+        for fig in figures:
+            fig = {"suite": name, **fig}
+            if as_json:
+                print(json.dumps(fig), flush=True)
+            else:
+                ratio = (f"  ratio {fig['ratio']:.3f} vs limit {fig['limit']:.4g}"
+                         if "ratio" in fig else "")
+                console.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}")

@@ -1,0 +1,170 @@
+"""`stats`, `train retlo`, `evaluate retlo`, `experiment retlo`: ThymioLoc data and ReTLo models."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+from macrostate_mj.app.cli.app import app, evaluate_app, experiment_app, train_app
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
+
+PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
+
+
+@app.command()
+def stats(
+    csv: list[Path] = typer.Argument(..., help="ThymioLoc CSV files (real or from `collect`)."),
+    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
+) -> None:
+    """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from macrostate_mj.core.errors import UserError
+    from macrostate_mj.formats.thymioloc import chain_stats, read_csv
+
+    if px_per_cm <= 0:
+        raise UserError(f"--px-per-cm must be positive, got {px_per_cm}")
+    found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
+    table = Table(title=f"ThymioLoc statistics ({px_per_cm:g} px/cm, 2 Hz)")
+    table.add_column("")
+    unique = len({p.name for p, _ in found}) == len(found)
+    for path, _ in found:       # the shortest label that tells the files apart
+        table.add_column(path.name if unique else f"{path.parent.name}/{path.name}",
+                         justify="right")
+    table.add_row("instances x steps", *(f"{s.n_instances} x {s.n_steps}" for _, s in found))
+    table.add_row("robots", *(str(len(s.robots)) for _, s in found))
+    table.add_row("spacing cm, mean ± std", *(f"{s.spacing_cm[0]:.1f} ± {s.spacing_cm[1]:.1f}"
+                                               for _, s in found))
+    table.add_row("spacing cm, 5th-95th pct", *(f"{s.spacing_cm[2]:.1f}-{s.spacing_cm[3]:.1f}"
+                                                 for _, s in found))
+    robots = max((s.robots for _, s in found), key=len)
+    for what, attr, unit in (("speed", "speed_cm_s", "cm/s"), ("|turn|", "turn_deg_s", "°/s")):
+        for r in robots:
+            table.add_row(f"{what} {r} {unit}", *(f"{getattr(s, attr)[r]:.1f}"
+                                                  if r in s.robots else "-" for _, s in found))
+    Console().print(table)
+
+
+def _checked_px(px_per_cm: float) -> float:
+    from macrostate_mj.core.errors import UserError
+
+    if px_per_cm <= 0:
+        raise UserError(f"--px-per-cm must be positive, got {px_per_cm}")
+    return px_per_cm
+
+
+@train_app.command("retlo")
+def train_retlo(
+    model: str = typer.Option(..., help="fc (recent observations only) or lstm (§2.6.1.1)."),
+    train: list[Path] = typer.Option(..., "--train", help="Training ThymioLoc CSV (repeatable)."),
+    val: Path = typer.Option(..., help="Validation CSV: selects the checkpoint, stops early."),
+    out: Path = typer.Option(..., help="Checkpoint to write (.pt)."),
+    seed: int = typer.Option(0, help="Seed of every random draw."),
+    epochs: int = typer.Option(60, help="Epochs of the cosine schedule; may stop earlier."),
+    patience: int = typer.Option(20, help="Epochs without a better validation error to stop."),
+    unidirectional: bool = typer.Option(False, help="§3.3: a unidirectional LSTM."),
+    cos_sin: bool = typer.Option(False, "--cos-sin", help="§3.3: angles as cos/sin."),
+    compass_frame: bool = typer.Option(False, help="§2.5.1.1's frame: Tail-centred, compass "
+                                       "axes (default: x axis along Tail→Follower)."),
+    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
+    overwrite: bool = typer.Option(False, help="Replace an existing checkpoint."),
+) -> None:
+    """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint."""
+    from estimators.retlo.models import ModelConfig
+    from estimators.retlo.train import TrainConfig, save_checkpoint
+    from estimators.retlo.train import train as fit
+    from macrostate_mj.core.errors import UserError
+    from macrostate_mj.core.io import check_writable_file
+    from macrostate_mj.formats.thymioloc import read_csv, to_world
+
+    if epochs < 1 or patience < 1:
+        raise UserError("--epochs and --patience must be at least 1")
+    cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, model=ModelConfig(
+        kind=model, bidirectional=not unidirectional, cos_sin=cos_sin,
+        rotate=not compass_frame))
+    px = _checked_px(px_per_cm)
+    check_writable_file(out, overwrite, "--out")
+    worlds = [to_world(read_csv(p).poses, px) for p in train]
+    val_world = to_world(read_csv(val).poses, px)
+    start = time.perf_counter()
+    net, info = fit(worlds, val_world, cfg)
+    save_checkpoint(out, net, px, cfg, info)
+    _manifest_beside(out, "train retlo", cfg, seed, {"train": time.perf_counter() - start},
+                     inputs=[str(p) for p in [*train, val]])
+    typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
+               f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
+
+
+@evaluate_app.command("retlo")
+def evaluate_retlo(
+    model: str = typer.Option(..., help="A checkpoint from `train retlo`, or heuristic2x."),
+    data: Path = typer.Option(..., help="ThymioLoc CSV of any chain length >= 3."),
+    out: Path = typer.Option(..., help="Report to write (.json)."),
+    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
+    overwrite: bool = typer.Option(False, help="Replace an existing report."),
+) -> None:
+    """Errors (cm) of every robot the Tail cannot see, per robot and per step."""
+    from macrostate_mj.app.experiments.retlo import load_predictor
+    from macrostate_mj.core.io import check_writable_file, write_json_atomic
+    from macrostate_mj.formats.thymioloc import read_csv, to_world
+
+    px = _checked_px(px_per_cm)
+    check_writable_file(out, overwrite, "--out")
+    pred, name = load_predictor(model)
+    from estimators.retlo.chain import evaluate_chain
+
+    report = {"model": name, "data": str(data), "px_per_cm": px,
+              **evaluate_chain(pred, to_world(read_csv(data).poses, px))}
+    write_json_atomic(out, report)
+    robots = ", ".join(f"{r} {v:.2f}" for r, v in report["per_robot_cm"].items())
+    typer.echo(f"mean {report['mean_error_cm']:.2f} cm ({robots}) over "
+               f"{report['n_instances']} instances -> {out}")
+
+
+@experiment_app.command("retlo")
+def experiment_retlo(
+    train: list[Path] = typer.Option(..., "--train", help="Training ThymioLoc CSV (repeatable)."),
+    val: Path = typer.Option(..., help="Validation CSV."),
+    test: list[Path] = typer.Option(None, "--test", help="Test CSV, any team size (repeatable)."),
+    holdout: float = typer.Option(0.0, help="Also hold out this fraction of the training "
+                                  "instances as a test set (when no test file exists)."),
+    seeds: int = typer.Option(5, help="Training seeds per model (0..seeds-1)."),
+    epochs: int = typer.Option(60, help="Epochs per training (cosine schedule, early stop)."),
+    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
+    out: Path = typer.Option(..., help="Output folder."),
+    overwrite: bool = typer.Option(False, help="Replace existing outputs."),
+) -> None:
+    """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
+    from macrostate_mj.app.experiments.retlo import PRODUCTS, ExperimentConfig, run_experiment
+    from macrostate_mj.core.io import prepare_out_dir
+
+    cfg = ExperimentConfig(train=[str(p) for p in train], val=str(val),
+                           test=[str(p) for p in test or []], holdout=holdout, seeds=seeds,
+                           epochs=epochs, px_per_cm=_checked_px(px_per_cm))
+    cfg.validate()
+    prepare_out_dir(out, PRODUCTS, overwrite)
+    summary = run_experiment(cfg, out)
+    for line in summary:
+        typer.echo(line)
+
+
+def _manifest_beside(path: Path, command: str, config: object, seed: int | None,
+                     timings: dict[str, float], **extra: object) -> None:
+    """`io.write_manifest` names its file manifest.json; a single-file output gets its own."""
+    import platform
+
+    import numpy
+    import torch
+
+    from macrostate_mj import __version__
+    from macrostate_mj.core.io import write_json_atomic
+
+    write_json_atomic(path.with_name(path.name + ".manifest.json"), {
+        "command": command, "config": config, "seed": seed, "version": __version__,
+        "versions": {"torch": torch.__version__, "numpy": numpy.__version__,
+                     "python": platform.python_version()},
+        "created_unix": round(time.time(), 3),
+        "timings_s": {k: round(v, 4) for k, v in timings.items()}, **extra})

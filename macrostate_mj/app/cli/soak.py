@@ -1,0 +1,70 @@
+"""`soak`: many seeds of one scenario in parallel; a table of faults and worst figures."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from macrostate_mj.app.cli.app import app
+
+COLUMNS = [("runs", "runs", "d"), ("tips", "tips", "d"), ("nans", "NaNs", "d"),
+           ("escapes", "escapes", "d"), ("climbs", "climbs", "d"),
+           ("max_penetration_mm", "max pen. mm", ".2f"), ("min_upright", "min upright", ".4f"),
+           ("max_lift_mm", "max lift mm", ".2f"), ("warnings", "warnings", "d"),
+           ("steps_per_s_per_worker", "steps/s/worker", ".0f")]
+
+
+@app.command()
+def soak(
+    scenario: str = typer.Option("lab", help="lab, webots or robotarium."),
+    robots: int = typer.Option(5, help="Chain length N."),
+    seeds: int = typer.Option(24, help="Number of seeds (runs)."),
+    seconds: float = typer.Option(600.0, help="Simulated seconds per run."),
+    first_seed: int = typer.Option(0, help="Seeds are first-seed, first-seed + 1, ..."),
+    workers: int = typer.Option(1, help="Local worker processes."),
+    ray: str = typer.Option(None, "--ray", help="Run seeds on Ray: local, auto or ADDRESS."),
+    check_hz: float = typer.Option(50.0, help="Health checks per simulated second (a fault "
+                                   "is then pinned to its physics step)."),
+    out: Path = typer.Option(None, help="Also write soak.json (every run) and manifest.json."),
+    as_json: bool = typer.Option(False, "--json", help="Print the summary as one JSON line."),
+    overwrite: bool = typer.Option(False, help="Replace an existing soak.json."),
+) -> None:
+    """Run many seeds and count tips, NaNs, escapes and climbing; exit 1 if any run faulted."""
+    import time
+
+    from macrostate_mj.chain.soak import run_records, soak_tasks, summary
+    from macrostate_mj.chain.soak import soak as run_soak
+    from macrostate_mj.core.errors import RunFailure
+    from macrostate_mj.core.io import prepare_out_dir, write_json_atomic, write_manifest
+    from macrostate_mj.core.progress import sim_progress
+
+    tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
+    if out is not None:
+        prepare_out_dir(out, ["soak.json", "manifest.json"], overwrite)
+    t0 = time.perf_counter()
+    with sim_progress(seeds, f"soak {scenario} {robots} robots", unit="runs") as bar:
+        runs = run_soak(tasks, workers, ray, bar)
+    row = {"scenario": scenario, "robots": robots, "seconds": seconds, **summary(runs, workers)}
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(out / "soak.json", {"summary": row, "runs": run_records(runs)})
+        write_manifest(out, "soak", {"tasks": tasks[0], "seeds": seeds}, first_seed,
+                       {"total": time.perf_counter() - t0},
+                       outputs={"soak": str(out / "soak.json")})
+    if as_json:
+        print(json.dumps(row), flush=True)
+    else:
+        typer.echo(f"{scenario} x {robots} robots, {seconds:g} s each, seeds "
+                   f"{first_seed}..{first_seed + seeds - 1}")
+        typer.echo("  ".join(f"{head:>{max(len(head), 6)}}" for _, head, _ in COLUMNS))
+        typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" for key, head, fmt in COLUMNS))
+        if row["warnings"]:
+            typer.echo(f"MuJoCo warnings: {row['warning_kinds']}")
+    bad = [r for r in runs if r.fault is not None]
+    if bad:
+        raise RunFailure(f"{len(bad)} of {len(runs)} runs faulted; first: seed {bad[0].seed}: "
+                         f"{bad[0].reason}; reproduce: macrostate-mj simulate --scenario "
+                         f"{scenario} --robots {robots} --seconds {seconds:g} --seed "
+                         f"{bad[0].seed} --out soak_seed{bad[0].seed}")

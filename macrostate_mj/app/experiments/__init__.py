@@ -1,0 +1,1 @@
+"""Experiments that reproduce the dissertation's figures: data, estimators and figures together."""

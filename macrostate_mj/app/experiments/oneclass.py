@@ -1,0 +1,95 @@
+"""`experiment oc`: Table 4.1 (m = 1, 2, 4), Table 4.2 and Fig 4.8 (mean ± std over the splits),
+Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM overlays (Fig 4.11–4.13)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from estimators.oneclass.metrics import auc_report
+from estimators.oneclass.model import METHODS, OCModel, fit, flow_weight
+from estimators.oneclass.train import OCConfig, Tick
+from macrostate_mj.formats.hsants import AntFlowData, open_dataset
+
+PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",
+            "fig4_9_flows.png", "fig4_10_distances.png", "gradcam", "manifest.json"]
+
+
+@dataclass(frozen=True)
+class OCExperiment:
+    data: Path
+    splits: tuple[int, ...] = (1, 2, 3)
+    ms: tuple[int, ...] = (1, 2, 4)
+    config: OCConfig = OCConfig()
+    max_train: int | None = None  # subsample the stable train split (quick runs only)
+    gradcam_samples: int = 6
+
+
+def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int):
+    train, test = d.split(split)
+    if max_train and len(train) > max_train:
+        train = sorted(np.random.default_rng(seed).choice(train, max_train, replace=False))
+    return (d.load("Stable", train, m), d.load("Stable", test, m),
+            d.load("Unstable", d.unstable_ids, m))
+
+
+def _mean_std(values: list[float | None]) -> dict[str, float | None]:
+    v = np.array([x for x in values if x is not None], float)
+    return {"mean": float(v.mean()) if len(v) else None, "std": float(v.std()) if len(v) else None}
+
+
+def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
+    """Train and score every (m, split); summarise; draw the figures into `out`."""
+    from viz import oneclass_figures as figures
+
+    d = open_dataset(exp.data)
+    bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
+    main_m = 2 if 2 in exp.ms else exp.ms[0]
+    runs: dict[str, dict[str, dict]] = {}
+    keep: tuple[OCModel, np.ndarray, np.ndarray, np.ndarray] | None = None
+    for m in exp.ms:
+        for split in exp.splits:
+            x, xs, xu = _inputs(d, split, m, exp.max_train, exp.config.seed)
+            methods = METHODS if m == main_m else ("iogen",)
+            cfg = replace(exp.config, m=m)
+            model = fit(x, methods, cfg, lambda s, f, m=m, k=split: tick(f"m={m} split {k} {s}", f))
+            runs[f"m{m}_split{split}"] = {
+                meth: auc_report(model.score(meth, xs), model.score(meth, xu), bins, names)
+                for meth in methods}
+            if m == main_m and keep is None:
+                keep = (model, x, xs, xu)
+    table41 = {m: _mean_std([runs[f"m{m}_split{k}"]["iogen"]["auc_all"] for k in exp.splits])
+               for m in exp.ms}
+    table42 = {meth: _mean_std([runs[f"m{main_m}_split{k}"][meth]["auc_all"] for k in exp.splits])
+               for meth in METHODS}
+    fig48 = {meth: {b: _mean_std([runs[f"m{main_m}_split{k}"][meth]["auc_bins"][b]
+                                  for k in exp.splits]) for b in names} for meth in METHODS}
+    results = {"table4_1_iogen_auc_by_m": table41, f"table4_2_auc_m{main_m}": table42,
+               f"fig4_8_auc_by_bin_m{main_m}": fig48, "runs": runs,
+               "n_unstable": len(d.unstable_ids), "n_unstable_by_bin":
+                   {b: bins.count(b) for b in names}}
+    weights = _flow_weights(d)
+    figures.flow_weight_figure(out / PRODUCTS[2], *weights)
+    figures.bins_figure(out / PRODUCTS[3], fig48)
+    model, x, xs, xu = keep
+    results["fig4_10"] = figures.model_figures(out / PRODUCTS[4], out / PRODUCTS[5], model, x, xs,
+                                               xu)
+    results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xu,
+                                                 exp.gradcam_samples, main_m)
+    figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids))
+    return results
+
+
+def _flow_weights(d: AntFlowData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(day position, weight, is_unstable) with m = 1 for every sample, for Fig 4.7."""
+    ws = flow_weight(d.load("Stable", d.stable_ids, 1))
+    wu = flow_weight(d.load("Unstable", d.unstable_ids, 1))
+    n = len(d.stable_ids)
+    day_s = -2.0 + 2.0 * np.arange(n) / n  # D-2 .. D-0 over the stable recording
+    first = min(a for a, _ in d.bins.values())
+    end = max(e for _, e in d.bins.values())
+    day_u = 18.0 * (np.asarray(d.unstable_ids) - first) / max(1, end - first)  # D+0 .. D+18
+    return (np.concatenate([day_s, day_u]), np.concatenate([ws, wu]),
+            np.concatenate([np.zeros(n, bool), np.ones(len(wu), bool)]))

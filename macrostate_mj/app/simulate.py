@@ -1,0 +1,160 @@
+"""Library API of `macrostate-mj simulate`: validate everything, run, write atomically.
+
+This is the top of the data flow (it may call into `viz`), like the CLI that wraps it.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from macrostate_mj.chain.health import PhysicsError
+from macrostate_mj.chain.scenarios import ScenarioConfig, scenario_for
+from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.chain.world import build_world, validate_chain
+from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.io import check_writable_file, prepare_out_dir, write_manifest
+from macrostate_mj.formats.poses import poses_table, write_poses
+
+
+@dataclass(frozen=True)
+class SimulateRequest:
+    scenario: str
+    robots: int
+    seconds: float
+    seed: int
+    out: Path
+    video: Path | None = None
+    rerun: Path | None = None
+    overwrite: bool = False
+    video_fps: float = 10.0
+    head_speed: float | None = None
+    track: bool = False
+    overlays: str = "ids,waypoint,trails"
+
+
+def imaging_rng(seed: int) -> np.random.Generator:
+    """The camera chain's own stream: tracking never changes the simulated trajectory."""
+    return np.random.default_rng([seed, 1])
+
+
+def parse_overlays(text: str) -> tuple[str, ...]:
+    from viz.video import OVERLAYS
+
+    names = () if text.strip() == "none" else tuple(n.strip() for n in text.split(",") if n)
+    bad = [n for n in names if n not in OVERLAYS]
+    if bad:
+        raise UserError(f"unknown overlay {bad[0]!r}; choose from {', '.join(OVERLAYS)} or none")
+    return names
+
+
+def check_request(req: SimulateRequest) -> ScenarioConfig:
+    """Every check of a simulate request, before anything is built or written."""
+    cfg = scenario_for(req.scenario, req.head_speed)
+    parse_overlays(req.overlays)
+    validate_chain(cfg, req.robots, req.seconds)
+    prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
+    for path, flag, suffix in ((req.video, "--video", ".mp4"), (req.rerun, "--rerun", ".rrd")):
+        if path is not None:
+            if path.suffix != suffix:
+                raise UserError(f"{flag} {path} needs the {suffix} extension")
+            check_writable_file(path, req.overwrite, flag)
+    return cfg
+
+
+def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
+    """Run one simulation; returns the written paths. Nothing is written if validation fails."""
+    cfg = check_request(req)
+    out = req.out
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UserError(f"cannot create --out {out}: {err.strerror}; "
+                        "choose a writable folder") from None
+
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    world = build_world(cfg, req.robots)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(req.seed))
+    timings["build"] = time.perf_counter() - t0
+
+    recorders = []
+    hooks = []
+    chain = None
+    if req.track:
+        from macrostate_mj.vision.camera_chain import CameraChain
+
+        chain = CameraChain(sim)
+        chain.start(imaging_rng(req.seed))
+        hooks.append(Periodic(1 / cfg.command_hz, chain.capture))
+    log = PoseLog(world.names, tracker=chain)
+    hooks.append(Periodic(1 / cfg.log_hz, log.append, sim.log_phase))
+    if req.video is not None:
+        from viz.video import VideoRecorder
+
+        rec = VideoRecorder(req.video, sim, fps=req.video_fps,
+                            overlays=parse_overlays(req.overlays))
+        recorders.append(rec)
+        hooks.append(Periodic(1 / req.video_fps, rec.capture))
+    if req.rerun is not None:
+        from viz.rerun_log import RerunRecorder
+
+        rrd = RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz)
+        recorders.append(rrd)
+        hooks.append(Periodic(1 / cfg.log_hz, rrd.capture, sim.log_phase))
+    t0 = time.perf_counter()
+    failure: PhysicsError | None = None
+    try:
+        sim.run(req.seconds, hooks, progress)
+    except PhysicsError as err:
+        failure = err           # keep what was simulated: poses and video up to the fault
+    except BaseException:
+        for r in recorders:
+            r.abort()
+        raise
+    finally:
+        if chain is not None:
+            chain.close()
+    for r in recorders:
+        r.finish()
+    timings["run"] = time.perf_counter() - t0
+
+    times, poses, waypoints = log.arrays()
+    write_poses(out / "poses.parquet",
+                poses_table(world.names, times, poses, waypoints, log.tracked_arrays()))
+    written = {"poses": out / "poses.parquet"}
+    if req.video is not None:
+        written["video"] = req.video
+    if req.rerun is not None:
+        written["rerun"] = req.rerun
+    written["manifest"] = write_manifest(
+        out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, timings,
+        robots=world.names, outputs={k: str(v) for k, v in written.items()},
+        timestep=world.model.opt.timestep,
+        realtime_factor=sim.time / max(timings["run"], 1e-9),
+        status="ok" if failure is None else "failed",
+        failure=None if failure is None else {**asdict(failure.fault),
+                                              "fault": failure.fault.fault.name,
+                                              "reason": str(failure)},
+        simulated_seconds=sim.time, health=asdict(sim.monitor.stats),
+        tracking=None if chain is None else {"frames": chain.frames, "dropped": chain.dropped,
+                                             "noise": chain.noise})
+    if failure is not None:
+        raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up to "
+                         f"then are in {out}; reproduce: {reproduce_command(req)}")
+    return written
+
+
+def reproduce_command(req: SimulateRequest) -> str:
+    """The CLI line that reruns this request's simulation (same trajectory on this machine)."""
+    parts = ["macrostate-mj simulate", f"--scenario {req.scenario}", f"--robots {req.robots}",
+             f"--seconds {req.seconds:g}", f"--seed {req.seed}"]
+    if req.head_speed is not None:
+        parts.append(f"--head-speed {req.head_speed:g}")
+    if req.track:
+        parts.append("--track")
+    return " ".join([*parts, f"--out {req.out}", "--overwrite"])

@@ -1,0 +1,2 @@
+"""The robot chain: scenarios, world assembly, motion rules, planners, simulation loop and
+physics health."""

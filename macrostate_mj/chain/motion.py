@@ -1,0 +1,130 @@
+"""Motion rules of the chain (seed §2.3) and their conversion to wheel speeds, as pure functions.
+
+The rules are holonomic reference velocities in the world plane; a nonholonomic robot tracks
+them through unicycle kinematics (v, omega), which become wheel angular speeds. Positions are
+metres in the world frame, headings radians CCW from +x.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from macrostate_mj.core.angles import wrap_angle
+
+
+def head_velocity(p: np.ndarray, target: np.ndarray, gain: float = 1.0) -> np.ndarray:
+    """Head rule: p' = gain (T - p), straight at the target, slowing as it arrives."""
+    return gain * (np.asarray(target, float) - np.asarray(p, float))
+
+
+def pull(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
+    """(|p - q| - d)(q - p): toward q when farther than d, away when nearer."""
+    diff = np.asarray(q, float) - np.asarray(p, float)
+    return (np.linalg.norm(diff) - d) * diff
+
+
+def follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                      k_f: float) -> np.ndarray:
+    """Follower rule: keep distance d to both neighbours with gain k_f (1 / (m s))."""
+    return k_f * (pull(p, ahead, d) + pull(p, behind, d))
+
+
+def waiting_follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                              k_f: float, slack: float) -> np.ndarray:
+    """Lab Follower (seed §2.6.2.1): regulate the distance to the robot ahead; regulate the one
+    behind only by stopping (not backing up) while it lags more than d + slack."""
+    if np.linalg.norm(np.asarray(behind, float) - np.asarray(p, float)) > d + slack:
+        return np.zeros(2)
+    return k_f * pull(p, ahead, d)
+
+
+def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray:
+    """Tail rule: keep distance d to its single neighbour with gain k_t."""
+    return k_t * pull(p, ahead, d)
+
+
+def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: float, k_f: float,
+                     k_t: float, head_gain: float = 1.0, wait_slack: float | None = None
+                     ) -> np.ndarray:
+    """Reference velocities of a whole chain ordered [H, F1, ..., T] (F1 nearest the Head).
+
+    The Head's row is zero when `head_target` is None (a Head driven directly in (v, omega)).
+    Followers use the two-neighbour rule, or the lab's waiting rule when `wait_slack` is set.
+    """
+    p = np.asarray(positions, float)
+    n = len(p)
+    out = np.zeros_like(p)
+    if head_target is not None:
+        out[0] = head_velocity(p[0], head_target, head_gain)
+    for i in range(1, n - 1):
+        if wait_slack is None:
+            out[i] = follower_velocity(p[i], p[i - 1], p[i + 1], d, k_f)
+        else:
+            out[i] = waiting_follower_velocity(p[i], p[i - 1], p[i + 1], d, k_f, wait_slack)
+    out[n - 1] = tail_velocity(p[n - 1], p[n - 2], d, k_t)
+    return out
+
+
+def avoidance_velocities(positions: np.ndarray, radius: float, gain: float) -> np.ndarray:
+    """Repulsion from every robot nearer than `radius`, growing linearly to `gain` m/s at
+    contact: lets a Head that turns back steer around its own chain instead of pushing it."""
+    p = np.asarray(positions, float)
+    diff = p[:, None, :] - p[None, :, :]
+    dist = np.linalg.norm(diff, axis=2)
+    np.fill_diagonal(dist, np.inf)
+    push = np.clip((radius - dist) / radius, 0.0, None) * gain
+    return np.sum(push[:, :, None] * diff / dist[:, :, None], axis=1)
+
+
+def path_blocked(positions: np.ndarray, i: int, heading: float, radius: float,
+                 cone: float = np.radians(60)) -> bool:
+    """Is another robot within `radius` ahead of robot i (inside +-cone of its heading)?"""
+    p = np.asarray(positions, float)
+    diff = np.delete(p, i, axis=0) - p[i]
+    near = np.linalg.norm(diff, axis=1) < radius
+    bearing = np.abs(wrap_angle(np.arctan2(diff[:, 1], diff[:, 0]) - heading))
+    return bool(np.any(near & (bearing < cone)))
+
+
+def unicycle_from_holonomic(u: np.ndarray, theta: float, k_omega: float, v_max: float,
+                            allow_reverse: bool = True, deadband: float = 0.005
+                            ) -> tuple[float, float]:
+    """Track a holonomic velocity u with a unicycle: v = |u| cos e, omega = k_omega e.
+
+    e is the angle from the robot's heading to u. With `allow_reverse` a reference behind the
+    robot is tracked backwards, turning the rear toward it (no half-turns for small
+    corrections); otherwise the robot stops instead of backing up and turns on the spot (the
+    lab's followers: fewer high-frequency oscillations, seed §2.6.2.1). Below `deadband` (m/s)
+    the robot holds still rather than spinning on the spot.
+    """
+    speed = float(np.hypot(u[0], u[1]))
+    if speed < deadband:
+        return 0.0, 0.0
+    speed = min(speed, v_max)
+    e = wrap_angle(np.arctan2(u[1], u[0]) - theta)
+    v = speed * np.cos(e)
+    if allow_reverse and v < 0:
+        e = wrap_angle(e + np.pi)
+    elif not allow_reverse:
+        v = max(v, 0.0)
+    return float(v), float(k_omega * e)
+
+
+def wheel_speeds(v: float, omega: float, wheel_radius: float, track: float,
+                 max_wheel_speed: float) -> tuple[float, float]:
+    """Differential drive: (v, omega) -> (left, right) wheel rad/s, scaled down together so
+    neither exceeds the motor limit (keeps the commanded curvature when saturating)."""
+    left = (v - omega * track / 2) / wheel_radius
+    right = (v + omega * track / 2) / wheel_radius
+    peak = max(abs(left), abs(right))
+    if peak > max_wheel_speed:
+        left, right = left * max_wheel_speed / peak, right * max_wheel_speed / peak
+    return left, right
+
+
+def body_twist(wheel_left: float, wheel_right: float, wheel_radius: float,
+               track: float) -> tuple[float, float]:
+    """Inverse of `wheel_speeds` without saturation: wheel rad/s -> (v, omega)."""
+    v = wheel_radius * (wheel_left + wheel_right) / 2
+    omega = wheel_radius * (wheel_right - wheel_left) / track
+    return v, omega

@@ -1,0 +1,191 @@
+"""Head planners: where the Head goes next. Each draws only from the Generator it is given.
+
+- `GridPlanner`  Psi of seed §2.6.2.2 (lab): waypoints in cells ahead of the last two visited.
+- `CellPlanner`  seed §3.4 (webots): a new nearby cell-centre waypoint whenever a cell is entered.
+- `PresetPlanner` seed §2.5.2.1 (robotarium): the Head drives one of five preset (v, omega).
+- `FixedWaypoint` one scripted target (tests, demonstrations).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from macrostate_mj.chain.scenarios import ROBOTARIUM_HEAD_PRESETS, ScenarioConfig
+from macrostate_mj.core.angles import wrap_angle
+
+
+@dataclass
+class Grid:
+    """A cols x rows grid laid over the arena (origin at its centre, x along the long side)."""
+
+    arena: tuple[float, float]
+    shape: tuple[int, int]
+
+    @property
+    def cell_size(self) -> np.ndarray:
+        return np.array(self.arena) / np.array(self.shape)
+
+    def cell_of(self, p: np.ndarray) -> int:
+        ij = np.floor((np.asarray(p[:2]) + np.array(self.arena) / 2) / self.cell_size).astype(int)
+        ij = np.clip(ij, 0, np.array(self.shape) - 1)
+        return int(ij[1] * self.shape[0] + ij[0])
+
+    def cell_origin(self, c: int) -> np.ndarray:
+        """Lower-left corner of cell c."""
+        return np.array([c % self.shape[0], c // self.shape[0]]) * self.cell_size \
+            - np.array(self.arena) / 2
+
+    def centre(self, c: int) -> np.ndarray:
+        return self.cell_origin(c) + self.cell_size / 2
+
+    def adjacent(self, a: int, b: int) -> bool:
+        """8-connected adjacency; a cell is not adjacent to itself."""
+        if a < 0 or b < 0 or a == b:
+            return False
+        (ay, ax), (by, bx) = divmod(a, self.shape[0]), divmod(b, self.shape[0])
+        return max(abs(ax - bx), abs(ay - by)) == 1
+
+    def neighbours(self, c: int) -> list[int]:
+        return [i for i in range(self.shape[0] * self.shape[1]) if self.adjacent(c, i)]
+
+
+def psi_candidates(grid: Grid, latest: int, earlier: int) -> list[int]:
+    """C = {c_i | A(M[0], i) and not A(M[1], i) and i != M[1]}, falling back to the neighbours
+    of M[0] other than M[1] when that set is empty (in corners)."""
+    near = grid.neighbours(latest)
+    cands = [i for i in near if not grid.adjacent(earlier, i) and i != earlier]
+    return cands or [i for i in near if i != earlier]
+
+
+@dataclass
+class GridPlanner:
+    """Psi: random waypoints ahead of the Head; memory M = [latest cell, earlier cell].
+
+    A waypoint not reached within `timeout` seconds (blocked by the Head's own chain, whose
+    robots it steers around) counts as reached, so the team never deadlocks."""
+
+    grid: Grid
+    margin: float
+    reach_radius: float
+    timeout: float = 20.0
+    memory: list[int] = field(default_factory=lambda: [-1, -1])
+    target: np.ndarray | None = None
+    twist: tuple[float, float] | None = None
+    _drawn_at: float = 0.0
+
+    def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
+        # Pretend the Head came from the cell behind it, so its first waypoint lies ahead.
+        behind = head_pose[:2] - self.grid.cell_size * np.array([np.cos(head_pose[2]),
+                                                                np.sin(head_pose[2])])
+        self.memory = [self.grid.cell_of(head_pose), self.grid.cell_of(behind)]
+        self.target, self._drawn_at = self._draw(rng), 0.0
+
+    def update(self, head_pose: np.ndarray, t: float, rng: np.random.Generator) -> None:
+        reached = np.linalg.norm(head_pose[:2] - self.target) < self.reach_radius
+        if reached or t - self._drawn_at > self.timeout:
+            self.memory = [self.grid.cell_of(self.target), self.memory[0]]
+            self.target, self._drawn_at = self._draw(rng), t
+
+    def _draw(self, rng: np.random.Generator) -> np.ndarray:
+        cells = psi_candidates(self.grid, *self.memory)
+        c = cells[rng.integers(len(cells))]
+        p = self.grid.cell_origin(c) + rng.random(2) * self.grid.cell_size
+        half = np.array(self.grid.arena) / 2 - self.margin
+        return np.clip(p, -half, half)
+
+
+@dataclass
+class CellPlanner:
+    """Webots study: whenever the Head enters a new cell, aim at the centre of a random
+    neighbouring cell (not the one just left, so the Head keeps moving on); redraw after
+    `timeout` seconds in one cell (a Head blocked by its own chain)."""
+
+    grid: Grid
+    margin: float
+    timeout: float = 20.0
+    cell: int = -1
+    previous: int = -1
+    target: np.ndarray | None = None
+    twist: tuple[float, float] | None = None
+    _drawn_at: float = 0.0
+
+    def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
+        self.cell, self.previous = self.grid.cell_of(head_pose), -1
+        self.target, self._drawn_at = self._draw(rng), 0.0
+
+    def update(self, head_pose: np.ndarray, t: float, rng: np.random.Generator) -> None:
+        c = self.grid.cell_of(head_pose)
+        if c != self.cell or t - self._drawn_at > self.timeout:
+            self.previous, self.cell = self.cell, c
+            self.target, self._drawn_at = self._draw(rng), t
+
+    def _draw(self, rng: np.random.Generator) -> np.ndarray:
+        half = np.array(self.grid.arena) / 2 - self.margin
+        cells = [i for i in self.grid.neighbours(self.cell) if i != self.previous
+                 and np.all(np.abs(self.grid.centre(i)) <= half)]
+        return self.grid.centre(cells[rng.integers(len(cells))])
+
+
+@dataclass
+class PresetPlanner:
+    """Robotarium Head: hold a preset (v, omega) for `hold` seconds, then draw another. `fixed`
+    pins one preset (the training treatments of seed §2.5.2.1 run one Head velocity each). Near a
+    wall the Head turns on the spot at `wall_turn` rad/s until it faces within 60 degrees of
+    the arena centre, so it never grinds along a wall."""
+
+    arena: tuple[float, float]
+    margin: float
+    hold: float = 4.0
+    fixed: int | None = None
+    wall_turn: float = 1.0
+    presets: tuple[tuple[float, float], ...] = ROBOTARIUM_HEAD_PRESETS
+    target: np.ndarray | None = None
+    twist: tuple[float, float] | None = None
+    _next_switch: float = 0.0
+
+    def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
+        self._next_switch = 0.0
+        self.update(head_pose, 0.0, rng)
+
+    def update(self, head_pose: np.ndarray, t: float, rng: np.random.Generator) -> None:
+        if self.fixed is not None:
+            self.twist = self.presets[self.fixed]
+            return
+        if t >= self._next_switch:
+            self.twist = self.presets[rng.integers(len(self.presets))]
+            self._next_switch = t + self.hold
+        half = np.array(self.arena) / 2 - self.margin
+        if np.any(np.abs(head_pose[:2]) > half):
+            to_centre = wrap_angle(np.arctan2(-head_pose[1], -head_pose[0]) - head_pose[2])
+            if abs(to_centre) > np.radians(60):
+                self.twist = (0.0, float(np.sign(to_centre) * self.wall_turn))
+            else:
+                self.twist = self.presets[0]
+
+
+@dataclass
+class FixedWaypoint:
+    """Drive the Head to one point and stay there (tests, scripted demonstrations)."""
+
+    point: tuple[float, float]
+    target: np.ndarray | None = None
+    twist: tuple[float, float] | None = None
+
+    def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
+        self.target = np.array(self.point, float)
+
+    def update(self, head_pose: np.ndarray, t: float, rng: np.random.Generator) -> None:
+        pass
+
+
+Planner = GridPlanner | CellPlanner | PresetPlanner | FixedWaypoint
+
+
+def make_planner(cfg: ScenarioConfig, fixed_preset: int | None = None) -> Planner:
+    if cfg.planner == "grid":
+        return GridPlanner(Grid(cfg.arena, cfg.grid), cfg.wall_margin, cfg.reach_radius)
+    if cfg.planner == "cell":
+        return CellPlanner(Grid(cfg.arena, cfg.grid), cfg.wall_margin)
+    return PresetPlanner(cfg.arena, cfg.wall_margin, fixed=fixed_preset)

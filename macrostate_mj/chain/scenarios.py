@@ -1,0 +1,90 @@
+"""Embedded scenarios (SPEC §3): typed, frozen configs; the one home of their constants.
+
+Robot geometry (wheel radius, track, top speed) and the physics timestep are not repeated
+here: they are read from the compiled MJCF, so the XML stays the single source of truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from macrostate_mj.core.errors import UserError
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    name: str
+    scene: str                      # assets/mjcf/<scene>
+    robot: str                      # assets/mjcf/<robot>/robot.xml
+    arena: tuple[float, float]      # floor size (x, y) in metres, walls on its edges
+    spacing: float                  # follow distance d (m)
+    k_f: float                      # Follower gain (1 / (m s))
+    k_t: float                      # Tail gain
+    k_omega: float                  # heading gain of the unicycle tracker (1 / s)
+    head_speed: float               # Head's speed cap (m/s)
+    chain_speed: float              # Followers' and Tail's speed cap (m/s)
+    command_hz: float               # control / tracking rate
+    log_hz: float                   # pose log rate (not synchronized with commands)
+    planner: str                    # "grid" (Psi), "cell" (new waypoint per cell), "preset"
+    grid: tuple[int, int]           # planner grid (columns along x, rows along y)
+    allow_reverse: bool             # False: followers stop instead of backing up
+    wait_slack: float | None        # lab rule: a Follower waits while the robot behind lags
+                                    # more than d + wait_slack; None: two-neighbour rule (§2.3)
+    wall_margin: float              # keep waypoints and start poses this far from walls (m)
+    reach_radius: float = 0.06      # Head has reached its waypoint within this distance (m)
+    avoid_radius: float = 0.2       # robots repel each other within this distance (m)
+    avoid_gain: float = 0.15        # repulsion speed at contact (m/s)
+
+    def with_overrides(self, **kw: object) -> ScenarioConfig:
+        return replace(self, **kw)
+
+
+SCENARIOS: dict[str, ScenarioConfig] = {
+    # Physical testbed, seed §2.6.2: 2.5 x 1.9 m, Thymio II, Psi on a 12 x 8 grid.
+    "lab": ScenarioConfig(
+        name="lab", scene="scene_lab.xml", robot="thymio", arena=(2.5, 1.9), spacing=0.30,
+        k_f=8.0, k_t=12.0, k_omega=1.2, head_speed=0.075, chain_speed=0.2, command_hz=4.0,
+        log_hz=2.0, planner="grid", grid=(12, 8), allow_reverse=False, wait_slack=0.05,
+        wall_margin=0.15,
+    ),
+    # Webots study, seed §3.4: 3 x 3 m, 10 x 10 grid, new waypoint on entering a new cell.
+    "webots": ScenarioConfig(
+        name="webots", scene="scene_webots.xml", robot="thymio", arena=(3.0, 3.0), spacing=0.30,
+        k_f=3.0, k_t=3.0, k_omega=1.5, head_speed=0.12, chain_speed=0.2, command_hz=2.0,
+        log_hz=2.0, planner="cell", grid=(10, 10), allow_reverse=True, wait_slack=None,
+        wall_margin=0.2,
+    ),
+    # Robotarium simulation, seed §2.5.2: 1.2 x 0.7, GRITSBot-like, preset Head velocities.
+    "robotarium": ScenarioConfig(
+        name="robotarium", scene="scene_robotarium.xml", robot="gritsbot", arena=(1.2, 0.7),
+        spacing=0.08, k_f=40.0, k_t=40.0, k_omega=4.0, head_speed=0.04, chain_speed=0.08,
+        command_hz=30.0, log_hz=30.0, planner="preset", grid=(1, 1), allow_reverse=True,
+        wait_slack=None,
+        wall_margin=0.08, reach_radius=0.02, avoid_radius=0.05, avoid_gain=0.04,
+    ),
+}
+
+# Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tighter
+# curves (radii 0.3 and 0.15 m, wider than a 6-robot chain is long, so the Head never circles
+# onto its own Tail).
+ROBOTARIUM_HEAD_PRESETS: tuple[tuple[float, float], ...] = (
+    (0.03, 0.0), (0.03, 0.1), (0.03, -0.1), (0.03, 0.2), (0.03, -0.2),
+)
+
+
+def get_scenario(name: str) -> ScenarioConfig:
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise UserError(
+            f"unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}") from None
+
+
+def scenario_for(name: str, head_speed: float | None = None) -> ScenarioConfig:
+    """A named scenario, with the `--head-speed` override checked and applied."""
+    cfg = get_scenario(name)
+    if head_speed is not None:
+        if not 0 < head_speed:
+            raise UserError(f"--head-speed must be positive, got {head_speed}")
+        cfg = cfg.with_overrides(head_speed=head_speed)
+    return cfg

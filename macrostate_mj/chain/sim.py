@@ -1,0 +1,239 @@
+"""The chain simulation loop: motion rules at the command rate, poses logged at the log rate.
+
+Lifecycle (dm_control-style names say when things happen):
+  `ChainSim(world)`        compile once;
+  `reset(rng)`             full MuJoCo reset (warm start included), start poses, planner, log phase;
+  `run(seconds, hooks)`    step physics in C between events (`mj_step(..., nstep=k)`), firing
+                           each periodic hook (controller, logger, renderer, tracker) on its tick,
+                           and check the physics' health after every stretch of steps.
+Event times are whole physics steps (a scenario whose rates do not divide into whole steps is
+rejected), so runs are bit-identical for the same seed. A fault (NaN, tip, lift, escape) is
+pinned to the physics step where it first appears: the stretch is replayed step by step from
+its saved state, which on one machine reproduces it exactly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from macrostate_mj.chain.health import DIVERGED, PhysicsError, PhysicsFault, PhysicsMonitor
+from macrostate_mj.chain.motion import (
+    avoidance_velocities,
+    chain_velocities,
+    path_blocked,
+    unicycle_from_holonomic,
+    wheel_speeds,
+)
+from macrostate_mj.chain.planners import Planner, make_planner
+from macrostate_mj.chain.world import World, place_chain
+from macrostate_mj.core.errors import UserError
+
+
+def steps_per_tick(period: float, dt: float, what: str) -> int:
+    """Whole physics steps per tick, or a clear error (dm_control's divisibility check): a rate
+    that is not a whole number of steps makes its ticks jitter between two step counts."""
+    steps = period / dt
+    if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+        raise UserError(f"{what} period {period:g} s is {steps:.3f} physics steps of {dt:g} s; "
+                        "choose a rate or timestep that divides into whole steps")
+    return int(round(steps))
+
+
+@dataclass
+class Periodic:
+    """Call `fn(sim)` every `period` seconds from `phase` after the run starts; tick times are
+    rounded to whole physics steps and computed from the tick count (no drift)."""
+
+    period: float
+    fn: Callable[[ChainSim], None]
+    phase: float = 0.0
+    next_step: int = 0
+    _origin: float = 0.0
+    _count: int = 0
+    _dt: float = 1.0
+
+    def start(self, t0: float, dt: float) -> None:
+        self._origin, self._count, self._dt = t0 + self.phase, 0, dt
+        self.next_step = int(round(self._origin / dt))
+
+    def fire_if_due(self, sim: ChainSim, step: int) -> None:
+        if step >= self.next_step:
+            self.fn(sim)
+            self._count += 1
+            self.next_step = int(round((self._origin + self._count * self.period) / self._dt))
+
+
+@dataclass
+class PoseLog:
+    """Poses at log ticks: times (T,), poses (T, n, 3), Head waypoint (T, 2) or NaN, and, with
+    a `tracker` (anything with `latest` (n, 3), `latest_time` (n,) and `detected` (n,)), its
+    latest output."""
+
+    names: list[str]
+    tracker: object | None = None
+    times: list[float] = field(default_factory=list)
+    poses: list[np.ndarray] = field(default_factory=list)
+    waypoints: list[np.ndarray] = field(default_factory=list)
+    tracked: list[np.ndarray] = field(default_factory=list)
+    tracked_time: list[np.ndarray] = field(default_factory=list)
+    detected: list[np.ndarray] = field(default_factory=list)
+
+    def append(self, sim: ChainSim) -> None:
+        self.times.append(sim.time)
+        self.poses.append(sim.poses())
+        wp = sim.planner.target
+        self.waypoints.append(np.array(wp, float) if wp is not None else np.full(2, np.nan))
+        if self.tracker is not None:
+            self.tracked.append(self.tracker.latest.copy())
+            self.tracked_time.append(self.tracker.latest_time.copy())
+            self.detected.append(self.tracker.detected.copy())
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = len(self.names)
+        return (np.asarray(self.times), np.asarray(self.poses).reshape(-1, n, 3),
+                np.asarray(self.waypoints).reshape(-1, 2))
+
+    def tracked_arrays(self) -> dict[str, np.ndarray] | None:
+        """{"tracked": (T, n, 3), "tracked_time": (T, n), "detected": (T, n)} or None."""
+        if self.tracker is None:
+            return None
+        n = len(self.names)
+        return {"tracked": np.asarray(self.tracked).reshape(-1, n, 3),
+                "tracked_time": np.asarray(self.tracked_time).reshape(-1, n),
+                "detected": np.asarray(self.detected).reshape(-1, n)}
+
+
+class ChainSim:
+    """Runs one chain world; owns its MjData, planner and the controller's state."""
+
+    def __init__(self, world: World, fixed_preset: int | None = None, k_t: float | None = None,
+                 planner: Planner | None = None):
+        self.world = world
+        self.cfg = world.scenario
+        self.model = world.model
+        self.data = mujoco.MjData(self.model)
+        self.planner = planner or make_planner(self.cfg, fixed_preset)
+        self.k_t = self.cfg.k_t if k_t is None else k_t
+        self.rng = np.random.default_rng(0)
+        self.log_phase = 0.0
+        # Displacement of the Tail's destination (m), set by a data-collection policy (SRS).
+        self.tail_offset = np.zeros(2)
+        self.n = len(world.names)
+        self._body = world.body
+        dt = self.model.opt.timestep
+        steps_per_tick(1 / self.cfg.command_hz, dt, f"{self.cfg.name} command")
+        steps_per_tick(1 / self.cfg.log_hz, dt, f"{self.cfg.name} log")
+        self.monitor = PhysicsMonitor(world)
+        # Health checks at least this often (physics steps); events bound the stretches too.
+        self.check_steps = 10**9
+        self._state_spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        self._saved = np.empty(mujoco.mj_stateSize(self.model, self._state_spec))
+
+    # -- lifecycle ---------------------------------------------------------------------------
+    def reset(self, rng: np.random.Generator, start: np.ndarray | None = None) -> None:
+        """Full reset: a fresh state (warm start included), start poses drawn from `rng`."""
+        self.rng = rng
+        mujoco.mj_resetData(self.model, self.data)
+        self.monitor.reset()
+        self.tail_offset = np.zeros(2)
+        start = place_chain(self.cfg, self.n, rng) if start is None else np.asarray(start)
+        for adr, (x, y, th) in zip(self.world.qpos_adr, start, strict=True):
+            self.data.qpos[adr:adr + 3] = [x, y, self.model.qpos0[adr + 2]]
+            self.data.qpos[adr + 3:adr + 7] = [np.cos(th / 2), 0, 0, np.sin(th / 2)]
+        mujoco.mj_forward(self.model, self.data)
+        # The 2 Hz log is not synchronized with the 4 Hz commands (seed §2.6.2.2).
+        self.log_phase = float(rng.uniform(0, 1 / self.cfg.log_hz)) \
+            if self.cfg.log_hz != self.cfg.command_hz else 0.0
+        self.planner.reset(self.poses()[0], rng)
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def poses(self) -> np.ndarray:
+        """(n, 3) x, y, theta in the world frame; heading from the body frame (not the mesh)."""
+        xmat = self.data.xmat[self._body]
+        theta = np.arctan2(xmat[:, 3], xmat[:, 0])
+        return np.column_stack([self.data.xpos[self._body, :2], theta])
+
+    # -- control ------------------------------------------------------------------------------
+    def command(self) -> None:
+        """One control tick: planner, motion rules, unicycle tracking, wheel speeds."""
+        cfg, w = self.cfg, self.world
+        poses = self.poses()
+        self.planner.update(poses[0], self.time, self.rng)
+        vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
+                               wait_slack=cfg.wait_slack)
+        vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
+        # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
+        # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
+        gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])
+        vel[-1] += self.k_t * gap * self.tail_offset
+        for i in range(self.n):
+            if i == 0 and self.planner.twist is not None:
+                v, omega = self.planner.twist
+                if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):
+                    v = 0.0     # a Head driven in (v, omega) waits rather than ram a robot
+            else:
+                v_max = cfg.head_speed if i == 0 else cfg.chain_speed
+                reverse = cfg.allow_reverse and i > 0
+                v, omega = unicycle_from_holonomic(vel[i], poses[i, 2], cfg.k_omega, v_max, reverse)
+            left, right = wheel_speeds(v, omega, w.wheel_radius, w.track, w.max_wheel_speed)
+            self.data.ctrl[w.ctrl_left[i]] = left
+            self.data.ctrl[w.ctrl_right[i]] = right
+
+    # -- loop ---------------------------------------------------------------------------------
+    def run(self, seconds: float, hooks: list[Periodic],
+            progress: Callable[[float], None] | None = None) -> None:
+        """Advance `seconds` of simulated time, firing the controller first, then `hooks`."""
+        dt = self.model.opt.timestep
+        events = [Periodic(1 / self.cfg.command_hz, lambda s: s.command()), *hooks]
+        step = int(round(self.time / dt))
+        for ev in events:
+            ev.start(self.time, dt)
+        end = step + int(round(seconds / dt))
+        m, d = self.model, self.data
+        while step < end:
+            for ev in events:
+                ev.fire_if_due(self, step)
+            nxt = min(end, step + self.check_steps, *(ev.next_step for ev in events))
+            mujoco.mj_getState(m, d, self._saved, self._state_spec)
+            mujoco.mj_step(m, d, nstep=nxt - step)
+            fault = self.monitor.check(d, nxt * dt)
+            if fault is not None:
+                raise PhysicsError(self._replay_to_fault(step, nxt) or fault)
+            step = nxt
+            if progress is not None:
+                progress(self.time)
+        self.monitor.record_warnings(d)
+
+    def _replay_to_fault(self, start: int, end: int) -> PhysicsFault | None:
+        """Rewind to the stretch's start and step one by one to the first unhealthy step."""
+        m, d = self.model, self.data
+        mujoco.mj_setState(m, d, self._saved, self._state_spec)
+        for w in DIVERGED:
+            d.warning[w].number = 0          # they were 0 when the stretch began
+        for k in range(start + 1, end + 1):
+            mujoco.mj_step(m, d)
+            fault = self.monitor.check(d, k * m.opt.timestep)
+            if fault is not None:
+                self.monitor.record_warnings(d)
+                return fault
+        return None
+
+
+def simulate_poses(world: World, seconds: float, seed: int,
+                   extra_hooks: list[Periodic] | None = None,
+                   progress: Callable[[float], None] | None = None) -> tuple[ChainSim, PoseLog]:
+    """Reset with `seed` and run, logging poses at the scenario's log rate."""
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(seed))
+    log = PoseLog(world.names)
+    hooks = [Periodic(1 / world.scenario.log_hz, log.append, sim.log_phase),
+             *(extra_hooks or [])]
+    sim.run(seconds, hooks, progress)
+    return sim, log

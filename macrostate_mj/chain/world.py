@@ -1,0 +1,142 @@
+"""World assembly: a scene MJCF plus N robot MJCFs, each with a unique marker colour.
+
+The scene (`assets/mjcf/scene_*.xml`) and the robot (`assets/mjcf/<robot>/robot.xml`) are
+hand-written; only the tedious part, N prefixed copies with their colours, is generated here
+with `mujoco.MjSpec`. Robot geometry is read back from the compiled model so the XML is the one
+source of truth for wheel radius, track and top speed.
+"""
+
+from __future__ import annotations
+
+import colorsys
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.paths import ASSETS
+
+
+def robot_names(n: int) -> list[str]:
+    """Chain order [H, F1, ..., F{n-2}, T]; F1 is nearest the Head."""
+    return ["H", *[f"F{i}" for i in range(1, n - 1)], "T"]
+
+
+def marker_colours(n: int) -> np.ndarray:
+    """n saturated colours with hues spread evenly, so the tracker can tell them apart."""
+    return np.array([colorsys.hsv_to_rgb(i / n, 1.0, 1.0) for i in range(n)])
+
+
+def chain_capacity(cfg: ScenarioConfig) -> int:
+    """How many robots a snake layout at spacing d fits inside the walls' margin."""
+    span = np.array(cfg.arena) - 2 * cfg.wall_margin
+    per_row, rows = (np.floor(span / cfg.spacing).astype(int) + 1)
+    return int(per_row * rows)
+
+
+def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
+    """A chain request's checks: team size fits the arena, a positive duration."""
+    if robots < 2:
+        raise UserError(f"--robots must be at least 2 (a Head and a Tail), got {robots}")
+    if robots > chain_capacity(cfg):
+        raise UserError(f"{robots} robots do not fit the {cfg.name} arena (at most "
+                        f"{chain_capacity(cfg)} at spacing {cfg.spacing} m); use fewer --robots")
+    if not seconds > 0:
+        raise UserError(f"--seconds must be positive, got {seconds}")
+
+
+def place_chain(cfg: ScenarioConfig, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Start poses (n, 3): a straight chain at spacing d in a random place and direction, each
+    robot facing the one ahead, with room for the Head to drive on (a Head facing a wall would
+    have to U-turn through its own chain); a snake layout when no straight chain fits."""
+    if n > chain_capacity(cfg):
+        raise UserError(f"{n} robots do not fit the {cfg.name} arena at spacing {cfg.spacing} m "
+                        f"(at most {chain_capacity(cfg)}); use fewer robots")
+    half = np.array(cfg.arena) / 2 - cfg.wall_margin
+    back = np.arange(-2, n)[:, None] * cfg.spacing
+    for _ in range(500):
+        phi = rng.uniform(-np.pi, np.pi)
+        head = rng.uniform(-half, half)
+        xy = head - back * np.array([np.cos(phi), np.sin(phi)])
+        if np.all(np.abs(xy) <= half):
+            return np.column_stack([xy[2:], np.full(n, phi)])
+    return _snake(cfg, n)
+
+
+def _snake(cfg: ScenarioConfig, n: int) -> np.ndarray:
+    half = np.array(cfg.arena) / 2 - cfg.wall_margin
+    per_row = int(np.floor(2 * half[0] / cfg.spacing)) + 1
+    xy = []
+    for k in range(n):
+        row, col = divmod(k, per_row)
+        col = col if row % 2 == 0 else per_row - 1 - col
+        xy.append([half[0] - col * cfg.spacing, half[1] - row * cfg.spacing])
+    xy = np.array(xy)
+    ahead = np.vstack([xy[0] + [cfg.spacing, 0], xy[:-1]])
+    theta = np.arctan2(ahead[:, 1] - xy[:, 1], ahead[:, 0] - xy[:, 0])
+    return np.column_stack([xy, theta])
+
+
+@dataclass
+class World:
+    """A compiled chain world and the indices the simulation loop needs."""
+
+    scenario: ScenarioConfig
+    names: list[str]
+    colours: np.ndarray
+    spec: mujoco.MjSpec
+    model: mujoco.MjModel
+    body: np.ndarray            # each robot's root body (the freejoint's)
+    qpos_adr: np.ndarray        # start of each robot's freejoint in qpos
+    qvel_adr: np.ndarray
+    ctrl_left: np.ndarray       # actuator index of each robot's left wheel
+    ctrl_right: np.ndarray
+    wheel_radius: float
+    track: float
+    max_wheel_speed: float
+    marker_height: float        # world z of the marker's top face (the tracked plane)
+
+    @property
+    def top_speed(self) -> float:
+        return self.max_wheel_speed * self.wheel_radius
+
+    def to_xml(self) -> str:
+        return self.spec.to_xml()
+
+
+def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) -> World:
+    """Compile the scene with n robots; `start` (n, 3) poses are baked in as the default
+    qpos (the simulation resets poses itself, this matters for exported MJCF)."""
+    if n < 2:
+        raise UserError(f"a chain needs at least 2 robots (Head and Tail), got {n}; use --robots 2 "
+                        "or more")
+    if start is None:
+        start = place_chain(cfg, n, np.random.default_rng(0))
+    names = robot_names(n)
+    colours = marker_colours(n)
+    spec = mujoco.MjSpec.from_file(str(ASSETS / cfg.scene))
+    spec.copy_during_attach = True
+    robot = mujoco.MjSpec.from_file(str(ASSETS / cfg.robot / "robot.xml"))
+    for name, colour, pose in zip(names, colours, start, strict=True):
+        frame = spec.worldbody.add_frame(pos=[pose[0], pose[1], 0.0],
+                                         quat=[np.cos(pose[2] / 2), 0, 0, np.sin(pose[2] / 2)])
+        spec.attach(robot, prefix=f"{name}/", frame=frame)
+        spec.geom(f"{name}/marker").rgba = [*colour, 1.0]
+    model = spec.compile()
+    body = np.array([model.joint(f"{nm}/root").bodyid[0] for nm in names])
+    qpos_adr = np.array([model.joint(f"{nm}/root").qposadr[0] for nm in names])
+    qvel_adr = np.array([model.joint(f"{nm}/root").dofadr[0] for nm in names])
+    left = np.array([model.actuator(f"{nm}/wheel_left").id for nm in names])
+    right = np.array([model.actuator(f"{nm}/wheel_right").id for nm in names])
+    h = names[0]
+    wheel_radius = float(model.geom(f"{h}/wheel_left").size[0])
+    track = float(model.body(f"{h}/wheel_left").pos[1] - model.body(f"{h}/wheel_right").pos[1])
+    max_wheel = float(model.actuator(f"{h}/wheel_left").ctrlrange[1])
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    # The marker mesh is re-centred by MuJoCo: its geom centre is mid-thickness (1 mm prism).
+    marker_top = float(data.geom_xpos[model.geom(f"{h}/marker").id][2]) + 0.0005
+    return World(cfg, names, colours, spec, model, body, qpos_adr, qvel_adr, left, right,
+                 wheel_radius, track, max_wheel, marker_top)

@@ -1,0 +1,1 @@
+"""The simulated ant colony: behaviour, nest model, colony simulation."""

@@ -1,0 +1,2 @@
+"""Infrastructure every layer may use: errors, atomic files, manifests, progress, paths and
+parallel tasks."""

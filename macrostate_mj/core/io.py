@@ -1,0 +1,186 @@
+"""Atomic outputs, output-folder checks and run manifests: one home for how runs write files.
+
+Every output goes to a temporary sibling first and is renamed into place, so an interrupted run
+never leaves a half-written file under its final name.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import platform
+import tempfile
+import time
+from collections.abc import Iterator
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any
+
+from macrostate_mj import __version__
+from macrostate_mj.core.errors import UserError
+
+
+class AtomicFile:
+    """A temporary path beside `final` (same extension, for writers that pick a format from it)
+    that becomes `final` on `commit()` and disappears on `discard()`."""
+
+    def __init__(self, final: str | os.PathLike):
+        self.final = Path(final)
+        self.final.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.final.stem}.",
+                                   suffix=f".part{self.final.suffix}", dir=self.final.parent)
+        os.close(fd)
+        self.tmp = Path(tmp)
+
+    def commit(self) -> None:
+        # mkstemp creates 0600; give the final file the usual umask-derived mode.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self.tmp, 0o666 & ~umask)
+        os.replace(self.tmp, self.final)
+
+    def discard(self) -> None:
+        self.tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def atomic_path(final: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside `final`; rename it onto `final` only if the block succeeds."""
+    f = AtomicFile(final)
+    try:
+        yield f.tmp
+        f.commit()
+    finally:
+        f.discard()
+
+
+def write_text_atomic(final: str | os.PathLike, text: str) -> None:
+    with atomic_path(final) as tmp:
+        tmp.write_text(text)
+
+
+def write_json_atomic(final: str | os.PathLike, obj: Any) -> None:
+    write_text_atomic(final, json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n")
+
+
+def check_writable_file(path: str | os.PathLike, overwrite: bool, what: str = "output") -> Path:
+    """Fail early (before any work) if `path` exists without --overwrite or cannot be written."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise UserError(f"{what} {path} already exists; pass --overwrite or choose another path")
+    check_writable_dir(path.parent, create=False)
+    return path
+
+
+def check_writable_dir(path: str | os.PathLike, create: bool = True) -> Path:
+    """Make sure `path` is (or can become) a writable folder; create it only if asked."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{path} is a file, not a folder; choose a folder path for the output")
+    probe = path
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UserError(f"cannot create {path}: {probe} is a file; choose a folder path")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise UserError(f"cannot write to {path} (permission denied); choose a writable folder")
+    if create:
+        path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def prepare_out_dir(out: str | os.PathLike, products: list[str], overwrite: bool) -> Path:
+    """Check an output folder before a run: refuse to clobber `products` unless --overwrite."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} is a file, not a folder; choose a folder path")
+    existing = [p for p in products if (out / p).exists()]
+    if existing and not overwrite:
+        raise UserError(f"{out / existing[0]} already exists; pass --overwrite or choose "
+                        "another --out")
+    check_writable_dir(out, create=False)
+    return out
+
+
+def write_manifest(out_dir: str | os.PathLike, command: str, config: Any, seed: int | None,
+                   timings: dict[str, float], **extra: Any) -> Path:
+    """Write `manifest.json` beside a run's outputs: what ran, with which config, seed and code."""
+    import mujoco
+    import numpy
+
+    path = Path(out_dir) / "manifest.json"
+    write_json_atomic(path, {
+        "command": command,
+        "config": config,
+        "seed": seed,
+        "version": __version__,
+        "versions": {"mujoco": mujoco.__version__, "numpy": numpy.__version__,
+                     "python": platform.python_version()},
+        "created_unix": round(time.time(), 3),
+        "timings_s": {k: round(v, 4) for k, v in timings.items()},
+        **extra,
+    })
+    return path
+
+
+def _jsonable(obj: Any) -> Any:
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return _jsonable(asdict(obj))
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, Path):
+        return str(obj)
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    return obj
+
+
+class Mp4Writer:
+    """The one MP4 writer: RGB frames to a temporary sibling, renamed into place by `commit()`
+    (an interrupted run leaves no broken video); `discard()` removes it. Usable as a context
+    manager that commits on success."""
+
+    CODEC = "mp4v"
+
+    def __init__(self, path: str | os.PathLike, fps: float, size: tuple[int, int]):
+        import cv2
+
+        self.path = Path(path)
+        self._file = AtomicFile(self.path)
+        self._writer = cv2.VideoWriter(str(self._file.tmp), cv2.VideoWriter_fourcc(*self.CODEC),
+                                       fps, size)
+        if not self._writer.isOpened():
+            self._file.discard()
+            raise UserError(f"OpenCV cannot write MP4 video {self.path} with codec "
+                            f"{self.CODEC}; choose another path or write frames instead")
+        self.frames = 0
+
+    def write_bgr(self, bgr: Any) -> None:
+        self._writer.write(bgr)
+        self.frames += 1
+
+    def write(self, rgb: Any) -> None:
+        import numpy as np
+
+        self.write_bgr(np.ascontiguousarray(rgb[:, :, ::-1]))
+
+    def commit(self) -> Path:
+        self._writer.release()
+        self._file.commit()
+        return self.path
+
+    def discard(self) -> None:
+        self._writer.release()
+        self._file.discard()
+
+    def __enter__(self) -> Mp4Writer:
+        return self
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.discard()

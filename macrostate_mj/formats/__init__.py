@@ -1,0 +1,1 @@
+"""File formats: ThymioLoc CSVs, pose Parquet, the OpticalFlows_HsAnts layout, instances."""

@@ -1,0 +1,1 @@
+"""What a camera sees: projection, imaging noise, marker tracker, the camera chain, optical flow."""

@@ -1,0 +1,147 @@
+"""Figures and tables of `experiment oc` (matplotlib, Agg); every file written atomically."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from estimators.oneclass import train as T  # noqa: E402
+from estimators.oneclass.model import METHODS, OCModel, flow_magnitude  # noqa: E402
+from macrostate_mj.core.io import atomic_path, write_text_atomic  # noqa: E402
+from macrostate_mj.formats.hsants import AntFlowData, load_images  # noqa: E402
+from viz import gradcam as gc  # noqa: E402
+from viz.figures import save_png
+
+LABELS = {"ofw": "OFW", "dcae": "DCAE", "ocsvm": "OC-SVM", "dsvdd": "DSVDD", "gen": "GEN",
+          "ngen": "N-GEN", "iogen": "IO-GEN"}
+
+
+def flow_weight_figure(path: Path, day: np.ndarray, w: np.ndarray, unstable: np.ndarray) -> None:
+    """Fig 4.7: weights scaled to [0, 1] by min and 99.5th percentile (outliers left out)."""
+    lo, hi = np.min(w), np.percentile(w, 99.5)
+    scaled = np.clip((w - lo) / max(hi - lo, 1e-12), 0, 1)
+    fig, ax = plt.subplots(figsize=(9, 3))
+    ax.plot(day[~unstable], scaled[~unstable], ".", ms=2, color="tab:blue", label="stable")
+    ax.plot(day[unstable], scaled[unstable], ".", ms=4, color="tab:orange", label="unstable")
+    ax.axvline(0, color="red")
+    ax.set(xlabel="day (gamergates removed at 0)", ylabel="optical-flow weight (scaled)")
+    ax.legend(loc="upper right")
+    save_png(fig, path, tight=True)
+
+
+def bins_figure(path: Path, fig48: dict) -> None:
+    """Fig 4.8: AUC per time bin, mean ± std over the splits, one line per method."""
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for meth in METHODS:
+        names = list(fig48[meth])
+        mean = [np.nan if fig48[meth][b]["mean"] is None else fig48[meth][b]["mean"]
+                for b in names]
+        std = [0.0 if fig48[meth][b]["std"] is None else fig48[meth][b]["std"] for b in names]
+        ax.errorbar(range(len(names)), mean, yerr=std, marker="o", capsize=3,
+                    label=LABELS[meth])
+    ax.set_xticks(range(len(names)), names)
+    ax.axhline(0.5, color="grey", lw=0.5)
+    ax.set(ylabel="AUC", ylim=(0, 1))
+    ax.legend(ncol=4, fontsize=8)
+    save_png(fig, path, tight=True)
+
+
+@torch.no_grad()
+def model_figures(path49: Path, path410: Path, model: OCModel, x: np.ndarray, xs: np.ndarray,
+                  xu: np.ndarray) -> dict:
+    """Fig 4.9 (IO-GEN vs real flows) and Fig 4.10 (distance to c, classifier likelihood)."""
+    gen = torch.Generator().manual_seed(model.cfg.seed + 1)
+    g = model.generators["iogen"]
+    fake = g(T.randn((6, 100), gen, next(g.parameters()))).cpu().numpy()
+    real = x[np.random.default_rng(model.cfg.seed).choice(len(x), 6, replace=False)]
+    fig, axes = plt.subplots(4, 6, figsize=(9, 6.4))
+    for row, (data, name) in enumerate(((fake, "IO-GEN"), (real, "real"))):
+        for j in range(6):
+            for c in range(2):  # H and V of the first flow pair, each normalised alone
+                ax = axes[2 * row + c, j]
+                ax.imshow(data[j, c], cmap="jet")
+                ax.set_axis_off()
+                ax.set_title(f"{name} {'HV'[c]}", fontsize=7)
+    save_png(fig, path49, tight=True)
+
+    codes = {"stable test": T.encode(model.dsvdd, torch.from_numpy(xs)),
+             "unstable": T.encode(model.dsvdd, torch.from_numpy(xu))}
+    for kind in ("iogen", "gen"):
+        if kind in model.generators:
+            codes[LABELS[kind]] = T.generated_codes(model.generators[kind], model.dsvdd, 512, gen)
+    dist = {k: ((v - model.c) ** 2).sum(1).sqrt().numpy() for k, v in codes.items()}
+    scale = float(dist["stable test"].max())
+    like = {k: torch.sigmoid(model.classifiers["iogen"](v)).numpy() for k, v in codes.items()}
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.5), constrained_layout=True)
+    a.boxplot([d / scale for d in dist.values()], tick_labels=list(dist))
+    a.set(ylabel="distance to c (÷ max stable)")
+    b.boxplot(list(like.values()), tick_labels=list(like))
+    b.set(ylabel="IO-GEN classifier: P(unstable)")
+    save_png(fig, path410, tight=True)
+    return {"median_distance": {k: float(np.median(v)) for k, v in dist.items()},
+            "median_likelihood": {k: float(np.median(v)) for k, v in like.items()}}
+
+
+def gradcam_outputs(folder: Path, model: OCModel, d: AntFlowData, xu: np.ndarray, n: int,
+                    m: int) -> dict:
+    """Grad-CAM of the IO-GEN classifier on the n most 'unstable' samples: raw and top-5 % PNG
+    overlays on the img frames, an MP4 of the top-5 % frames, and the maps as .npy."""
+    folder.mkdir(exist_ok=True)
+    maps = gc.upsample(gc.gradcam(model.dsvdd, model.classifiers["iogen"], xu))
+    top = gc.top_share(maps)  # position-wise minimum over all unstable samples
+    order = np.argsort(-model.score("iogen", xu))[:n]
+    imgs = load_images(d.root / "Unstable", [d.unstable_ids[i] for i in order], m)
+    gc.write_png(folder / "overlay_raw.png", gc.overlay_grid(imgs, maps[order]))
+    gc.write_png(folder / "overlay_top5.png", gc.overlay_grid(imgs, top[order]))
+    frames = [gc.overlay(f, top[i]) for i, fs in zip(order, imgs, strict=True) for f in fs]
+    gc.write_mp4(folder / "overlay_top5.mp4", [np.kron(f, np.ones((4, 4, 1), np.uint8))
+                                               for f in frames], fps=2.0)
+    with atomic_path(folder / "heatmaps.npy") as tmp, open(tmp, "wb") as fh:
+        np.save(fh, maps)
+    out = {"samples": [int(d.unstable_ids[i]) for i in order],
+           "peak_rc": [list(map(int, np.unravel_index(np.argmax(maps[i]), maps[i].shape)))
+                       for i in order]}
+    boxes = read_boxes(d.root / "boxes.csv")
+    if boxes is not None:   # a simulated colony: score Grad-CAM where the seed judged by eye
+        per_sample = [boxes.get(i, []) for i in d.unstable_ids]
+        motion = flow_magnitude(xu).sum(axis=1)  # baseline: point at the strongest flow
+        out["pointing_game"] = {
+            "gradcam": gc.pointing_game(maps, per_sample),
+            "flow_magnitude_baseline": gc.pointing_game(motion, per_sample),
+            "chance": gc.box_share(per_sample, maps.shape[1:]),
+            "samples_with_boxes": sum(1 for b in per_sample if b)}
+    return out
+
+
+def read_boxes(path: Path) -> dict[int, list[tuple[float, float, float, float]]] | None:
+    """`boxes.csv` of a simulated colony (sample_id, k, x, y, w, h in 64 x 64 sample pixels)
+    -> boxes per sample over all its sub-frames; None for data without ground truth (real)."""
+    if not path.exists():
+        return None
+    rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    boxes: dict[int, list[tuple[float, float, float, float]]] = {}
+    for sid, _k, x, y, w, h in rows:
+        boxes.setdefault(int(sid), []).append((x, y, w, h))
+    return boxes
+
+
+def write_tables(path: Path, t41: dict, t42: dict, f48: dict, n_unstable: int) -> None:
+    def fmt(v: dict) -> str:
+        return "n/a" if v["mean"] is None else f"{v['mean']:.3f} ± {v['std']:.3f}"
+
+    lines = [f"Unstable samples scored: {n_unstable}.", "", "## Table 4.1 (IO-GEN AUC by m)", "",
+             "| m | AUC |", "|---|---|", *[f"| {m} | {fmt(v)} |" for m, v in t41.items()], "",
+             "## Table 4.2 (AUC, all unstable)", "", "| method | AUC |", "|---|---|",
+             *[f"| {LABELS[k]} | {fmt(v)} |" for k, v in t42.items()], "",
+             "## Fig 4.8 (AUC by time bin)", ""]
+    names = list(next(iter(f48.values())))
+    lines += ["| method | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+    lines += [f"| {LABELS[k]} | " + " | ".join(fmt(v[b]) for b in names) + " |"
+              for k, v in f48.items()]
+    write_text_atomic(path, "\n".join(lines) + "\n")
