@@ -25,7 +25,7 @@ from collectors.policies import PolicyConfig
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
-from macrostate_mj.core.io import prepare_out_dir, write_manifest, write_text_atomic
+from macrostate_mj.core.io import atomic_path, prepare_out_dir, write_manifest, write_text_atomic
 from macrostate_mj.core.parallel import runner_for
 from macrostate_mj.formats.instances import (
     INSTANCE_STEPS,
@@ -119,8 +119,8 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
         if table is None:
             failures[index] = stats["failure"]
             continue
-        pq.write_table(table, _tmp_shard(shards, index), compression="zstd")
-        _tmp_shard(shards, index).replace(_shard(shards, index))
+        with atomic_path(_shard(shards, index)) as tmp:
+            pq.write_table(table, tmp, compression="zstd")
         episode_stats[index] = stats
         done += 1
         if progress:
@@ -177,7 +177,3 @@ def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
 
 def _shard(shards: Path, index: int) -> Path:
     return shards / f"episode_{index:05d}.parquet"
-
-
-def _tmp_shard(shards: Path, index: int) -> Path:
-    return shards / f".episode_{index:05d}.parquet.part"

@@ -17,9 +17,8 @@ def cli_inprocess(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
     """The same command in this process (faster): (exit code, stdout, stderr)."""
     from macrostate_mj.app.cli import main
 
-    monkeypatch.setattr(sys, "argv", ["macrostate-mj", *args])
     try:
-        main()
+        main(list(args))
         code = 0
     except SystemExit as exc:
         code = int(exc.code or 0)

@@ -1,4 +1,4 @@
-"""ROC AUC with unstable = positive class, overall and per time bin (pure numpy)."""
+"""ROC AUC with unstable = positive class, overall and per time bin."""
 
 from __future__ import annotations
 
@@ -8,20 +8,15 @@ import numpy as np
 
 
 def roc_auc(neg: np.ndarray, pos: np.ndarray) -> float:
-    """P(score of a positive > score of a negative), ties counted half (Mann–Whitney U)."""
+    """P(score of a positive > score of a negative), ties counted half: scikit-learn's ROC AUC
+    with the unstable samples as the positive class; NaN when either class is empty."""
+    from sklearn.metrics import roc_auc_score
+
     neg, pos = np.asarray(neg, np.float64).ravel(), np.asarray(pos, np.float64).ravel()
     if len(neg) == 0 or len(pos) == 0:
         return float("nan")
-    scores = np.concatenate([neg, pos])
-    order = scores.argsort(kind="mergesort")
-    ranks = np.empty(len(scores))
-    sorted_scores = scores[order]
-    # average ranks over ties
-    _, first, counts = np.unique(sorted_scores, return_index=True, return_counts=True)
-    avg = first + (counts - 1) / 2.0 + 1.0
-    ranks[order] = np.repeat(avg, counts)
-    u = ranks[len(neg):].sum() - len(pos) * (len(pos) + 1) / 2.0
-    return float(u / (len(neg) * len(pos)))
+    labels = np.r_[np.zeros(len(neg)), np.ones(len(pos))]
+    return float(roc_auc_score(labels, np.r_[neg, pos]))
 
 
 def auc_report(stable: np.ndarray, unstable: np.ndarray, bins: Sequence[str | None],

@@ -208,8 +208,10 @@ def fit_ocsvm(codes: torch.Tensor, nu: float) -> dict[str, torch.Tensor]:
     """ν-OC-SVM (RBF, gamma='scale') on the codes, kept as plain arrays (no pickle to load)."""
     from sklearn.svm import OneClassSVM
 
-    svm = OneClassSVM(nu=nu, gamma="scale").fit(codes.double().numpy())
+    x = codes.double().numpy()
+    gamma = 1.0 / (x.shape[1] * x.var())        # scikit-learn's gamma="scale", kept explicit
+    svm = OneClassSVM(nu=nu, gamma=gamma).fit(x)
     return {"sv": torch.from_numpy(svm.support_vectors_),
             "dual": torch.from_numpy(svm.dual_coef_.ravel()),
             "intercept": torch.tensor(float(svm.intercept_[0]), dtype=torch.float64),
-            "gamma": torch.tensor(float(svm._gamma), dtype=torch.float64)}
+            "gamma": torch.tensor(float(gamma), dtype=torch.float64)}

@@ -23,9 +23,8 @@ def run(*args: str) -> None:
     from macrostate_mj.app.cli import main
 
     print(f"\n$ macrostate-mj {' '.join(args)}", flush=True)
-    sys.argv = ["macrostate-mj", *args]
     try:
-        main()
+        main(list(args))
     except SystemExit as done:
         if done.code not in (0, None):
             raise

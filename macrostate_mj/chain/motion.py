@@ -7,6 +7,9 @@ metres in the world frame, headings radians CCW from +x.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Protocol
+
 import numpy as np
 
 from macrostate_mj.core.angles import wrap_angle
@@ -43,13 +46,40 @@ def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.
     return k_t * pull(p, ahead, d)
 
 
+class FollowerRule(Protocol):
+    """How a Follower turns its two neighbours into a reference velocity."""
+
+    def velocity(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                 k_f: float) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class TwoNeighbours:
+    """Seed §2.3: regulate the distance d to both neighbours."""
+
+    def velocity(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                 k_f: float) -> np.ndarray:
+        return follower_velocity(p, ahead, behind, d, k_f)
+
+
+@dataclass(frozen=True)
+class WaitForBehind:
+    """Lab rule (seed §2.6.2.1): follow the robot ahead, wait while the one behind lags more
+    than d + slack (m)."""
+
+    slack: float
+
+    def velocity(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                 k_f: float) -> np.ndarray:
+        return waiting_follower_velocity(p, ahead, behind, d, k_f, self.slack)
+
+
 def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: float, k_f: float,
-                     k_t: float, head_gain: float = 1.0, wait_slack: float | None = None
-                     ) -> np.ndarray:
+                     k_t: float, head_gain: float = 1.0,
+                     followers: FollowerRule = TwoNeighbours()) -> np.ndarray:
     """Reference velocities of a whole chain ordered [H, F1, ..., T] (F1 nearest the Head).
 
     The Head's row is zero when `head_target` is None (a Head driven directly in (v, omega)).
-    Followers use the two-neighbour rule, or the lab's waiting rule when `wait_slack` is set.
     """
     p = np.asarray(positions, float)
     n = len(p)
@@ -57,10 +87,7 @@ def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: f
     if head_target is not None:
         out[0] = head_velocity(p[0], head_target, head_gain)
     for i in range(1, n - 1):
-        if wait_slack is None:
-            out[i] = follower_velocity(p[i], p[i - 1], p[i + 1], d, k_f)
-        else:
-            out[i] = waiting_follower_velocity(p[i], p[i - 1], p[i + 1], d, k_f, wait_slack)
+        out[i] = followers.velocity(p[i], p[i - 1], p[i + 1], d, k_f)
     out[n - 1] = tail_velocity(p[n - 1], p[n - 2], d, k_t)
     return out
 

@@ -9,11 +9,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
-from macrostate_mj.chain.scenarios import ROBOTARIUM_HEAD_PRESETS, ScenarioConfig
 from macrostate_mj.core.angles import wrap_angle
+
+# Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tighter
+# curves (radii 0.3 and 0.15 m, wider than a 6-robot chain is long, so the Head never circles
+# onto its own Tail).
+ROBOTARIUM_HEAD_PRESETS: tuple[tuple[float, float], ...] = (
+    (0.03, 0.0), (0.03, 0.1), (0.03, -0.1), (0.03, 0.2), (0.03, -0.2),
+)
 
 
 @dataclass
@@ -130,15 +137,13 @@ class CellPlanner:
 
 @dataclass
 class PresetPlanner:
-    """Robotarium Head: hold a preset (v, omega) for `hold` seconds, then draw another. `fixed`
-    pins one preset (the training treatments of seed §2.5.2.1 run one Head velocity each). Near a
+    """Robotarium Head: hold a preset (v, omega) for `hold` seconds, then draw another. Near a
     wall the Head turns on the spot at `wall_turn` rad/s until it faces within 60 degrees of
     the arena centre, so it never grinds along a wall."""
 
     arena: tuple[float, float]
     margin: float
     hold: float = 4.0
-    fixed: int | None = None
     wall_turn: float = 1.0
     presets: tuple[tuple[float, float], ...] = ROBOTARIUM_HEAD_PRESETS
     target: np.ndarray | None = None
@@ -150,9 +155,6 @@ class PresetPlanner:
         self.update(head_pose, 0.0, rng)
 
     def update(self, head_pose: np.ndarray, t: float, rng: np.random.Generator) -> None:
-        if self.fixed is not None:
-            self.twist = self.presets[self.fixed]
-            return
         if t >= self._next_switch:
             self.twist = self.presets[rng.integers(len(self.presets))]
             self._next_switch = t + self.hold
@@ -183,9 +185,38 @@ class FixedWaypoint:
 Planner = GridPlanner | CellPlanner | PresetPlanner | FixedWaypoint
 
 
-def make_planner(cfg: ScenarioConfig, fixed_preset: int | None = None) -> Planner:
-    if cfg.planner == "grid":
-        return GridPlanner(Grid(cfg.arena, cfg.grid), cfg.wall_margin, cfg.reach_radius)
-    if cfg.planner == "cell":
-        return CellPlanner(Grid(cfg.arena, cfg.grid), cfg.wall_margin)
-    return PresetPlanner(cfg.arena, cfg.wall_margin, fixed=fixed_preset)
+class PlannerSpec(Protocol):
+    """What a scenario names as its Head planner: builds a fresh planner for one world."""
+
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
+        ...
+
+
+@dataclass(frozen=True)
+class PsiGrid:
+    """Psi on a cols x rows grid (lab, seed §2.6.2.2)."""
+
+    grid: tuple[int, int]
+
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
+        return GridPlanner(Grid(arena, self.grid), margin, reach_radius)
+
+
+@dataclass(frozen=True)
+class CellWalk:
+    """A new neighbouring cell centre whenever the Head enters a cell (webots, seed §3.4)."""
+
+    grid: tuple[int, int]
+
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
+        return CellPlanner(Grid(arena, self.grid), margin)
+
+
+@dataclass(frozen=True)
+class PresetTwists:
+    """The Head drives preset (v, omega) pairs (robotarium, seed §2.5.2.1)."""
+
+    presets: tuple[tuple[float, float], ...] = ROBOTARIUM_HEAD_PRESETS
+
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
+        return PresetPlanner(arena, margin, presets=self.presets)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from macrostate_mj.chain.motion import FollowerRule, TwoNeighbours, WaitForBehind
+from macrostate_mj.chain.planners import CellWalk, PlannerSpec, PresetTwists, PsiGrid
 from macrostate_mj.core.errors import UserError
 
 
@@ -25,11 +27,9 @@ class ScenarioConfig:
     chain_speed: float              # Followers' and Tail's speed cap (m/s)
     command_hz: float               # control / tracking rate
     log_hz: float                   # pose log rate (not synchronized with commands)
-    planner: str                    # "grid" (Psi), "cell" (new waypoint per cell), "preset"
-    grid: tuple[int, int]           # planner grid (columns along x, rows along y)
+    planner: PlannerSpec            # the Head's planner: PsiGrid, CellWalk or PresetTwists
+    followers: FollowerRule         # TwoNeighbours (§2.3) or WaitForBehind (lab, §2.6.2.1)
     allow_reverse: bool             # False: followers stop instead of backing up
-    wait_slack: float | None        # lab rule: a Follower waits while the robot behind lags
-                                    # more than d + wait_slack; None: two-neighbour rule (§2.3)
     wall_margin: float              # keep waypoints and start poses this far from walls (m)
     reach_radius: float = 0.06      # Head has reached its waypoint within this distance (m)
     avoid_radius: float = 0.2       # robots repel each other within this distance (m)
@@ -44,33 +44,25 @@ SCENARIOS: dict[str, ScenarioConfig] = {
     "lab": ScenarioConfig(
         name="lab", scene="scene_lab.xml", robot="thymio", arena=(2.5, 1.9), spacing=0.30,
         k_f=8.0, k_t=12.0, k_omega=1.2, head_speed=0.075, chain_speed=0.2, command_hz=4.0,
-        log_hz=2.0, planner="grid", grid=(12, 8), allow_reverse=False, wait_slack=0.05,
+        log_hz=2.0, planner=PsiGrid((12, 8)), followers=WaitForBehind(0.05), allow_reverse=False,
         wall_margin=0.15,
     ),
     # Webots study, seed §3.4: 3 x 3 m, 10 x 10 grid, new waypoint on entering a new cell.
     "webots": ScenarioConfig(
         name="webots", scene="scene_webots.xml", robot="thymio", arena=(3.0, 3.0), spacing=0.30,
         k_f=3.0, k_t=3.0, k_omega=1.5, head_speed=0.12, chain_speed=0.2, command_hz=2.0,
-        log_hz=2.0, planner="cell", grid=(10, 10), allow_reverse=True, wait_slack=None,
+        log_hz=2.0, planner=CellWalk((10, 10)), followers=TwoNeighbours(), allow_reverse=True,
         wall_margin=0.2,
     ),
     # Robotarium simulation, seed §2.5.2: 1.2 x 0.7, GRITSBot-like, preset Head velocities.
     "robotarium": ScenarioConfig(
         name="robotarium", scene="scene_robotarium.xml", robot="gritsbot", arena=(1.2, 0.7),
         spacing=0.08, k_f=40.0, k_t=40.0, k_omega=4.0, head_speed=0.04, chain_speed=0.08,
-        command_hz=30.0, log_hz=30.0, planner="preset", grid=(1, 1), allow_reverse=True,
-        wait_slack=None,
+        command_hz=30.0, log_hz=30.0, planner=PresetTwists(), followers=TwoNeighbours(),
+        allow_reverse=True,
         wall_margin=0.08, reach_radius=0.02, avoid_radius=0.05, avoid_gain=0.04,
     ),
 }
-
-# Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tighter
-# curves (radii 0.3 and 0.15 m, wider than a 6-robot chain is long, so the Head never circles
-# onto its own Tail).
-ROBOTARIUM_HEAD_PRESETS: tuple[tuple[float, float], ...] = (
-    (0.03, 0.0), (0.03, 0.1), (0.03, -0.1), (0.03, 0.2), (0.03, -0.2),
-)
-
 
 def get_scenario(name: str) -> ScenarioConfig:
     try:

@@ -28,7 +28,7 @@ from macrostate_mj.chain.motion import (
     unicycle_from_holonomic,
     wheel_speeds,
 )
-from macrostate_mj.chain.planners import Planner, make_planner
+from macrostate_mj.chain.planners import Planner
 from macrostate_mj.chain.world import World, place_chain
 from macrostate_mj.core.errors import UserError
 
@@ -110,13 +110,13 @@ class PoseLog:
 class ChainSim:
     """Runs one chain world; owns its MjData, planner and the controller's state."""
 
-    def __init__(self, world: World, fixed_preset: int | None = None, k_t: float | None = None,
-                 planner: Planner | None = None):
+    def __init__(self, world: World, k_t: float | None = None, planner: Planner | None = None):
         self.world = world
         self.cfg = world.scenario
         self.model = world.model
         self.data = mujoco.MjData(self.model)
-        self.planner = planner or make_planner(self.cfg, fixed_preset)
+        self.planner = planner or self.cfg.planner.build(self.cfg.arena, self.cfg.wall_margin,
+                                                         self.cfg.reach_radius)
         self.k_t = self.cfg.k_t if k_t is None else k_t
         self.rng = np.random.default_rng(0)
         self.log_phase = 0.0
@@ -167,7 +167,7 @@ class ChainSim:
         poses = self.poses()
         self.planner.update(poses[0], self.time, self.rng)
         vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
-                               wait_slack=cfg.wait_slack)
+                               followers=cfg.followers)
         vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
         # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
         # its neighbour; a policy moves D by `tail_offset` (seed §3.3).

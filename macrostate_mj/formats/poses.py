@@ -61,9 +61,3 @@ def table_arrays(table: pa.Table) -> dict[str, np.ndarray | list[str]]:
         out["tracked"] = stack("x_trk", "y_trk", "theta_trk")
         out["detected"] = stack("detected")[..., 0].astype(bool)
     return out
-
-
-def read_pose_arrays(path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """Back to (names, times (T,), poses (T, n, 3)) from a `poses.parquet` of one run."""
-    arrays = table_arrays(pq.read_table(path))
-    return arrays["names"], arrays["t"], arrays["poses"]

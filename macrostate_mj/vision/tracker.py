@@ -24,9 +24,8 @@ from macrostate_mj.vision.camera import PinholeCamera
 
 @dataclass(frozen=True)
 class Detections:
-    """Per robot: pixel centroid (n, 2), world pose (n, 3) x, y, theta, detected flag (n,)."""
+    """Per robot: world pose (n, 3) x, y, theta (NaN where missed) and detected flag (n,)."""
 
-    uv: np.ndarray
     poses: np.ndarray
     detected: np.ndarray
 
@@ -88,7 +87,7 @@ class Tracker:
             tip = self.camera.pixel_to_world(uv[ok] + 10 * axis[ok], self.marker_height)
             heading = np.arctan2(tip[:, 1] - xy[:, 1], tip[:, 0] - xy[:, 0])
             poses[ok] = np.column_stack([xy, heading])
-        return Detections(uv, poses, detected)
+        return Detections(poses, detected)
 
 
 def marker_area(spec, mesh_name: str) -> float:

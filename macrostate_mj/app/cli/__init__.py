@@ -22,9 +22,10 @@ from macrostate_mj.app.cli.app import app
 from macrostate_mj.core.errors import RunFailure, UserError
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    """Run the CLI on `argv` (default: the process's arguments); always ends in SystemExit."""
     try:
-        code = app(standalone_mode=False)
+        code = app(args=argv, prog_name="macrostate-mj", standalone_mode=False)
     except click.NoArgsIsHelpError:
         sys.exit(0)             # the help text is already printed
     except click.UsageError as err:

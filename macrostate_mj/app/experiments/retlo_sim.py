@@ -36,7 +36,8 @@ from estimators.retlo_sim.estimate import (
 )
 from estimators.retlo_sim.frames import training_pairs
 from estimators.retlo_sim.mlp import mse, train_mlp
-from macrostate_mj.chain.scenarios import ROBOTARIUM_HEAD_PRESETS, get_scenario
+from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
+from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic, write_manifest
 
