@@ -18,7 +18,6 @@ from macrostate_mj.colony.sim import (
     ColonyConfig,
     aggression,
     parse_days,
-    project,
     regime,
 )
 from macrostate_mj.core.errors import UserError
@@ -43,14 +42,6 @@ def test_parse_days():
     for bad in ("D+3..D-1", "D0", "X5", "D+19", "", "D+1..", "D+a"):
         with pytest.raises(UserError):
             parse_days(bad)
-
-
-def test_projection_matches_overhead_camera():
-    cam_pos, cam_mat = np.array([0, 0, 0.335]), np.eye(3)
-    uv = project(np.array([[0, 0, 0], [0.05, 0, 0], [0, 0.05, 0]]), cam_pos, cam_mat, 28, 256, 256)
-    assert np.allclose(uv[0], [128, 128])
-    assert uv[1, 0] > 128 and np.isclose(uv[1, 1], 128)  # +x is to the right
-    assert uv[2, 1] < 128  # +y is up in the image
 
 
 def _force_duel(colony: Colony) -> None:

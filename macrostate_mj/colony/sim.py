@@ -27,6 +27,7 @@ import numpy as np
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.paths import ASSETS as MJCF
+from macrostate_mj.core.pixels import focal_length, project
 
 ASSETS = MJCF / "ant"
 NEST_HALF = 0.075  # m, inner half-width of the nest (walls in scene_nest.xml)
@@ -356,12 +357,14 @@ class Colony:
         return out
 
     def event_box(self, a: int, b: int, margin: float = 0.002) -> tuple[float, float, float, float]:
-        """Pixel box (x, y, w, h) around both ants' head, antenna and gaster tips, clipped."""
+        """Pixel box (x, y, w, h) in edge coordinates (`core.pixels`) around both ants' head,
+        antenna and gaster tips, clipped to the frame."""
         pts = self.data.site_xpos[self.sites[[a, b]].ravel()]
         pts = np.concatenate([pts + [dx, dy, 0] for dx in (-margin, margin)
                               for dy in (-margin, margin)])
+        focal = focal_length(self.cfg.size, float(self.model.cam_fovy[self.cam]))
         uv = project(pts, self.data.cam_xpos[self.cam], self.data.cam_xmat[self.cam].reshape(3, 3),
-                     float(self.model.cam_fovy[self.cam]), self.cfg.size, self.cfg.size)
+                     focal, self.cfg.size, self.cfg.size) + 0.5     # centres -> edges
         x0, y0 = np.clip(uv.min(axis=0), 0, self.cfg.size)
         x1, y1 = np.clip(uv.max(axis=0), 0, self.cfg.size)
         return float(x0), float(y0), float(x1 - x0), float(y1 - y0)
@@ -380,15 +383,6 @@ class Colony:
                 renderer.update_scene(self.data, camera=self.cam)
                 frame = renderer.render()
             yield frame, [(kind, a, b, self.event_box(a, b)) for kind, a, b in self.events()]
-
-
-def project(points: np.ndarray, cam_pos: np.ndarray, cam_mat: np.ndarray, fovy_deg: float,
-            width: int, height: int) -> np.ndarray:
-    """World points → pixel (u, v) of a MuJoCo camera (looks along its −z; v grows downward)."""
-    pc = (points - cam_pos) @ cam_mat  # camera-frame coordinates (columns of cam_mat are axes)
-    f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2)
-    depth = -pc[:, 2]
-    return np.stack([0.5 * width + f * pc[:, 0] / depth, 0.5 * height - f * pc[:, 1] / depth], 1)
 
 
 def parse_days(text: str) -> list[int]:

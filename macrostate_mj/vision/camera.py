@@ -1,8 +1,7 @@
 """The overhead camera: offscreen rendering and the pinhole model that maps pixels to the floor.
 
-Pixel convention (OpenCV's): u right, v down, integer coordinates at pixel centres. MuJoCo's
-camera looks along its -z axis with +x right and +y up in the image; the rendered array's row 0
-is the top of the image.
+Pixels follow `macrostate_mj.core.pixels` (OpenCV's convention, integer coordinates at pixel
+centres), whose `project` is the one projection of the project.
 """
 
 from __future__ import annotations
@@ -11,6 +10,8 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+
+from macrostate_mj.core.pixels import focal_length, project
 
 
 @dataclass(frozen=True)
@@ -29,8 +30,7 @@ class PinholeCamera:
         cam = model.camera(name)
         w = int(width or model.cam_resolution[cam.id][0])
         h = int(height or model.cam_resolution[cam.id][1])
-        focal = (h / 2) / np.tan(np.radians(float(cam.fovy[0])) / 2)
-        return cls(w, h, float(focal), data.cam_xpos[cam.id].copy(),
+        return cls(w, h, focal_length(h, float(cam.fovy[0])), data.cam_xpos[cam.id].copy(),
                    data.cam_xmat[cam.id].reshape(3, 3).copy())
 
     @property
@@ -40,11 +40,7 @@ class PinholeCamera:
 
     def world_to_pixel(self, xyz: np.ndarray) -> np.ndarray:
         """(..., 3) world points -> (..., 2) pixel (u, v)."""
-        pc = (np.asarray(xyz, float) - self.position) @ self.rotation
-        depth = -pc[..., 2]
-        u = self.width / 2 + self.focal * pc[..., 0] / depth - 0.5
-        v = self.height / 2 - self.focal * pc[..., 1] / depth - 0.5
-        return np.stack([u, v], axis=-1)
+        return project(xyz, self.position, self.rotation, self.focal, self.width, self.height)
 
     def pixel_to_world(self, uv: np.ndarray, z: float = 0.0) -> np.ndarray:
         """(..., 2) pixels -> (..., 2) world x, y on the horizontal plane at height z: the
