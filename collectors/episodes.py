@@ -40,7 +40,7 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     Runs anywhere: a local process or a Ray worker."""
     from macrostate_mj.chain.health import PhysicsError
     from macrostate_mj.chain.scenarios import scenario_for
-    from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+    from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
     from macrostate_mj.chain.world import build_world
     from macrostate_mj.vision.camera_chain import CameraChain
 
@@ -49,20 +49,15 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     world = build_world(cfg, spec.robots)
     sim = ChainSim(world)
     sim.reset(spec.rng(0))
-    chain = CameraChain(sim, spec.noise, pipelined=True)
+    chain = CameraChain(sim, spec.noise, pipelined=True, rng=spec.rng(1))
+    log = PoseLog(world.names, tracker=chain)
+    policy = TailPolicy(spec.policy, spec.rng(2))
+    step = 1 / cfg.log_hz
+    hooks = [chain, Every(step, policy, sim.log_phase), Every(step, log.append, sim.log_phase)]
     try:
-        chain.start(spec.rng(1))
-        log = PoseLog(world.names, tracker=chain)
-        policy = TailPolicy(spec.policy, spec.rng(2))
-        step = 1 / cfg.log_hz
-        hooks = [Periodic(1 / cfg.command_hz, chain.capture),
-                 Periodic(step, policy, sim.log_phase),
-                 Periodic(step, log.append, sim.log_phase)]
-        sim.run(spec.warmup + spec.seconds, hooks)
+        sim.episode(spec.warmup + spec.seconds, hooks)
     except PhysicsError as err:
         return spec.index, None, {"failure": str(err)}
-    finally:
-        chain.close()
     times, poses, waypoints = log.arrays()
     table = poses_table(world.names, times, poses, waypoints, log.tracked_arrays())
     table = table.append_column("episode", pa.array(np.full(table.num_rows, spec.index)))

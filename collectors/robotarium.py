@@ -20,7 +20,7 @@ import numpy as np
 
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
 from macrostate_mj.chain.scenarios import ScenarioConfig
-from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import World, build_world
 from macrostate_mj.core.errors import UserError
 
@@ -114,7 +114,7 @@ def run_chain(world: World, start: np.ndarray, steps: int, k_t: float,
     sim = ChainSim(world, k_t=k_t, planner=PresetSchedule(schedule, cfg.log_hz))
     sim.reset(np.random.default_rng(0), start=start)  # the rng draws nothing at 30 = 30 Hz
     log = PoseLog(world.names)
-    sim.run(steps / cfg.log_hz, [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)])
+    sim.run(steps / cfg.log_hz, [Every(1 / cfg.log_hz, log.append, sim.log_phase)])
     poses = log.arrays()[1][:steps]
     if len(poses) != steps:
         raise RuntimeError(f"logged {len(poses)} steps, expected {steps}")

@@ -10,7 +10,7 @@ from macrostate_mj.chain.health import Fault, PhysicsError
 from macrostate_mj.chain.motion import body_twist
 from macrostate_mj.chain.planners import FixedWaypoint
 from macrostate_mj.chain.scenarios import SCENARIOS, get_scenario
-from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog, simulate_poses, steps_per_tick
+from macrostate_mj.chain.sim import ChainSim, Every, PoseLog, simulate_poses, steps_per_tick
 from macrostate_mj.chain.soak import soak, soak_tasks, summary
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.angles import wrap_angle
@@ -113,7 +113,7 @@ def nudged_run(check_steps: int, hook) -> PhysicsError:
     sim.reset(np.random.default_rng(0))
     sim.check_steps = check_steps
     with pytest.raises(PhysicsError) as err:
-        sim.run(10.0, [Periodic(0.5, hook, phase=1.0)])
+        sim.run(10.0, [Every(0.5, hook, phase=1.0)])
     return err.value
 
 
@@ -186,7 +186,7 @@ def test_robotarium_chain_moves_with_preset_head():
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(2))
     log = PoseLog(world.names)
-    sim.run(30.0, [Periodic(1.0, log.append)])
+    sim.run(30.0, [Every(1.0, log.append)])
     _, p, _ = log.arrays()
     travelled = np.linalg.norm(np.diff(p[:, :, :2], axis=0), axis=2).sum(0)
     assert np.all(travelled > 0.3)               # every robot follows, none is stuck

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from macrostate_mj.chain.scenarios import get_scenario
-from macrostate_mj.chain.sim import ChainSim, Periodic
+from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
@@ -34,7 +34,7 @@ def errors_over_run(seconds: float, seed: int, noise: NoiseConfig):
         head.extend(np.abs(wrap_angle(chain.latest[ok, 2] - truth[ok, 2])))
 
     try:
-        sim.run(seconds, [Periodic(0.25, check)])
+        sim.run(seconds, [Every(0.25, check)])
     finally:
         chain.close()
     return np.array(pos) * 1000, np.degrees(head), np.concatenate(seen)
@@ -131,7 +131,7 @@ def test_pipelined_camera_chain_gives_the_same_log():
         chain.start(np.random.default_rng([8, 1]))
         log = PoseLog(world.names, tracker=chain)
         try:
-            sim.run(8.0, [Periodic(0.25, chain.capture), Periodic(0.5, log.append, 0.1)])
+            sim.run(8.0, [Every(0.25, chain.capture), Every(0.5, log.append, 0.1)])
         finally:
             chain.close()
         logs.append(log.tracked_arrays())

@@ -17,9 +17,10 @@ from viz.video import Trails
 class RerunRecorder:
     """A periodic hook logging the chain; camera frames (JPEG) every `image_every` calls."""
 
-    def __init__(self, path: str | Path, sim: ChainSim, rate_hz: float,
+    def __init__(self, path: str | Path, sim: ChainSim, rate_hz: float, phase: float = 0.0,
                  image_every: int = 4, trail_seconds: float = 8.0):
         self.path = Path(path)
+        self.period, self.phase = 1 / rate_hz, phase                # a `Hook`
         self.rec = rr.RecordingStream("macrostate-mj")
         self._file = AtomicFile(self.path)
         self.rec.save(str(self._file.tmp))
@@ -31,6 +32,15 @@ class RerunRecorder:
         hx, hy = np.array(sim.cfg.arena) / 2
         self.rec.log("world/arena", rr.LineStrips2D([[[-hx, -hy], [hx, -hy], [hx, hy],
                                                       [-hx, hy], [-hx, -hy]]]), static=True)
+
+    def initialize_episode(self, sim: ChainSim) -> None:
+        pass
+
+    def on_tick(self, sim: ChainSim) -> None:
+        self.capture(sim)
+
+    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
+        self.finish() if keep else self.abort()
 
     def capture(self, sim: ChainSim) -> None:
         rec = self.rec

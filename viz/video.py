@@ -40,6 +40,16 @@ class VideoRecorder:
         self.camera = PinholeCamera.from_model(sim.model, sim.data)
         self.trails = Trails(sim.n, max(2, int(trail_seconds * fps)))
         self._writer = Mp4Writer(self.path, fps, (self.renderer.width, self.renderer.height))
+        self.period, self.phase = 1 / fps, 0.0                      # a `Hook`
+
+    def initialize_episode(self, sim: ChainSim) -> None:
+        pass
+
+    def on_tick(self, sim: ChainSim) -> None:
+        self.capture(sim)
+
+    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
+        self.finish() if keep else self.abort()
 
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)

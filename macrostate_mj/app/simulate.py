@@ -13,7 +13,7 @@ import numpy as np
 
 from macrostate_mj.chain.health import PhysicsError
 from macrostate_mj.chain.scenarios import ScenarioConfig, scenario_for
-from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.chain.sim import ChainSim, Every, Hook, PoseLog
 from macrostate_mj.chain.world import build_world, validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import check_writable_file, prepare_out_dir, write_manifest
@@ -82,45 +82,30 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     sim.reset(np.random.default_rng(req.seed))
     timings["build"] = time.perf_counter() - t0
 
-    recorders = []
-    hooks = []
+    hooks: list[Hook] = []
     chain = None
     if req.track:
         from macrostate_mj.vision.camera_chain import CameraChain
 
-        chain = CameraChain(sim)
-        chain.start(imaging_rng(req.seed))
-        hooks.append(Periodic(1 / cfg.command_hz, chain.capture))
+        chain = CameraChain(sim, rng=imaging_rng(req.seed))
+        hooks.append(chain)
     log = PoseLog(world.names, tracker=chain)
-    hooks.append(Periodic(1 / cfg.log_hz, log.append, sim.log_phase))
+    hooks.append(Every(1 / cfg.log_hz, log.append, sim.log_phase))
     if req.video is not None:
         from viz.video import VideoRecorder
 
-        rec = VideoRecorder(req.video, sim, fps=req.video_fps,
-                            overlays=parse_overlays(req.overlays))
-        recorders.append(rec)
-        hooks.append(Periodic(1 / req.video_fps, rec.capture))
+        hooks.append(VideoRecorder(req.video, sim, fps=req.video_fps,
+                                   overlays=parse_overlays(req.overlays)))
     if req.rerun is not None:
         from viz.rerun_log import RerunRecorder
 
-        rrd = RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz)
-        recorders.append(rrd)
-        hooks.append(Periodic(1 / cfg.log_hz, rrd.capture, sim.log_phase))
+        hooks.append(RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz, phase=sim.log_phase))
     t0 = time.perf_counter()
     failure: PhysicsError | None = None
     try:
-        sim.run(req.seconds, hooks, progress)
+        sim.episode(req.seconds, hooks, progress)
     except PhysicsError as err:
-        failure = err           # keep what was simulated: poses and video up to the fault
-    except BaseException:
-        for r in recorders:
-            r.abort()
-        raise
-    finally:
-        if chain is not None:
-            chain.close()
-    for r in recorders:
-        r.finish()
+        failure = err           # the hooks kept what was simulated: poses and video up to it
     timings["run"] = time.perf_counter() - t0
 
     times, poses, waypoints = log.arrays()

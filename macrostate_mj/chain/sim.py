@@ -3,9 +3,11 @@
 Lifecycle (dm_control-style names say when things happen):
   `ChainSim(world)`        compile once;
   `reset(rng)`             full MuJoCo reset (warm start included), start poses, planner, log phase;
+  `episode(seconds, hooks)` each hook's `initialize_episode`, then `run`, then each hook's
+                           `finalize_episode` (the `Hook` protocol);
   `run(seconds, hooks)`    step physics in C between events (`mj_step(..., nstep=k)`), firing
-                           each periodic hook (controller, logger, renderer, tracker) on its tick,
-                           and check the physics' health after every stretch of steps.
+                           the controller and each hook's `on_tick` (logger, renderer, tracker)
+                           on its tick, and check the physics' health after every stretch.
 Event times are whole physics steps (a scenario whose rates do not divide into whole steps is
 rejected), so runs are bit-identical for the same seed. A fault (NaN, tip, lift, escape) is
 pinned to the physics step where it first appears: the stretch is replayed step by step from
@@ -14,8 +16,9 @@ its saved state, which on one machine reproduces it exactly.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -43,28 +46,55 @@ def steps_per_tick(period: float, dt: float, what: str) -> int:
     return int(round(steps))
 
 
+class Hook(Protocol):
+    """A participant of an episode. The names say when each is called (dm_control's lifecycle):
+    `initialize_episode` once, after `reset` and before the first tick; `on_tick` on each of the
+    hook's ticks, every `period` s from `phase` after the episode starts; `finalize_episode` once
+    at the end, `keep=False` when the run was interrupted (partial outputs are removed) and True
+    otherwise, a physics failure included (what was simulated up to it is kept)."""
+
+    period: float
+    phase: float
+
+    def initialize_episode(self, sim: ChainSim) -> None: ...
+
+    def on_tick(self, sim: ChainSim) -> None: ...
+
+    def finalize_episode(self, sim: ChainSim, keep: bool) -> None: ...
+
+
 @dataclass
-class Periodic:
-    """Call `fn(sim)` every `period` seconds from `phase` after the run starts; tick times are
-    rounded to whole physics steps and computed from the tick count (no drift)."""
+class Every:
+    """A plain callable as a hook: `fn(sim)` every `period` s from `phase`."""
 
     period: float
     fn: Callable[[ChainSim], None]
     phase: float = 0.0
-    next_step: int = 0
-    _origin: float = 0.0
-    _count: int = 0
-    _dt: float = 1.0
 
-    def start(self, t0: float, dt: float) -> None:
-        self._origin, self._count, self._dt = t0 + self.phase, 0, dt
-        self.next_step = int(round(self._origin / dt))
+    def initialize_episode(self, sim: ChainSim) -> None:
+        pass
+
+    def on_tick(self, sim: ChainSim) -> None:
+        self.fn(sim)
+
+    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
+        pass
+
+
+class _Ticks:
+    """When a hook is due: tick times rounded to whole physics steps and computed from the tick
+    count (no drift)."""
+
+    def __init__(self, hook: Hook, t0: float, dt: float):
+        self.hook, self.dt = hook, dt
+        self.origin, self.count = t0 + hook.phase, 0
+        self.next_step = int(round(self.origin / dt))
 
     def fire_if_due(self, sim: ChainSim, step: int) -> None:
         if step >= self.next_step:
-            self.fn(sim)
-            self._count += 1
-            self.next_step = int(round((self._origin + self._count * self.period) / self._dt))
+            self.hook.on_tick(sim)
+            self.count += 1
+            self.next_step = int(round((self.origin + self.count * self.hook.period) / self.dt))
 
 
 @dataclass
@@ -187,14 +217,34 @@ class ChainSim:
             self.data.ctrl[w.ctrl_right[i]] = right
 
     # -- loop ---------------------------------------------------------------------------------
-    def run(self, seconds: float, hooks: list[Periodic],
+    def episode(self, seconds: float, hooks: Sequence[Hook],
+                progress: Callable[[float], None] | None = None) -> None:
+        """`run` inside the hooks' lifecycle: initialize each, run, finalize each (see `Hook`);
+        a `PhysicsError` is raised again once every hook has kept what it has."""
+        for hook in hooks:
+            hook.initialize_episode(self)
+        try:
+            self.run(seconds, hooks, progress)
+        except PhysicsError:
+            self._finalize(hooks, keep=True)
+            raise
+        except BaseException:
+            self._finalize(hooks, keep=False)
+            raise
+        self._finalize(hooks, keep=True)
+
+    def _finalize(self, hooks: Sequence[Hook], keep: bool) -> None:
+        for hook in hooks:
+            hook.finalize_episode(self, keep)
+
+    def run(self, seconds: float, hooks: Sequence[Hook],
             progress: Callable[[float], None] | None = None) -> None:
-        """Advance `seconds` of simulated time, firing the controller first, then `hooks`."""
+        """Advance `seconds` of simulated time, firing the controller first, then each hook's
+        `on_tick` when due (no lifecycle calls: see `episode`)."""
         dt = self.model.opt.timestep
-        events = [Periodic(1 / self.cfg.command_hz, lambda s: s.command()), *hooks]
+        controller = Every(1 / self.cfg.command_hz, lambda s: s.command())
+        events = [_Ticks(h, self.time, dt) for h in (controller, *hooks)]
         step = int(round(self.time / dt))
-        for ev in events:
-            ev.start(self.time, dt)
         end = step + int(round(seconds / dt))
         m, d = self.model, self.data
         while step < end:
@@ -227,13 +277,12 @@ class ChainSim:
 
 
 def simulate_poses(world: World, seconds: float, seed: int,
-                   extra_hooks: list[Periodic] | None = None,
+                   extra_hooks: list[Hook] | None = None,
                    progress: Callable[[float], None] | None = None) -> tuple[ChainSim, PoseLog]:
     """Reset with `seed` and run, logging poses at the scenario's log rate."""
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(seed))
     log = PoseLog(world.names)
-    hooks = [Periodic(1 / world.scenario.log_hz, log.append, sim.log_phase),
-             *(extra_hooks or [])]
-    sim.run(seconds, hooks, progress)
+    hooks = [Every(1 / world.scenario.log_hz, log.append, sim.log_phase), *(extra_hooks or [])]
+    sim.episode(seconds, hooks, progress)
     return sim, log

@@ -20,7 +20,8 @@ from macrostate_mj.vision.tracker import Tracker, marker_area
 
 
 class CameraChain:
-    """Owns a renderer; `start(sim, rng)` once per episode, then `capture` as a hook.
+    """Owns a renderer; `start(rng)` once per episode, then `capture` at the command rate, then
+    `close()`. As a `Hook` (given `rng`), `ChainSim.episode` makes those calls itself.
 
     With `pipelined`, the imaging chain and the tracker of one frame run on a helper thread
     (OpenCV releases the GIL) while the physics moves on; reading `latest`, `latest_time`,
@@ -28,8 +29,11 @@ class CameraChain:
     processed in order, with the same draws, so the results are identical either way.
     """
 
-    def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None, pipelined: bool = False):
+    def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None, pipelined: bool = False,
+                 rng: np.random.Generator | None = None, phase: float = 0.0):
         self.sim = sim
+        self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
+        self._episode_rng = rng
         self._pool = ThreadPoolExecutor(1) if pipelined else None
         self._pending: Future | None = None
         self.noise = noise or NoiseConfig()
@@ -59,6 +63,19 @@ class CameraChain:
         self._latest[:] = np.nan
         self._latest_time[:] = np.nan
         self._detected[:] = False
+
+    # -- the `Hook` lifecycle: tracking at the command rate ------------------------------------
+    def initialize_episode(self, sim: ChainSim) -> None:
+        if self._episode_rng is None:
+            raise ValueError("a CameraChain run as an episode hook needs its rng= (the imaging "
+                             "stream's seed)")
+        self.start(self._episode_rng)
+
+    def on_tick(self, sim: ChainSim) -> None:
+        self.capture(sim)
+
+    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
+        self.close()
 
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)         # GL work stays on this thread

@@ -9,7 +9,7 @@ import numpy as np
 
 from macrostate_mj.app.bench.sim import _best_of, figure, record_commands, replay_bare
 from macrostate_mj.chain.scenarios import get_scenario
-from macrostate_mj.chain.sim import ChainSim, Periodic
+from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.vision.camera import OverheadRenderer
@@ -41,7 +41,7 @@ def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> 
         for ep in range(episodes):
             sim.reset(np.random.default_rng(ep))
             chain.start(np.random.default_rng([ep, 1]))
-            sim.run(seconds, [Periodic(0.25, check)])
+            sim.run(seconds, [Every(0.25, check)])
     finally:
         chain.close()
     pos_mm, head_deg = np.array(pos) * 1000, np.degrees(head)

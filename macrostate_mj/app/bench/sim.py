@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.chain.scenarios import get_scenario
-from macrostate_mj.chain.sim import ChainSim, Periodic, PoseLog
+from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import build_world
 
 
@@ -37,7 +37,7 @@ def record_commands(sim: ChainSim, seconds: float, rng: np.random.Generator
     sim.reset(rng)
     start = sim.data.qpos.copy()
     ticks: list[tuple[int, np.ndarray]] = []
-    sim.run(seconds, [Periodic(1 / sim.cfg.command_hz, lambda s: ticks.append(
+    sim.run(seconds, [Every(1 / sim.cfg.command_hz, lambda s: ticks.append(
         (int(round(s.time / dt)), s.data.ctrl.copy())))])
     return start, ticks
 
@@ -66,7 +66,7 @@ def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> 
     def ours() -> None:
         sim.reset(np.random.default_rng(0))
         log = PoseLog(world.names)
-        sim.run(seconds, [Periodic(1 / cfg.log_hz, log.append, sim.log_phase)])
+        sim.run(seconds, [Every(1 / cfg.log_hz, log.append, sim.log_phase)])
 
     start, ticks = record_commands(sim, seconds, np.random.default_rng(0))
 
