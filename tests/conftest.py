@@ -1,12 +1,16 @@
 """Shared fixtures: where the (optional) real reference data lives."""
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
 
 # Before any test module imports mujoco: headless rendering needs a GL backend chosen up front.
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+# Test modules live in folders that mirror the package tree; their shared helpers (clitools) here.
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = Path(os.environ.get("MACROSTATE_REFERENCE_DATA",

@@ -1,6 +1,6 @@
 """Regenerate the golden trajectory on purpose (after an intended physics change):
 
-    .venv/bin/python tests/golden/regenerate.py
+    .venv/bin/python tests/chain/golden/regenerate.py
 """
 
 import sys

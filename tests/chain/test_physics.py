@@ -165,7 +165,7 @@ def golden_run() -> np.ndarray:
 
 def test_golden_trajectory_unchanged():
     """Fails when the physics changes. Regenerate on purpose with:
-    .venv/bin/python tests/golden/regenerate.py"""
+    .venv/bin/python tests/chain/golden/regenerate.py"""
     expected = np.load(GOLDEN)["poses"]
     got = golden_run()
     assert got.shape == expected.shape

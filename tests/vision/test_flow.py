@@ -11,7 +11,7 @@ import pytest
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision import flow
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _texture(h: int, w: int, seed: int = 0) -> np.ndarray:

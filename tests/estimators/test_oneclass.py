@@ -15,7 +15,7 @@ from estimators.oneclass.train import train_classifier
 from macrostate_mj.core.errors import UserError
 from viz.gradcam import box_share, gradcam, pointing_game, top_share
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 TINY = OCConfig(m=1, seed=3, batch=16, dcae_epochs=1, dsvdd_epochs=1, gan_steps=2, gan_batch=4,
                 cls_epochs=1)
 
