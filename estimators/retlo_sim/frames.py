@@ -15,34 +15,16 @@ constant 0 after standardization and learn nothing from it).
 Feature order, shared by training and estimation:
   base (B, 5) = x_F@t, y_F@t, θ_F@t, x_F@t+1, y_F@t+1   (the seed's s_F@t, p_F@t+1)
   targets (B, 3) = x_H@t, y_H@t, θ_F@t+1
-Positions in metres, angles in radians wrapped to [-π, π).
+Positions in metres, angles in radians wrapped to (-π, π]. The frame maths (`frame_of`,
+`to_frame`, `from_frame`) is `estimators.retlo.frames`', shared by both chapters.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from estimators.retlo.frames import frame_of, from_frame, to_frame
 from macrostate_mj.core.angles import wrap_angle
-
-
-def frame_of(ref_xy: np.ndarray, fol_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Origin (B, 2) and x-axis angle α (B,) of the module frame at one step."""
-    d = np.asarray(fol_xy, np.float64) - ref_xy
-    return np.asarray(ref_xy, np.float64), np.arctan2(d[..., 1], d[..., 0])
-
-
-def to_frame(xy: np.ndarray, origin: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """World points (B, 2) into the frame (origin (B, 2), α (B,))."""
-    c, s = np.cos(alpha), np.sin(alpha)
-    d = np.asarray(xy, np.float64) - origin
-    return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
-
-
-def from_frame(xy: np.ndarray, origin: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """Frame points (B, 2) back into world coordinates."""
-    c, s = np.cos(alpha), np.sin(alpha)
-    return np.stack([origin[..., 0] + c * xy[..., 0] - s * xy[..., 1],
-                     origin[..., 1] + s * xy[..., 0] + c * xy[..., 1]], axis=-1)
 
 
 def module_base(ref_xy: np.ndarray, fol_pose: np.ndarray, fol_xy_next: np.ndarray
