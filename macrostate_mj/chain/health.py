@@ -18,12 +18,12 @@ from macrostate_mj.core.errors import RunFailure
 
 
 class Fault(enum.Enum):
-    """What went wrong; the value is how a report names it."""
+    """What went wrong (`PhysicsFault.describe` words it)."""
 
-    NAN = "NaN state"
-    TIP = "tipped"
-    LIFT = "lifted off the floor"
-    ESCAPE = "left the arena"
+    NAN = enum.auto()        # a non-finite state, or MuJoCo reset a diverged one
+    TIP = enum.auto()        # tilted past `max_tilt_deg`
+    LIFT = enum.auto()       # body above its rest height by more than `max_lift` (climbing)
+    ESCAPE = enum.auto()     # centre outside the walls
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ def soak(
     """Run many seeds and count tips, NaNs, escapes and climbing; exit 1 if any run faulted."""
     import time
 
+    from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
     from macrostate_mj.chain.soak import run_records, soak_tasks, summary
     from macrostate_mj.chain.soak import soak as run_soak
     from macrostate_mj.core.errors import RunFailure
@@ -64,7 +65,7 @@ def soak(
             typer.echo(f"MuJoCo warnings: {row['warning_kinds']}")
     bad = [r for r in runs if r.fault is not None]
     if bad:
-        raise RunFailure(f"{len(bad)} of {len(runs)} runs faulted; first: seed {bad[0].seed}: "
-                         f"{bad[0].reason}; reproduce: macrostate-mj simulate --scenario "
-                         f"{scenario} --robots {robots} --seconds {seconds:g} --seed "
-                         f"{bad[0].seed} --out soak_seed{bad[0].seed}")
+        first = bad[0].seed
+        again = SimulateRequest(scenario, robots, seconds, first, Path(f"soak_seed{first}"))
+        raise RunFailure(f"{len(bad)} of {len(runs)} runs faulted; first: seed {first}: "
+                         f"{bad[0].reason}; reproduce: {reproduce_command(again)}")
