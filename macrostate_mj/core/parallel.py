@@ -6,6 +6,7 @@ computed it; callers order results themselves where order matters.
 
 from __future__ import annotations
 
+import os
 import socket
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -15,9 +16,22 @@ from macrostate_mj.core.errors import UserError
 Runner = Callable[[Callable[[Any], Any], Sequence[Any], int], Iterator[Any]]
 
 
+def render_threads(workers: int) -> int:
+    """llvmpipe threads per worker: the cores shared out, so that workers' renderers do not
+    fight over the same cores (Mesa's default is one thread per core in every process)."""
+    return max(1, (os.cpu_count() or 1) // workers)
+
+
+def _pin_render_threads(threads: int) -> None:
+    """Worker initializer: runs before any GL context exists in the worker. An LP_NUM_THREADS
+    the user exported wins."""
+    os.environ.setdefault("LP_NUM_THREADS", str(threads))
+
+
 def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
                   ) -> Iterator[Any]:
-    """In this process for one worker; else a spawn-started process pool (no forked GL)."""
+    """In this process for one worker; else a spawn-started process pool (no forked GL), each
+    worker's software renderer pinned to its share of the cores."""
     if workers == 1 or len(tasks) <= 1:
         for task in tasks:
             yield fn(task)
@@ -25,7 +39,9 @@ def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
+                             initializer=_pin_render_threads,
+                             initargs=(render_threads(workers),)) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
         for fut in as_completed(futures):
             yield fut.result()

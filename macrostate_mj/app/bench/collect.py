@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 import time
+from pathlib import Path
 
 import cv2
+import mujoco
 import numpy as np
 
 from macrostate_mj.app.bench.sim import _best_of, figure, record_commands, replay_bare
@@ -70,35 +74,101 @@ def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> 
     ]
 
 
-def bench_collect(minutes: float = 1.0, robots: int = 3) -> list[dict]:
-    """One worker's collection (physics, policy, render, noise, tracker, log) against bare
-    `mj_step` replaying the same commands plus bare renders of the same frames."""
-    from collectors.episodes import EpisodeSpec, run_episode
-
-    spec = EpisodeSpec("lab", robots, minutes * 60, 10.0, 0, 0)
-    run_episode(EpisodeSpec("lab", robots, 5.0, 0.0, 0, 0))      # warm-up (imports, GL)
-    t0 = time.perf_counter()
-    _, _, stats = run_episode(spec)
-    t_ours = time.perf_counter() - t0
-
-    cfg = get_scenario("lab")
-    world = build_world(cfg, robots)
+def _bare_limit(args: tuple) -> float:
+    """One worker's limit: bare `mj_step` replaying the episode's commands, plus bare renders
+    of as many frames at the same settings (same scene, size, offsamples, threads)."""
+    spec, steps, frames = args
+    world = build_world(get_scenario(spec.scenario), spec.robots)
     start, ticks = record_commands(ChainSim(world), spec.warmup + spec.seconds, spec.rng(0))
     t0 = time.perf_counter()
-    data = replay_bare(world.model, start, ticks, stats["steps"])
+    data = replay_bare(world.model, start, ticks, steps)
     t_phys = time.perf_counter() - t0
     with OverheadRenderer(world.model) as renderer:
         renderer.render(data)
         t0 = time.perf_counter()
-        for _ in range(stats["frames"]):
+        for _ in range(frames):
             renderer.render(data)
-        t_render = time.perf_counter() - t0
-    sim_min = (spec.warmup + spec.seconds) / 60
-    tag = f"lab, {robots} robots, 1 worker, {stats['frames']} frames"
-    return [
-        figure("collect_sim_minutes_per_wall_minute", sim_min / (t_ours / 60), "x",
-               sim_min / ((t_phys + t_render) / 60),
-               limit_name="bare mj_step + bare renders of the same frames", config=tag),
-        figure("collect_render_share_of_limit", t_render / (t_phys + t_render), "fraction",
-               config=tag),
-    ]
+        return t_phys + time.perf_counter() - t0
+
+
+def _stages(spec, frames: int = 60) -> dict[str, float]:
+    """Seconds per frame of each stage on one worker, timed apart on frames of the episode."""
+    from collectors.episodes import run_episode
+    from macrostate_mj.formats.poses import write_poses
+    from macrostate_mj.vision import imaging
+
+    world = build_world(get_scenario(spec.scenario), spec.robots)
+    sim = ChainSim(world)
+    sim.reset(spec.rng(0))
+    chain = CameraChain(sim, spec.noise, rng=spec.rng(1))
+    chain.initialize_episode(sim)
+    rgbs = []
+    per_tick = int(round(1 / (sim.cfg.command_hz * sim.model.opt.timestep)))
+    t0 = time.perf_counter()
+    for _ in range(frames):
+        sim.command()
+        mujoco.mj_step(sim.model, sim.data, nstep=per_tick)
+    t_phys = (time.perf_counter() - t0) / frames
+    ep, cfg, rng = chain.episode, chain.noise, np.random.default_rng(0)
+    t0 = time.perf_counter()
+    for _ in range(frames):
+        rgbs.append(chain.renderer.render(sim.data))
+    t_render = (time.perf_counter() - t0) / frames
+    steps = {"motion_blur": lambda im: cv2.filter2D(im, -1, ep.blur_kernel)
+             if ep.blur_kernel is not None else im,
+             "lens_psf": lambda im: cv2.sepFilter2D(im, -1, ep.psf, ep.psf),
+             "sensor_noise": lambda im: ep.sensor_field.add_to(im, 0, 0),
+             "jpeg": lambda im: imaging.jpeg_round_trip(im, ep.jpeg_quality)}
+    out = {"physics": t_phys, "render": t_render}
+    for name, fn in steps.items():
+        out[f"imaging_{name}"] = _best_of(lambda fn=fn: [fn(im) for im in rgbs]) / frames
+    degraded = [imaging.degrade(im, ep, cfg, rng) for im in rgbs]
+    degraded = [im for im in degraded if im is not None]
+    out["tracking"] = _best_of(lambda: [chain.tracker.track(im) for im in degraded]) / len(
+        degraded)
+    chain.finalize_episode(sim, True)
+    _, table, stats = run_episode(spec)
+    with tempfile.TemporaryDirectory() as tmp:
+        out["writing"] = _best_of(lambda: write_poses(Path(tmp) / "p.parquet", table)
+                                  ) / stats["frames"]
+    return out
+
+
+def bench_collect(minutes: float = 1.0, robots: int = 3) -> list[dict]:
+    """Collection throughput against its limit (bare `mj_step` replaying the same commands
+    plus bare renders of the same frames at the same settings), for 1 and 2 workers, and the
+    cost of each stage in ms per frame and as a share of one worker's wall time."""
+    from collectors.episodes import EpisodeSpec, run_episode
+    from macrostate_mj.core.parallel import local_results, render_threads
+
+    figures: list[dict] = []
+    run_episode(EpisodeSpec("lab", robots, 5.0, 0.0, 0, 0))      # warm-up (imports, GL)
+    for workers in (1, 2):
+        specs = [EpisodeSpec("lab", robots, minutes * 60, 10.0, 0, i) for i in range(workers)]
+        t0 = time.perf_counter()
+        results = list(local_results(run_episode, specs, workers))
+        t_ours = time.perf_counter() - t0
+        by_index = {i: stats for i, _, stats in results}
+        tasks = [(s, by_index[s.index]["steps"], by_index[s.index]["frames"]) for s in specs]
+        t0 = time.perf_counter()
+        list(local_results(_bare_limit, tasks, workers))
+        t_limit = time.perf_counter() - t0
+        frames = sum(by_index[s.index]["frames"] for s in specs)
+        sim_min = sum(s.warmup + s.seconds for s in specs) / 60
+        threads = os.environ.get("LP_NUM_THREADS",
+                                 render_threads(workers) if workers > 1 else "all cores")
+        tag = (f"lab, {robots} robots, {workers} worker(s), {frames} frames, "
+               f"llvmpipe threads per worker: {threads}")
+        figures.append(figure(f"collect_sim_minutes_per_wall_minute_{workers}w",
+                              sim_min / (t_ours / 60), "x", sim_min / (t_limit / 60),
+                              limit_name="bare mj_step + bare renders of the same frames, "
+                              "same workers", config=tag))
+        figures.append(figure(f"collect_ms_per_frame_{workers}w", t_ours / frames * 1000, "ms",
+                              t_limit / frames * 1000, config=tag,
+                              limit_name="bare physics + render per frame"))
+    wall_1w = figures[1]["value"] / 1000          # one worker's seconds per frame
+    for name, sec in _stages(EpisodeSpec("lab", robots, 30.0, 0.0, 0, 0)).items():
+        figures.append(figure(f"collect_stage_{name}_ms_per_frame", sec * 1000, "ms",
+                              config=f"lab, {robots} robots, 1 worker, each stage timed apart",
+                              share_of_wall=round(sec / wall_1w, 4)))
+    return figures
