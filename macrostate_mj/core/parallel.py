@@ -11,7 +11,7 @@ import socket
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.errors import RunFailure, UserError
 
 Runner = Callable[[Callable[[Any], Any], Sequence[Any], int], Iterator[Any]]
 
@@ -38,13 +38,18 @@ def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
         return
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
 
     with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
                              initializer=_pin_render_threads,
                              initargs=(render_threads(workers),)) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
-        for fut in as_completed(futures):
-            yield fut.result()
+        try:
+            for fut in as_completed(futures):
+                yield fut.result()
+        except BrokenProcessPool:
+            raise RunFailure("a worker process died abruptly (a crash in native code); the "
+                             "finished work is kept: rerun the same command to resume") from None
 
 
 def ray_runner(address: str) -> Runner:
