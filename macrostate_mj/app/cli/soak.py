@@ -27,11 +27,13 @@ def soak(
     ray: str = typer.Option(None, "--ray", help="Run seeds on Ray: local, auto or ADDRESS."),
     check_hz: float = typer.Option(50.0, help="Health checks per simulated second (a fault "
                                    "is then pinned to its physics step)."),
-    out: Path = typer.Option(None, help="Also write soak.json (every run) and manifest.json."),
+    out: Path = typer.Option(None, help="Also write soak.json, manifest.json and runs/ (one file "
+                             "per finished seed: a rerun resumes)."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as one JSON line."),
     overwrite: bool = typer.Option(False, help="Replace an existing soak.json."),
 ) -> None:
     """Run many seeds and count tips, NaNs, escapes and climbing; exit 1 if any run faulted."""
+    import shutil
     import time
 
     from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
@@ -42,11 +44,15 @@ def soak(
     from macrostate_mj.core.progress import sim_progress
 
     tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
+    store = None
     if out is not None:
         prepare_out_dir(out, ["soak.json", "manifest.json"], overwrite)
+        store = out / "runs"
+        if overwrite and store.exists():
+            shutil.rmtree(store)
     t0 = time.perf_counter()
     with sim_progress(seeds, f"soak {scenario} {robots} robots", unit="runs") as bar:
-        runs = run_soak(tasks, workers, ray, bar)
+        runs = run_soak(tasks, workers, ray, bar, store)
     row = {"scenario": scenario, "robots": robots, "seconds": seconds, **summary(runs, workers)}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
