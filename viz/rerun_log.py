@@ -11,10 +11,10 @@ import rerun as rr
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.core.io import AtomicFile
 from macrostate_mj.vision.camera import OverheadRenderer
-from viz.video import Trails
+from viz.video import Recorder, Trails
 
 
-class RerunRecorder:
+class RerunRecorder(Recorder):
     """A periodic hook logging the chain; camera frames (JPEG) every `image_every` calls."""
 
     def __init__(self, path: str | Path, sim: ChainSim, rate_hz: float, phase: float = 0.0,
@@ -32,15 +32,6 @@ class RerunRecorder:
         hx, hy = np.array(sim.cfg.arena) / 2
         self.rec.log("world/arena", rr.LineStrips2D([[[-hx, -hy], [hx, -hy], [hx, hy],
                                                       [-hx, hy], [-hx, -hy]]]), static=True)
-
-    def initialize_episode(self, sim: ChainSim) -> None:
-        pass
-
-    def on_tick(self, sim: ChainSim) -> None:
-        self.capture(sim)
-
-    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
-        self.finish() if keep else self.abort()
 
     def capture(self, sim: ChainSim) -> None:
         rec = self.rec

@@ -26,7 +26,33 @@ class Trails:
             trail.append(np.asarray(p, float).copy())
 
 
-class VideoRecorder:
+class Recorder:
+    """The `Hook` lifecycle of a recorder: `capture` on each tick, then `finish` (keep the file)
+    or `abort` (remove it). Subclasses set `period` and `phase`."""
+
+    period: float
+    phase: float = 0.0
+
+    def initialize_episode(self, sim: ChainSim) -> None:
+        pass
+
+    def on_tick(self, sim: ChainSim) -> None:
+        self.capture(sim)
+
+    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
+        self.finish() if keep else self.abort()
+
+    def capture(self, sim: ChainSim) -> None:
+        raise NotImplementedError
+
+    def finish(self) -> None:
+        raise NotImplementedError
+
+    def abort(self) -> None:
+        raise NotImplementedError
+
+
+class VideoRecorder(Recorder):
     """A periodic hook: render the overhead camera, draw overlays, append to an MP4 that is
     renamed into place only by `finish()` (an interrupted run leaves no broken video)."""
 
@@ -41,15 +67,6 @@ class VideoRecorder:
         self.trails = Trails(sim.n, max(2, int(trail_seconds * fps)))
         self._writer = Mp4Writer(self.path, fps, (self.renderer.width, self.renderer.height))
         self.period, self.phase = 1 / fps, 0.0                      # a `Hook`
-
-    def initialize_episode(self, sim: ChainSim) -> None:
-        pass
-
-    def on_tick(self, sim: ChainSim) -> None:
-        self.capture(sim)
-
-    def finalize_episode(self, sim: ChainSim, keep: bool) -> None:
-        self.finish() if keep else self.abort()
 
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)
