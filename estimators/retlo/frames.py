@@ -56,6 +56,12 @@ def from_frame(xy: np.ndarray, origin: np.ndarray, alpha: np.ndarray) -> np.ndar
                      origin[..., 1] + s * xy[..., 0] + c * xy[..., 1]], axis=-1)
 
 
+def extrapolate_2x(ref: np.ndarray, fol: np.ndarray) -> np.ndarray:
+    """The 2X heuristic of §2.6.2.3 for both chapters: the robot beyond `fol` (seen from `ref`)
+    is at ref + 2 (fol - ref)."""
+    return 2 * fol - ref
+
+
 def angle_features(theta: np.ndarray, cos_sin: bool) -> np.ndarray:
     """Relative angles (...,) as (..., 1) radians or (..., 2) cos/sin (§3.3's option)."""
     theta = wrap_angle(theta)

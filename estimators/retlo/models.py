@@ -14,6 +14,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from estimators.retlo.frames import extrapolate_2x
 from macrostate_mj.core.errors import UserError
 
 MODEL_KINDS = ("fc", "lstm")
@@ -60,7 +61,7 @@ class Heuristic2X:
     rotate = True
 
     def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return 2.0 * obs[:, :2], np.zeros((len(obs), 3))
+        return extrapolate_2x(0.0, obs[:, :2]), np.zeros((len(obs), 3))   # F relative to T
 
 
 class RetloNet(nn.Module):

@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from estimators.retlo.frames import extrapolate_2x
 from estimators.retlo_sim.frames import decode, module_base
 
 Predict = Callable[[np.ndarray], np.ndarray]   # base (B, 5) → (B, 3): x_H, y_H, θ_F@t+1
@@ -63,7 +64,7 @@ def estimate_heuristic(sensed: np.ndarray, synced: np.ndarray, sync: np.ndarray)
     pos = np.full((steps, n, 2), np.nan)
     pos[:, :2] = sensed
     for k in range(n - 2):
-        pos[:, k + 2] = 2 * pos[:, k + 1] - pos[:, k]
+        pos[:, k + 2] = extrapolate_2x(pos[:, k], pos[:, k + 1])
         pos[sync, k + 2] = synced[:, k + 2, :2]
     return pos
 
