@@ -90,7 +90,7 @@ def test_chain_behind_a_straight_head_settles_to_spacing(scenario):
 
 # Invariants over seeds nobody tuned to (tuning used lab seeds 100-119 and robotarium 0-15):
 # they hold on any CPU, where one long chaotic trajectory does not. Bounds sit above what the
-# soak measured (max lift 0.1 mm lab, 0.0 robotarium; penetration 0.5 / 0.2 mm).
+# soak measured over 100-200 seeds x 600 s (max lift 0.6 mm, penetration 1.1 mm, tilt 9.3 deg).
 SOAKS = [("lab", 3, 16), ("lab", 5, 24), ("lab", 7, 16), ("webots", 5, 16), ("robotarium", 6, 8)]
 
 
@@ -103,7 +103,9 @@ def test_many_seeds_never_tip_climb_escape_or_diverge(scenario, robots, seeds):
     assert row["runs"] == seeds and row["warnings"] == 0
     assert row["max_lift_mm"] < 3.0
     assert row["max_penetration_mm"] < 1.5
-    assert row["max_tilt_deg"] < 10.0
+    # A robot reversing hard into a neighbour can rest its nose on the floor (the shell's 8 mm
+    # clearance: about 9 degrees, seen in webots); a tip is 30 degrees.
+    assert row["max_tilt_deg"] < 15.0
 
 
 def nudged_run(check_steps: int, hook) -> PhysicsError:
