@@ -88,7 +88,8 @@ def test_chain_behind_a_straight_head_settles_to_spacing(scenario):
     assert np.all(np.abs(sim.poses()[:, 1]) < 0.1)      # still on the line the Head drove
 
 
-# Invariants over seeds nobody tuned to (tuning used lab seeds 100-119 and robotarium 0-15):
+# Invariants over seeds nobody tuned to (tuning used lab seeds 100-119 and 1000-1023 and
+# robotarium 0-15):
 # they hold on any CPU, where one long chaotic trajectory does not. Bounds sit above what the
 # soak measured over 100-200 seeds x 600 s (max lift 0.6 mm, penetration 1.1 mm, tilt 9.3 deg).
 SOAKS = [("lab", 3, 16), ("lab", 5, 24), ("lab", 7, 16), ("webots", 5, 16), ("robotarium", 6, 8)]
@@ -97,7 +98,7 @@ SOAKS = [("lab", 3, 16), ("lab", 5, 24), ("lab", 7, 16), ("webots", 5, 16), ("ro
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario,robots,seeds", SOAKS)
 def test_many_seeds_never_tip_climb_escape_or_diverge(scenario, robots, seeds):
-    runs = soak(soak_tasks(scenario, robots, seeds, 300.0, first_seed=1000), workers=2)
+    runs = soak(soak_tasks(scenario, robots, seeds, 300.0, first_seed=5000), workers=2)
     row = summary(runs, workers=2)
     assert [r.reason for r in runs if r.fault] == []
     assert row["runs"] == seeds and row["warnings"] == 0
