@@ -58,7 +58,7 @@ def bench_colony(ants: int = 55, seconds: float = 4.0, size: int = 256) -> list[
             stream = (f for f, _ in colony.run(seconds, needed, renderer))
             last: list[np.ndarray] = []
 
-            def fill():  # unrendered frames repeat the last one, as in colony_run
+            def fill():  # unrendered frames repeat the last one, as in collectors.colony_days
                 for f in stream:
                     if f is not None:
                         last[:] = [f]

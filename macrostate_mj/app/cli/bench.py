@@ -17,7 +17,7 @@ SUITES: dict[str, str] = {
     "collect": "macrostate_mj.app.bench.collect:bench_collect",
     "colony": "macrostate_mj.app.bench.colony:bench_colony",
     "retlo": "macrostate_mj.app.bench.retlo:bench_retlo",
-    "flow": "macrostate_mj.app.bench.iogen:bench_flow",
+    "flow": "macrostate_mj.app.bench.flow:bench_flow",
     "iogen": "macrostate_mj.app.bench.iogen:bench_iogen",
 }
 
