@@ -13,7 +13,7 @@ def cli(*args: str, **kw) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=900, **kw)
 
 
-def cli_inprocess(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
+def cli_inprocess(capsys, *args: str) -> tuple[int, str, str]:
     """The same command in this process (faster): (exit code, stdout, stderr)."""
     from macrostate_mj.app.cli import main
 

@@ -5,6 +5,11 @@ ThymioLoc files list them from the Head. Module k takes robot k as its reference
 fictitious Tail), robot k+1 as its Follower and predicts robot k+2. Module k needs robot k+1 at
 t+1, which module k-1 estimated one step later, so robot j is known up to step S-j (the linear
 delay of §2.5.1.2); offline we simply run the modules in order over a whole instance.
+
+Both chapters' modules share this schedule (`module_steps`), the names of the robots the Tail
+cannot see (`report_names`) and how their error is measured (`unseen_errors`); what differs is
+the module: chapter 3's (`predict_chain`) is fed ℓ steps of its own history over a batch of
+instances, chapter 2's (`estimators.retlo_sim.estimate`) one step, with true poses at sync steps.
 """
 
 from __future__ import annotations
@@ -31,6 +36,19 @@ def check_chain(shape: tuple[int, ...], history: int, what: str = "data") -> Non
                         f"({history} of history, then a step and the next observation)")
 
 
+def module_steps(k: int, n_steps: int, first_step: int) -> range:
+    """Steps module k estimates: from `first_step` until it runs out of input. Module k reads
+    robot k+1 at t+1, which module k-1 estimated at its step t+1, so each module stops one step
+    before the one below it (k steps before the end, less the step after t)."""
+    return range(first_step, n_steps - 1 - k)
+
+
+def unseen_errors(est_xy: np.ndarray, truth_xy: np.ndarray) -> np.ndarray:
+    """Euclidean error (..., N-2) of robots 2.. (Tail first: the ones the Tail cannot see), from
+    positions (..., N, 2); NaN where there is no estimate."""
+    return np.linalg.norm(est_xy[..., 2:, :] - truth_xy[..., 2:, :], axis=-1)
+
+
 def predict_chain(pred: Predictor, world: np.ndarray,
                   samples: dict[str, list[np.ndarray]] | None = None) -> np.ndarray:
     """Estimate every robot the Tail cannot see, from true poses until τ = ℓ-1 and afterwards only
@@ -54,7 +72,7 @@ def predict_chain(pred: Predictor, world: np.ndarray,
     for k in range(n_robots - 2):
         ref, head = track[:, :, k], track[:, :, k + 2]
         fol = track[:, :, k + 1].copy()  # this module's own estimates of θ_F go in its history
-        for t in range(hist, n_steps - 1 - k):
+        for t in module_steps(k, n_steps, hist):
             obs, x_hist, origin, alpha = module_inputs(
                 ref, fol, head, t, hist, pred.cos_sin, hist if pred.mark_estimates else None,
                 pred.rotate)
@@ -84,11 +102,10 @@ def report_names(n_robots: int) -> list[str]:
 def evaluate_chain(pred: Predictor, world: np.ndarray) -> dict:
     """Errors (cm) of every robot the Tail cannot see: per robot, per step, and their mean."""
     est = predict_chain(pred, world)
-    err = np.linalg.norm(est[..., :2] - world[..., :2], axis=-1)[:, :, ::-1]  # (B, S, N) Tail first
     n_robots, hist = world.shape[2], pred.history
     names = report_names(n_robots)
     file_names = robot_names(n_robots)[::-1]
-    unseen = err[:, hist:, 2:]  # (B, steps, robots)
+    unseen = unseen_errors(est[:, hist:, ::-1, :2], world[:, hist:, ::-1, :2])  # (B, steps, robots)
     per_robot = {names[j]: float(np.nanmean(unseen[:, :, j - 2])) for j in range(2, n_robots)}
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: steps out of reach

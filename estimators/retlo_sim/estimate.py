@@ -1,4 +1,7 @@
-"""Modular estimation along a chain (§2.5.1.2) and its errors (§2.5.3), pure numpy.
+"""Chapter 2's module applied along a chain (§2.5.1.2) and its errors (§2.5.3), pure numpy.
+
+The schedule, the robots' names and the error measure are `estimators.retlo.chain`'s, shared
+with chapter 3; this module's own part is its one-step module and the sync steps.
 
 Robots are indexed from the Tail here (0 = Tail, 1 = Follower 1, which the Tail senses, ...,
 N-1 = Head); pose logs list them from the Head. Module k takes robot k as its (fictitious)
@@ -18,6 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from estimators.retlo.chain import module_steps, report_names, unseen_errors
 from estimators.retlo.frames import extrapolate_2x
 from estimators.retlo_sim.frames import decode, module_base
 
@@ -45,7 +49,7 @@ def estimate_chain(predict: Predict, sensed: np.ndarray, synced: np.ndarray,
     is_sync = np.zeros(steps + 1, bool)
     is_sync[sync] = True
     for k in range(n - 2):
-        for t in range(steps - 1 - k):
+        for t in module_steps(k, steps, 0):
             fol = np.append(pos[t, k + 1], theta[t, k + 1])[None]
             base, origin, alpha = module_base(pos[t, k][None], fol, pos[t + 1, k + 1][None])
             head_xy, fol_theta = decode(predict(base), origin, alpha)
@@ -80,7 +84,7 @@ def one_step_errors(predict: Predict, truth: np.ndarray) -> np.ndarray:
 def chain_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """Euclidean error (S, N-2) of every robot the Tail cannot see (robots 2.., Tail first),
     NaN at τ and where no estimate exists (the last steps of far robots)."""
-    err = np.linalg.norm(est[:, 2:] - truth[:, 2:, :2], axis=-1)
+    err = unseen_errors(est, truth[..., :2])
     err[0] = np.nan
     return err
 
@@ -97,6 +101,5 @@ def summarize(err: np.ndarray, names: list[str], threshold: float) -> dict:
 
 
 def unseen_names(n: int) -> list[str]:
-    """Names of robots 2.. (Tail first): Followers counted from the Tail as in §2.5.3
-    (Follower 1 is the Tail's neighbour), then the Head."""
-    return [*(f"F{j}" for j in range(2, n - 1)), "H"]
+    """Names of robots 2.. (Tail first), as the reports of both chapters call them."""
+    return report_names(n)[2:]

@@ -42,7 +42,7 @@ def one_line(err: str) -> str:
 def test_simulate_keeps_poses_and_video_up_to_the_fault(monkeypatch, capsys, tmp_path):
     strict_after(monkeypatch, 0)
     out, video = tmp_path / "run", tmp_path / "run.mp4"
-    code, _, err = cli_inprocess(monkeypatch, capsys, "simulate", "--robots", "3", "--seconds",
+    code, _, err = cli_inprocess(capsys, "simulate", "--robots", "3", "--seconds",
                                  "30", "--seed", "4", "--out", str(out), "--video", str(video))
     line = one_line(err)
     assert code == 1
@@ -62,7 +62,7 @@ def test_collect_names_the_failed_episode_and_keeps_finished_shards(monkeypatch,
     args = ["collect", "--robots", "3", "--minutes", "0.5", "--episode-minutes", "0.25",
             "--seed", "3", "--out", str(tmp_path)]
     strict_after(monkeypatch, 1)
-    code, _, err = cli_inprocess(monkeypatch, capsys, *args)
+    code, _, err = cli_inprocess(capsys, *args)
     line = one_line(err)
     assert code == 1
     assert "episode 1 (seeds [3, 1, 0..2])" in line and "tipped 31 deg at t=3.000 s" in line
@@ -70,7 +70,7 @@ def test_collect_names_the_failed_episode_and_keeps_finished_shards(monkeypatch,
         ["episode_00000.parquet"]
     assert not (tmp_path / "instances.csv").exists()
     monkeypatch.undo()
-    code, _, err = cli_inprocess(monkeypatch, capsys, *args)   # the resumed run finishes it
+    code, _, err = cli_inprocess(capsys, *args)   # the resumed run finishes it
     assert code == 0, err
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["resumed_episodes"] == 1
@@ -78,7 +78,7 @@ def test_collect_names_the_failed_episode_and_keeps_finished_shards(monkeypatch,
 
 def test_soak_prints_its_table_and_exits_1_on_a_fault(monkeypatch, capsys, tmp_path):
     base = ["soak", "--robots", "3", "--seeds", "2", "--seconds", "5"]
-    code, out, err = cli_inprocess(monkeypatch, capsys, *base, "--out", str(tmp_path))
+    code, out, err = cli_inprocess(capsys, *base, "--out", str(tmp_path))
     assert code == 0, err
     head, row = out.splitlines()[1:3]
     assert head.split()[:5] == ["runs", "tips", "NaNs", "escapes", "climbs"]
@@ -86,6 +86,6 @@ def test_soak_prints_its_table_and_exits_1_on_a_fault(monkeypatch, capsys, tmp_p
     report = json.loads((tmp_path / "soak.json").read_text())
     assert [r["seed"] for r in report["runs"]] == [0, 1]
     strict_after(monkeypatch, 0)
-    code, out, err = cli_inprocess(monkeypatch, capsys, *base, "--json")
+    code, out, err = cli_inprocess(capsys, *base, "--json")
     assert code == 1 and json.loads(out)["tips"] == 2
     assert "seed 0" in one_line(err)

@@ -104,17 +104,17 @@ def test_same_seed_same_trajectory_other_seed_differs():
     assert not np.allclose(a, c)
 
 
-def _cli(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
-    return cli_inprocess(monkeypatch, capsys, "ants", "simulate", *args)
+def _cli(capsys, *args: str) -> tuple[int, str, str]:
+    return cli_inprocess(capsys, "ants", "simulate", *args)
 
 
 SMALL = ["--ants", "12", "--days", "D-1,D+1", "--seconds-per-day", "3", "--size", "64",
          "--fps", "10", "--every", "1", "--m", "2", "--seed", "0"]
 
 
-def test_simulate_end_to_end_writes_flows_labels_and_boxes(tmp_path, monkeypatch, capsys):
+def test_simulate_end_to_end_writes_flows_labels_and_boxes(tmp_path, capsys):
     out = tmp_path / "colony"
-    code, _, err = _cli(monkeypatch, capsys, "--out", str(out), *SMALL, "--video", "--frames")
+    code, _, err = _cli(capsys, "--out", str(out), *SMALL, "--video", "--frames")
     assert code == 0, err
     flows = out / "flows"
     stable = sorted(p.name for p in (flows / "Stable").glob("flow_x_*-0.jpg"))
@@ -148,9 +148,9 @@ def test_simulate_end_to_end_writes_flows_labels_and_boxes(tmp_path, monkeypatch
     assert not list(out.glob(".colony-stage-*"))
 
 
-def test_simulate_same_seed_same_products(tmp_path, monkeypatch, capsys):
+def test_simulate_same_seed_same_products(tmp_path, capsys):
     for name in ("a", "b"):
-        code, _, err = _cli(monkeypatch, capsys, "--out", str(tmp_path / name), *SMALL,
+        code, _, err = _cli(capsys, "--out", str(tmp_path / name), *SMALL,
                             "--days", "D+1")
         assert code == 0, err
     for rel in ("labels.csv", "boxes.csv", "flows/boxes.csv", "flows/Unstable/flow_x_00001-1.jpg"):
@@ -166,17 +166,17 @@ def test_simulate_same_seed_same_products(tmp_path, monkeypatch, capsys):
     ["--size", "100"],
     ["--method", "nope"],
 ])
-def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys, args):
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, args):
     out = tmp_path / "run"
-    code, _, err = _cli(monkeypatch, capsys, "--out", str(out), *SMALL, *args)
+    code, _, err = _cli(capsys, "--out", str(out), *SMALL, *args)
     assert code == 2
     assert err.count("\n") == 1 and err.startswith("error: ") and "Traceback" not in err
     assert not out.exists()
 
 
-def test_existing_output_needs_overwrite(tmp_path, monkeypatch, capsys):
+def test_existing_output_needs_overwrite(tmp_path, capsys):
     out = tmp_path / "run"
     (out / "flows").mkdir(parents=True)
-    code, _, err = _cli(monkeypatch, capsys, "--out", str(out), *SMALL)
+    code, _, err = _cli(capsys, "--out", str(out), *SMALL)
     assert code == 2 and "--overwrite" in err and err.count("\n") == 1
     assert [p.name for p in out.iterdir()] == ["flows"] and not any((out / "flows").iterdir())

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from builders import make_layout
 from clitools import cli as _cli
 
 from estimators.oneclass import METHODS, OCConfig, OCModel, fit
@@ -139,8 +140,6 @@ def test_gradcam_and_pointing_game(fitted):
 
 
 def test_cli_train_evaluate_and_bad_input(tmp_path):
-    from test_antflow import make_layout
-
     data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000, 3000, 9500))
     model = tmp_path / "model"
     run = _cli("oc", "train", "--method", "dsvdd", "--data", str(data), "--split", "2", "--m",

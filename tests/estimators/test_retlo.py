@@ -135,19 +135,19 @@ def test_same_seed_same_checkpoint_bytes(tmp_path):
     assert (tmp_path / "a.pt").read_bytes() == (tmp_path / "b.pt").read_bytes()
 
 
-def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, monkeypatch, capsys):
+def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, capsys):
     train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(30, 3, 1), 3.0))
     val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(8, 3, 2), 3.0))
     five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(6, 5, 3), 3.0))
     model = tmp_path / "fc.pt"
-    code, out, err = _cli(monkeypatch, capsys, "train", "retlo", "--model", "fc", "--train",
+    code, out, err = _cli(capsys, "train", "retlo", "--model", "fc", "--train",
                           str(train_csv), "--val", str(val_csv), "--out", str(model),
                           "--seed", "0", "--epochs", "2")
     assert code == 0, err
     assert model.is_file() and (tmp_path / "fc.pt.manifest.json").is_file()
     for name in (str(model), "heuristic2x"):
         report_path = tmp_path / f"{name[-5:]}.json"
-        code, _, err = _cli(monkeypatch, capsys, "evaluate", "retlo", "--model", name,
+        code, _, err = _cli(capsys, "evaluate", "retlo", "--model", name,
                             "--data", str(five), "--out", str(report_path))
         assert code == 0, err
         report = json.loads(report_path.read_text())
@@ -157,14 +157,14 @@ def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, monkeypatch, 
         assert len(report["per_step_cm"]) == 16
 
 
-def test_experiment_writes_figures_video_and_results_identically(tmp_path, monkeypatch, capsys):
+def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsys):
     import cv2
 
     train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(24, 3, 1), 3.0))
     val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(6, 3, 2), 3.0))
     five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(4, 5, 3), 3.0))
     for out in (tmp_path / "exp", tmp_path / "again"):
-        code, stdout, err = _cli(monkeypatch, capsys, "experiment", "retlo", "--train",
+        code, stdout, err = _cli(capsys, "experiment", "retlo", "--train",
                                  str(train_csv), "--val", str(val_csv), "--test", str(five),
                                  "--holdout", "0.25", "--seeds", "2", "--epochs", "1",
                                  "--out", str(out))
@@ -212,10 +212,10 @@ BAD_RUNS = {
 
 
 @pytest.mark.parametrize("case", list(BAD_RUNS))
-def test_bad_input_exits_2_with_one_line(tmp_path, monkeypatch, capsys, case):
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, case):
     make_args, expected = BAD_RUNS[case]
     (tmp_path / "r.json").write_text("{}") if case == "not torch" else None
-    code, out, err = _cli(monkeypatch, capsys, *make_args(tmp_path))
+    code, out, err = _cli(capsys, *make_args(tmp_path))
     assert code == 2 and err.count("\n") == 1 and expected in err, err
     assert "Traceback" not in err
     assert not (tmp_path / "m.pt").exists() and not (tmp_path / "q.json").exists()

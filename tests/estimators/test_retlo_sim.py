@@ -120,10 +120,10 @@ def test_standardize_matches_init_statistics():
     assert np.allclose(y.mean(0), 0, atol=1e-9) and np.allclose(x[:, 1], 0)
 
 
-def test_experiment_end_to_end_is_deterministic(tmp_path, monkeypatch, capsys):
+def test_experiment_end_to_end_is_deterministic(tmp_path, capsys):
     args = ["experiment", "retlo-sim", "--epochs", "1", "--train-steps", "20",
             "--test-steps", "40", "--seed", "5"]
-    code, out, err = _cli(monkeypatch, capsys, *args, "--out", str(tmp_path / "a"))
+    code, out, err = _cli(capsys, *args, "--out", str(tmp_path / "a"))
     assert code == 0, err
     assert "(a) straight, 6 robots" in out and "(f)" in out
     res = json.loads((tmp_path / "a" / "results.json").read_text())
@@ -137,7 +137,7 @@ def test_experiment_end_to_end_is_deterministic(tmp_path, monkeypatch, capsys):
     assert res["cases"]["d"]["comm_every"] == 150 and res["cases"]["f"]["noisy"]
     manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
     assert manifest["seed"] == 5 and manifest["config"]["epochs"] == 1
-    code, _, err = _cli(monkeypatch, capsys, *args, "--out", str(tmp_path / "b"))
+    code, _, err = _cli(capsys, *args, "--out", str(tmp_path / "b"))
     assert code == 0, err
     per_step = json.loads((tmp_path / "a" / "per_step_errors.json").read_text())
     assert len(per_step["c"]["H"]) == 40 and per_step["c"]["H"][0] is None
@@ -147,11 +147,11 @@ def test_experiment_end_to_end_is_deterministic(tmp_path, monkeypatch, capsys):
 
 @pytest.mark.parametrize("bad", [["--epochs", "0"], ["--test-steps", "5"], ["--existing"],
                                  ["--train-steps", "2000"]])
-def test_bad_input_exits_2_with_one_line(tmp_path, monkeypatch, capsys, bad):
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, bad):
     if bad == ["--existing"]:
         (tmp_path / "results.json").write_text("{}")
         bad = []
-    code, out, err = _cli(monkeypatch, capsys, "experiment", "retlo-sim", "--out", str(tmp_path),
+    code, out, err = _cli(capsys, "experiment", "retlo-sim", "--out", str(tmp_path),
                           "--train-steps", "20", "--test-steps", "40", *bad)
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert not (tmp_path / "manifest.json").exists()

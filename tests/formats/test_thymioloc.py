@@ -93,10 +93,10 @@ def test_chain_stats_on_a_known_chain():
     assert chain_stats(spin, 3.0).turn_deg_s["H"] == pytest.approx(200.0)
 
 
-def test_stats_command_prints_files_side_by_side(tmp_path, monkeypatch, capsys):
+def test_stats_command_prints_files_side_by_side(tmp_path, capsys):
     a = write_csv(tmp_path / "three.csv", _straight_chain(3, 6.0, 90.0))
     b = write_csv(tmp_path / "five.csv", _straight_chain(5, 3.0, 93.0))
-    code, out, _ = _cli(monkeypatch, capsys, "stats", str(a), str(b))
+    code, out, _ = _cli(capsys, "stats", str(a), str(b))
     assert code == 0
     assert "three.csv" in out and "five.csv" in out and "30.0 ± 0.0" in out and "31.0 ± 0.0" in out
     assert "speed F3" in out
@@ -116,24 +116,23 @@ BAD = {
 
 
 @pytest.mark.parametrize("case", list(BAD))
-def test_malformed_file_exits_2_with_one_line_naming_file_and_row(tmp_path, monkeypatch, capsys,
-                                                                   case):
+def test_malformed_file_exits_2_with_one_line_naming_file_and_row(tmp_path, capsys, case):
     text, expected = BAD[case]
     path = tmp_path / "bad.csv"
     path.write_text(text)
     with pytest.raises(UserError, match="bad.csv"):
         read_csv(path)
-    code, out, err = _cli(monkeypatch, capsys, "stats", str(path))
+    code, out, err = _cli(capsys, "stats", str(path))
     assert code == 2 and out == ""
     assert err.count("\n") == 1 and expected in err and "Traceback" not in err
 
 
-def test_missing_file_and_bad_scale_exit_2(tmp_path, monkeypatch, capsys):
-    code, _, err = _cli(monkeypatch, capsys, "stats", str(tmp_path / "nope.csv"))
+def test_missing_file_and_bad_scale_exit_2(tmp_path, capsys):
+    code, _, err = _cli(capsys, "stats", str(tmp_path / "nope.csv"))
     assert code == 2 and "no such file" in err
     good = tmp_path / "good.csv"
     good.write_text(GOOD)
-    code, _, err = _cli(monkeypatch, capsys, "stats", str(good), "--px-per-cm", "0")
+    code, _, err = _cli(capsys, "stats", str(good), "--px-per-cm", "0")
     assert code == 2 and "--px-per-cm" in err
 
 

@@ -8,7 +8,6 @@ flag caught by the parser, becomes one line on stderr and exit code 2, never a t
 import sys
 
 import typer
-from typer._click import exceptions as click  # typer 0.29 vendors click; pinned
 
 from macrostate_mj.app.cli import ants as _ants  # noqa: F401
 from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers commands)
@@ -21,14 +20,18 @@ from macrostate_mj.app.cli import soak as _soak  # noqa: F401
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.core.errors import RunFailure, UserError
 
+# typer 0.29 vendors click and exports only `BadParameter` of its exception tree; its base class
+# is click's UsageError, which every parser error (bad flag, missing argument) derives from.
+UsageError: type[Exception] = typer.BadParameter.__mro__[1]
+
 
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI on `argv` (default: the process's arguments); always ends in SystemExit."""
     try:
         code = app(args=argv, prog_name="macrostate-mj", standalone_mode=False)
-    except click.NoArgsIsHelpError:
-        sys.exit(0)             # the help text is already printed
-    except click.UsageError as err:
+    except UsageError as err:
+        if type(err).__name__ == "NoArgsIsHelpError":
+            sys.exit(0)         # a group called bare: typer printed its help on raising this
         where = err.ctx.command_path if err.ctx else "macrostate-mj"
         message = " ".join(err.format_message().split())
         print(f"error: {message} (see `{where} --help`)", file=sys.stderr)

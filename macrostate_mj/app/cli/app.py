@@ -2,6 +2,8 @@
 
 import typer
 
+from macrostate_mj import __version__
+
 app = typer.Typer(
     name="macrostate-mj",
     help="MuJoCo testbed for inferring a collective's macrostate from one member or one camera.",
@@ -22,3 +24,15 @@ app.add_typer(evaluate_app, name="evaluate")
 app.add_typer(experiment_app, name="experiment")
 app.add_typer(ants_app, name="ants")
 app.add_typer(oc_app, name="oc")
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        print(f"macrostate-mj {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                       help="Print the version and exit.")) -> None:
+    """MuJoCo testbed for inferring a collective's macrostate from one member or one camera."""

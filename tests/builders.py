@@ -1,0 +1,31 @@
+"""Synthetic inputs shared by several test modules (imported by name: conftest puts tests/ on the
+path)."""
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+
+def make_layout(root: Path, stable: int = 10, unstable=(1333, 1999, 5000), subframes: int = 2,
+                seed: int = 0) -> Path:
+    """A tiny dataset: stable samples barely move, unstable ones move 4 px; splits 8/2."""
+    rng = np.random.default_rng(seed)
+    for label, ids, shift in (("Stable", range(stable), 0.0), ("Unstable", unstable, 4.0)):
+        (root / label).mkdir(parents=True)
+        for i in ids:
+            for k in range(subframes):
+                for axis in ("x", "y"):
+                    val = 127.5 + (shift + rng.normal(0, 0.3, (64, 64))) * 255 / 40
+                    img = np.clip(np.rint(val), 0, 255).astype(np.uint8)
+                    cv2.imwrite(str(root / label / f"flow_{axis}_{i:05d}-{k}.jpg"), img)
+                cv2.imwrite(str(root / label / f"img_{i:05d}-{k}.jpg"),
+                            rng.integers(0, 255, (64, 64, 3), dtype=np.uint8))
+    for s in (1, 2, 3):
+        (root / f"split{s}").mkdir()
+        order = np.random.default_rng(s).permutation(stable)
+        cut = int(0.8 * stable)
+        for part, ids in (("train", order[:cut]), ("test", order[cut:])):
+            (root / f"split{s}" / f"{part}.csv").write_text(
+                "".join(f"Stable/{i:05d}\n" for i in ids))
+    return root
