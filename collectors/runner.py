@@ -68,8 +68,11 @@ def parse_split(text: str | None) -> tuple[float, float, float] | None:
         parts = tuple(float(p) for p in text.split("/"))
     except ValueError:
         parts = ()
-    if len(parts) != 3 or min(parts) < 0 or sum(parts) <= 0:
-        raise UserError(f"--split {text!r} must be three non-negative numbers like 60/10/30")
+    if len(parts) != 3 or not all(math.isfinite(p) and p >= 0 for p in parts):
+        raise UserError(f"--split {text!r} must be three non-negative percentages like 60/10/30")
+    if abs(sum(parts) - 100) > 1e-6:
+        raise UserError(f"--split {text!r} sums to {sum(parts):g}, not 100; give percentages "
+                        "like 60/10/30")
     return parts
 
 
@@ -83,9 +86,12 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
         raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
     n = max(1, math.ceil(req.minutes / req.episode_minutes - 1e-9))
     seconds = req.minutes * 60 / n
+    shortest = INSTANCE_STEPS / cfg.log_hz / 60
     if seconds * cfg.log_hz < INSTANCE_STEPS:
-        raise UserError(f"--minutes {req.minutes} is too short for one {INSTANCE_STEPS}-step "
-                        "instance; collect at least 0.25 minutes")
+        flag, value = (("--episode-minutes", req.episode_minutes) if n > 1 else
+                       ("--minutes", req.minutes))
+        raise UserError(f"{flag} {value:g} is too short for one {INSTANCE_STEPS}-step instance; "
+                        f"give at least {shortest:g} minutes")
     policy = PolicyConfig(req.policy, req.sigma)
     return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
                         head_speed=req.head_speed) for i in range(n)]
@@ -102,13 +108,19 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
     plan_json = json.dumps([asdict(s) for s in specs], sort_keys=True, default=str)
     if req.overwrite and shards.exists():
         shutil.rmtree(shards)
-    if (shards / "plan.json").exists() and (shards / "plan.json").read_text() != plan_json:
+    finished = list(shards.glob("episode_*.parquet")) if shards.is_dir() else []
+    if (finished and (shards / "plan.json").exists()
+            and (shards / "plan.json").read_text() != plan_json):
         raise UserError(f"{shards} holds episodes of a different collection; pass --overwrite "
                         "or choose another --out")
     shards.mkdir(parents=True, exist_ok=True)
     write_text_atomic(shards / "plan.json", plan_json)
 
     t0 = time.perf_counter()
+    damaged = [s.index for s in specs if _shard(shards, s.index).exists()
+               and not _readable(_shard(shards, s.index))]
+    for index in damaged:       # atomic writes cannot truncate a shard; something else did
+        _shard(shards, index).unlink()
     todo = [s for s in specs if not _shard(shards, s.index).exists()]
     done = len(specs) - len(todo)
     if progress:
@@ -139,6 +151,7 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
                          "episodes": len(specs), "episode_seconds": specs[0].seconds},
         req.seed, {"episodes": t_run, "assemble": time.perf_counter() - t0 - t_run},
         px_per_cm=req.px_per_cm, resumed_episodes=len(specs) - len(todo),
+        damaged_shards_rerun=damaged,
         episode_stats={str(k): v for k, v in sorted(episode_stats.items())},
         outputs={k: str(v) for k, v in written.items()})
     return written
@@ -173,6 +186,15 @@ def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
                 written[name] = write_csv(out / f"{name}.csv", tracked_px[idx])
                 written[f"{name}_truth"] = write_csv(out / f"{name}_truth.csv", truth_px[idx])
     return written
+
+
+def _readable(path: Path) -> bool:
+    """A shard Parquet can open (its footer intact)."""
+    try:
+        pq.read_metadata(path)
+    except (pa.ArrowException, OSError):
+        return False
+    return True
 
 
 def _shard(shards: Path, index: int) -> Path:

@@ -1,6 +1,17 @@
-"""One-class models on optical flows (SPEC §8, §4.6): DCAE, OC-SVM, DSVDD, GEN, N-GEN, IO-GEN."""
+"""One-class models on optical flows (SPEC §8, §4.6): DCAE, OC-SVM, DSVDD, GEN, N-GEN, IO-GEN.
 
-from estimators.oneclass.model import METHODS, OCModel, fit, flow_weight
-from estimators.oneclass.train import OCConfig
+The models load lazily (PEP 562), so that the CLI can list `METHODS` without importing torch.
+"""
 
-__all__ = ["METHODS", "OCConfig", "OCModel", "fit", "flow_weight"]
+import importlib
+
+METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
+_LAZY = {"OCModel": "model", "fit": "model", "flow_weight": "model", "OCConfig": "train"}
+
+__all__ = ["METHODS", *_LAZY]
+
+
+def __getattr__(name: str) -> object:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"estimators.oneclass.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from estimators.oneclass import METHODS
 from estimators.oneclass import train as T
 from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision.flow import BOUND
 
-METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
 # stages each method needs, in training order
 NEEDS: dict[str, tuple[str, ...]] = {
     "ofw": (), "dcae": ("dcae",), "ocsvm": ("dcae", "ocsvm"), "dsvdd": ("dcae", "dsvdd"),

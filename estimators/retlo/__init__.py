@@ -6,3 +6,5 @@ chains of any length.
 (chains with a known law for tests and benchmarks). Fig 2.7-2.9 are drawn by
 `macrostate_mj.app.experiments.retlo`.
 """
+
+MODEL_KINDS = ("fc", "lstm")   # here, not in models: the CLI lists them without importing torch

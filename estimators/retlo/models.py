@@ -14,10 +14,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from estimators.retlo import MODEL_KINDS
 from estimators.retlo.frames import extrapolate_2x
 from macrostate_mj.core.errors import UserError
-
-MODEL_KINDS = ("fc", "lstm")
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ source of truth for wheel radius, track and top speed.
 from __future__ import annotations
 
 import colorsys
+import functools
 from dataclasses import dataclass
 
 import mujoco
@@ -36,8 +37,21 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
     return int(per_row * rows)
 
 
+@functools.cache
+def robot_top_speed(robot: str) -> float:
+    """Top wheel speed x wheel radius of `assets/mjcf/<robot>/robot.xml` (m/s): the MJCF is the
+    one home of a robot's geometry and motor limits."""
+    model = mujoco.MjModel.from_xml_path(str(ASSETS / robot / "robot.xml"))
+    return float(model.actuator("wheel_left").ctrlrange[1] * model.geom("wheel_left").size[0])
+
+
 def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
-    """A chain request's checks: team size fits the arena, a positive duration."""
+    """A chain request's checks: team size fits the arena, a positive duration, speeds the
+    robot can drive."""
+    top = robot_top_speed(cfg.robot)
+    if cfg.head_speed > top + 1e-9:
+        raise UserError(f"--head-speed {cfg.head_speed:g} m/s is faster than the {cfg.robot}'s "
+                        f"top speed {top:.3f} m/s; choose at most {top:.3f}")
     if robots < 2:
         raise UserError(f"--robots must be at least 2 (a Head and a Tail), got {robots}")
     if robots > chain_capacity(cfg):

@@ -143,7 +143,7 @@ def test_cli_train_evaluate_and_bad_input(tmp_path):
     data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000, 3000, 9500))
     model = tmp_path / "model"
     run = _cli("oc", "train", "--method", "dsvdd", "--data", str(data), "--split", "2", "--m",
-               "2", "--out", str(model), "--seed", "1", "--epochs", "0.05", "--threads", "1")
+               "2", "--out", str(model), "--seed", "1", "--epoch-scale", "0.05", "--threads", "1")
     assert run.returncode == 0, run.stderr
     assert {"weights.pt", "model.json", "manifest.json"} <= {p.name for p in model.iterdir()}
     report = tmp_path / "report.json"
@@ -157,7 +157,7 @@ def test_cli_train_evaluate_and_bad_input(tmp_path):
     assert rep["auc_all"] > 0.9  # 4 px of motion against 0: any sane model separates them
 
     for args, words in ((("oc", "train", "--method", "svm", "--data", str(data), "--out",
-                          str(tmp_path / "m2")), "--method 'svm'"),
+                          str(tmp_path / "m2")), "'--method': 'svm' is not one of"),
                         (("oc", "evaluate", "--model", str(tmp_path), "--data", str(data),
                           "--out", str(tmp_path / "r.json")), "not a trained model"),
                         (("oc", "evaluate", "--model", str(model), "--data", str(data),

@@ -2,7 +2,8 @@
 
 Every command lives in a sibling module and imports its heavy dependencies lazily, so that
 `macrostate-mj --help` stays fast. Bad input, whether a `UserError` from the library or a bad
-flag caught by the parser, becomes one line on stderr and exit code 2, never a traceback.
+value caught by the parser (`params`), becomes one line on stderr and exit code 2, never a
+traceback; on any failure the outputs the command created are tidied by `params.finish`.
 """
 
 import sys
@@ -13,6 +14,7 @@ from macrostate_mj.app.cli import ants as _ants  # noqa: F401
 from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers commands)
 from macrostate_mj.app.cli import collect as _collect  # noqa: F401
 from macrostate_mj.app.cli import oc as _oc  # noqa: F401
+from macrostate_mj.app.cli import params
 from macrostate_mj.app.cli import retlo as _retlo  # noqa: F401
 from macrostate_mj.app.cli import retlo_sim as _retlo_sim  # noqa: F401
 from macrostate_mj.app.cli import sim as _sim  # noqa: F401
@@ -23,12 +25,30 @@ from macrostate_mj.core.errors import RunFailure, UserError
 # typer 0.29 vendors click and exports only `BadParameter` of its exception tree; its base class
 # is click's UsageError, which every parser error (bad flag, missing argument) derives from.
 UsageError: type[Exception] = typer.BadParameter.__mro__[1]
+INTERRUPTED = 130               # the shell's code for a process stopped by SIGINT
+
+
+def _run(argv: list[str] | None) -> object:
+    """The command's return value; on failure its created outputs are tidied, then it re-raises."""
+    params.begin()
+    try:
+        code = app(args=argv, prog_name="macrostate-mj", standalone_mode=False)
+    except (UsageError, UserError):
+        params.finish(bad_input=True)
+        raise
+    except BaseException:
+        params.finish(bad_input=False)
+        raise
+    if code == INTERRUPTED:     # typer turns Ctrl-C into this exit code instead of raising
+        params.finish(bad_input=False)
+        raise KeyboardInterrupt
+    return code
 
 
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI on `argv` (default: the process's arguments); always ends in SystemExit."""
     try:
-        code = app(args=argv, prog_name="macrostate-mj", standalone_mode=False)
+        code = _run(argv)
     except UsageError as err:
         if type(err).__name__ == "NoArgsIsHelpError":
             sys.exit(0)         # a group called bare: typer printed its help on raising this
@@ -44,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(1)
     except (typer.Abort, KeyboardInterrupt):
         print("interrupted", file=sys.stderr)
-        sys.exit(130)
+        sys.exit(INTERRUPTED)
     sys.exit(code if isinstance(code, int) else 0)
 
 

@@ -3,33 +3,41 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
 
 import typer
 
 from macrostate_mj.app.cli.app import ants_app
+from macrostate_mj.app.cli.params import (
+    MAX_SECONDS,
+    Choice,
+    Count,
+    OutputDir,
+    Positive,
+    Seed,
+    Switch,
+)
 from macrostate_mj.core.progress import sim_progress
-
-Opt = typer.Option
+from macrostate_mj.vision.flow import METHODS as FLOW_METHODS
 
 
 @ants_app.command("simulate")
 def simulate(
-    out: Annotated[Path, Opt(help="Output folder (flows/, labels.csv, boxes.csv, manifest).")],
-    ants: Annotated[int, Opt(help="Number of ants in the nest.")] = 55,
-    days: Annotated[str, Opt(help="Day range (D-2..D+18) or list (D-1,D+1,D+9).")] = "D-2..D+18",
-    seconds_per_day: Annotated[float, Opt(help="Simulated seconds per day.")] = 60.0,
-    fps: Annotated[float, Opt(help="Frame rate of the overhead camera.")] = 15.0,
-    size: Annotated[int, Opt(help="Side of the square overhead frames (px).")] = 256,
-    seed: Annotated[int, Opt(help="Seed of every random draw (per day: seed, day).")] = 0,
-    prey: Annotated[int, Opt(help="Number of passive prey items (crickets).")] = 0,
-    video: Annotated[bool, Opt("--video", help="Also write video/D±N.mp4 per day.")] = False,
-    frames: Annotated[bool, Opt("--frames", help="Also write frames/D±N/*.jpg per day.")] = False,
-    every: Annotated[float, Opt(help="Seconds between flow samples.")] = 2.0,
-    gap: Annotated[float, Opt(help="Seconds between the two frames of a flow pair.")] = 0.5,
-    m: Annotated[int, Opt(help="Flow pairs per sample.")] = 4,
-    method: Annotated[str, Opt(help="Flow method: dis, farneback or tvl1.")] = "dis",
-    overwrite: Annotated[bool, Opt("--overwrite", help="Replace earlier outputs.")] = False,
+    out: Path = OutputDir(..., "Output folder (flows/, labels.csv, boxes.csv, manifest)."),
+    ants: int = Count(55, "Number of ants in the nest.", min=1, max=80),
+    days: str = typer.Option("D-2..D+18", help="Day range (D-2..D+18) or list (D-1,D+1,D+9)."),
+    seconds_per_day: float = Positive(60.0, "Simulated seconds per day.", max=MAX_SECONDS),
+    fps: float = Positive(15.0, "Frame rate of the overhead camera.", max=60),
+    size: int = Count(256, "Side of the square overhead frames (px), a multiple of 8.",
+                      min=32, max=1024),
+    seed: int = Seed(0, "Seed of every random draw (per day: seed, day)."),
+    prey: int = Count(0, "Number of passive prey items (crickets).", min=0, max=10),
+    video: bool = Switch(False, "Also write video/D±N.mp4 per day."),
+    frames: bool = Switch(False, "Also write frames/D±N/*.jpg per day."),
+    every: float = Positive(2.0, "Seconds between flow samples."),
+    gap: float = Positive(0.5, "Seconds between the two frames of a flow pair."),
+    m: int = Count(4, "Flow pairs per sample."),
+    method: str = Choice("dis", "Optical-flow method.", FLOW_METHODS),
+    overwrite: bool = Switch(False, "Replace earlier outputs."),
 ) -> None:
     """Simulate the colony day by day (stable D-2..D-1, unstable after the removal) and write
     its optical-flow dataset in the OpticalFlows_HsAnts layout, labels and duel/bite boxes."""

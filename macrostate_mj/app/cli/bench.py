@@ -3,10 +3,10 @@
 import importlib
 import json
 
-import typer
 from rich.console import Console
 
 from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.cli.params import Choice, Switch
 
 # name -> "module:function"; each function takes no argument and returns a list of figure dicts
 # with at least {"name", "value", "unit"} and, where a limit exists, {"limit", "ratio"}.
@@ -24,16 +24,12 @@ SUITES: dict[str, str] = {
 
 @app.command()
 def bench(
-    only: list[str] = typer.Option(None, "--only", help="Suites to run (repeatable); default all."),
-    as_json: bool = typer.Option(False, "--json", help="One JSON object per line, nothing else."),
+    only: list[str] = Choice(None, "Suites to run (repeatable); default all.", tuple(SUITES),
+                             "--only"),
+    as_json: bool = Switch(False, "One JSON object per line, nothing else.", "--json/--table"),
 ) -> None:
     """Measure our loops against their bare limits (simulation, rendering, tracking, ...)."""
-    from macrostate_mj.core.errors import UserError
-
     names = only or list(SUITES)
-    unknown = [n for n in names if n not in SUITES]
-    if unknown:
-        raise UserError(f"unknown bench suite {unknown[0]!r}; choose from {', '.join(SUITES)}")
     console = Console(stderr=True)
     for name in names:
         module, func = SUITES[name].split(":")

@@ -5,23 +5,29 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import Annotated
 
 import typer
 
+from estimators.oneclass import METHODS
 from macrostate_mj.app.cli.app import app, experiment_app, oc_app
+from macrostate_mj.app.cli.params import (
+    MAX_WORKERS,
+    Choice,
+    Count,
+    InputDir,
+    InputFile,
+    OutputDir,
+    OutputFile,
+    Positive,
+    Seed,
+    Switch,
+)
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.progress import stage_progress
+from macrostate_mj.vision.flow import METHODS as FLOW_METHODS
 
-Opt = typer.Option
-METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
-
-
-def _choice(value: str, choices: tuple[str, ...], flag: str) -> str:
-    if value not in choices:
-        raise UserError(f"{flag} {value!r} is not one of {', '.join(choices)}")
-    return value
-
+MIN_AUC_SAMPLES = 2     # fewer and the AUC is 0, 1 or undefined
+FEW_AUC_SAMPLES = 30    # fewer and one sample moves the AUC by several hundredths
 
 def _crop(text: str | None) -> tuple[int, int, int, int] | None:
     if text is None:
@@ -39,24 +45,22 @@ def _default_threads() -> int:
 
 @app.command("flow")
 def flow(
-    out: Annotated[Path, Opt(help="Dataset folder to write (OpticalFlows_HsAnts layout).")],
-    video: Annotated[Path | None, Opt(help="Any OpenCV-readable video file.")] = None,
-    frames: Annotated[Path | None, Opt(help="Folder of frames (natural name order).")] = None,
-    every: Annotated[float, Opt(help="Seconds between samples (the seed: 120).")] = 120.0,
-    gap: Annotated[float, Opt(help="Seconds between the two frames of a pair.")] = 0.5,
-    m: Annotated[int, Opt(help="Consecutive flow pairs per sample.")] = 4,
-    method: Annotated[str, Opt(help="dis (default), farneback or tvl1 (opencv-contrib).")] = "dis",
-    label: Annotated[str | None, Opt(help="Write into OUT/Stable or OUT/Unstable.")] = None,
-    start_id: Annotated[int, Opt(help="Id of the first sample written.")] = 0,
-    crop: Annotated[str | None, Opt(help="Crop x,y,w,h (px) before the flow.")] = None,
-    fps: Annotated[float | None, Opt(help="Frame rate (required with --frames).")] = None,
-    overwrite: Annotated[bool, Opt("--overwrite", help="Replace samples already there.")] = False,
+    out: Path = OutputDir(..., "Dataset folder to write (OpticalFlows_HsAnts layout)."),
+    video: Path = InputFile(None, "Input: any OpenCV-readable video file."),
+    frames: Path = InputDir(None, "Input: a folder of frames (natural name order)."),
+    every: float = Positive(120.0, "Seconds between samples (the dissertation: 120)."),
+    gap: float = Positive(0.5, "Seconds between the two frames of a pair."),
+    m: int = Count(4, "Consecutive flow pairs per sample."),
+    method: str = Choice("dis", "Optical-flow method (tvl1 needs opencv-contrib).", FLOW_METHODS),
+    label: str = Choice(None, "Write into OUT/Stable or OUT/Unstable.", ("Stable", "Unstable")),
+    start_id: int = Count(0, "Id of the first sample written.", min=0),
+    crop: str = typer.Option(None, help="Crop x,y,w,h (px) before the flow."),
+    fps: float = Positive(None, "Frame rate (required with --frames)."),
+    overwrite: bool = Switch(False, "Replace samples already there."),
 ) -> None:
     """Video or frames -> optical-flow samples (flow_x/flow_y/img JPEGs, 64 × 64, 128 = still)."""
     if (video is None) == (frames is None):
         raise UserError("give exactly one of --video FILE or --frames DIR")
-    if label is not None:
-        _choice(label, ("Stable", "Unstable"), "--label")
     box = _crop(crop)
     from macrostate_mj.core.io import check_writable_dir, write_manifest
     from macrostate_mj.formats.hsants import SAMPLE_NAME
@@ -100,23 +104,22 @@ def flow(
 
 @oc_app.command("train")
 def oc_train(
-    method: Annotated[str, Opt(help=f"One of {', '.join(METHODS)}, or all.")],
-    data: Annotated[Path, Opt(help="Dataset folder (Stable/, Unstable/, split1..3/).")],
-    out: Annotated[Path, Opt(help="Model folder to write.")],
-    split: Annotated[int, Opt(help="Split 1..3 (its stable train list is the training set).")] = 1,
-    m: Annotated[int, Opt(help="Flow pairs per input.")] = 2,
-    seed: Annotated[int, Opt(help="Seed of every random draw.")] = 0,
-    epochs: Annotated[float, Opt(help="Scale every epoch/step count (0.05 = quick).")] = 1.0,
-    threads: Annotated[int, Opt(help="torch CPU threads (results repeat for equal threads).")]
-    = _default_threads(),
-    device: Annotated[str, Opt(help="cpu or cuda.")] = "cpu",
-    overwrite: Annotated[bool, Opt("--overwrite", help="Replace an earlier model.")] = False,
+    method: str = Choice(..., "The one-class method (README: Ant colony), or all of them.",
+                         (*METHODS, "all")),
+    data: Path = InputDir(..., "Dataset folder (Stable/, Unstable/, split1..3/)."),
+    out: Path = OutputDir(..., "Model folder to write."),
+    split: int = Count(1, "Split 1..3 (its stable train list is the training set).", max=3),
+    m: int = Count(2, "Flow pairs per input."),
+    seed: int = Seed(),
+    epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe "
+                                  "(0.05 = quick).", "--epoch-scale"),
+    threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
+                         "threads).", max=MAX_WORKERS),
+    device: str = Choice("cpu", "Where torch trains.", ("cpu", "cuda")),
+    overwrite: bool = Switch(False, "Replace an earlier model."),
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
-    methods = tuple(METHODS) if method == "all" else (_choice(method, METHODS, "--method"),)
-    _choice(device, ("cpu", "cuda"), "--device")
-    if epochs <= 0 or threads < 1:
-        raise UserError("--epochs must be > 0 and --threads >= 1")
+    methods = tuple(METHODS) if method == "all" else (method,)
     from macrostate_mj.core.io import prepare_out_dir, write_manifest
 
     prepare_out_dir(out, ["weights.pt", "model.json"], overwrite)
@@ -130,7 +133,7 @@ def oc_train(
     d = open_dataset(data)
     train, _ = d.split(split)
     x = d.load("Stable", train, m)
-    cfg = OCConfig(m=m, seed=seed, threads=threads, device=device).scaled(epochs)
+    cfg = OCConfig(m=m, seed=seed, threads=threads, device=device).scaled(epoch_scale)
     t0 = time.perf_counter()
     with stage_progress() as tick:
         model = fit(x, methods, cfg, tick)
@@ -143,13 +146,12 @@ def oc_train(
 
 @oc_app.command("evaluate")
 def oc_evaluate(
-    model: Annotated[Path, Opt(help="Model folder from `oc train`.")],
-    data: Annotated[Path, Opt(help="Dataset folder.")],
-    out: Annotated[Path, Opt(help="Report JSON to write.")],
-    split: Annotated[int, Opt(help="Split whose stable test list is scored.")] = 1,
-    method: Annotated[str | None, Opt(help="Method to score (default: the model's last).")]
-    = None,
-    overwrite: Annotated[bool, Opt("--overwrite", help="Replace an earlier report.")] = False,
+    model: Path = InputDir(..., "Model folder from `oc train`."),
+    data: Path = InputDir(..., "Dataset folder."),
+    out: Path = OutputFile(..., "Report to write.", (".json",)),
+    split: int = Count(1, "Split whose stable test list is scored.", max=3),
+    method: str = Choice(None, "Method to score (default: the model's last).", METHODS),
+    overwrite: bool = Switch(False, "Replace an earlier report."),
 ) -> None:
     """AUC of stable test vs unstable samples (unstable = positive), overall and per time bin."""
     from macrostate_mj.core.io import check_writable_file, write_json_atomic
@@ -164,6 +166,13 @@ def oc_evaluate(
     d = open_dataset(data)
     _, test = d.split(split)
     m = oc.channels // 2
+    n_unstable = len(d.unstable_ids)
+    if min(len(test), n_unstable) < MIN_AUC_SAMPLES:
+        raise UserError(f"split {split} has {len(test)} stable test and {n_unstable} unstable "
+                        f"samples; an AUC needs at least {MIN_AUC_SAMPLES} of each")
+    if min(len(test), n_unstable) < FEW_AUC_SAMPLES:
+        typer.echo(f"note: an AUC from {len(test)} stable and {n_unstable} unstable samples is "
+                   "a smoke test, not a measurement", err=True)
     report = auc_report(oc.score(meth, d.load("Stable", test, m)),
                         oc.score(meth, d.load("Unstable", d.unstable_ids, m)),
                         d.time_bin(d.unstable_ids), tuple(d.bins))
@@ -175,16 +184,17 @@ def oc_evaluate(
 
 @experiment_app.command("oc")
 def experiment_oc(
-    data: Annotated[Path, Opt(help="Dataset folder (real or simulated).")],
-    out: Annotated[Path, Opt(help="Folder for tables, figures, Grad-CAM and results.json.")],
-    splits: Annotated[str, Opt(help="Comma-separated splits.")] = "1,2,3",
-    ms: Annotated[str, Opt(help="Comma-separated m values (Table 4.1).")] = "1,2,4",
-    seed: Annotated[int, Opt(help="Seed of every random draw.")] = 0,
-    epochs: Annotated[float, Opt(help="Scale every epoch/step count.")] = 1.0,
-    quick: Annotated[bool, Opt("--quick", help="Smoke run: epochs x0.03, 200 train samples.")]
-    = False,
-    threads: Annotated[int, Opt(help="torch CPU threads.")] = _default_threads(),
-    overwrite: Annotated[bool, Opt("--overwrite", help="Replace earlier outputs.")] = False,
+    data: Path = InputDir(..., "Dataset folder (real or simulated)."),
+    out: Path = OutputDir(..., "Folder for tables, figures, Grad-CAM and results.json."),
+    splits: str = typer.Option("1,2,3", help="Comma-separated splits."),
+    ms: str = typer.Option("1,2,4", help="Comma-separated m values (flow pairs per input, "
+                           "Table 4.1)."),
+    seed: int = Seed(),
+    epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe.",
+                                  "--epoch-scale"),
+    quick: bool = Switch(False, "Smoke run: epoch scale x0.03, 200 train samples."),
+    threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
+    overwrite: bool = Switch(False, "Replace earlier outputs."),
 ) -> None:
     """Reproduce Table 4.1, Table 4.2, Fig 4.7–4.10 and Grad-CAM overlays (mean ± std)."""
     try:
@@ -192,8 +202,6 @@ def experiment_oc(
         m_list = tuple(int(s) for s in ms.split(","))
     except ValueError:
         raise UserError("--splits and --ms take comma-separated integers, e.g. 1,2,3") from None
-    if epochs <= 0 or threads < 1:
-        raise UserError("--epochs must be > 0 and --threads >= 1")
     from estimators.oneclass.train import OCConfig
     from macrostate_mj.app.experiments.oneclass import PRODUCTS, OCExperiment, run_experiment
     from macrostate_mj.core.io import prepare_out_dir, write_json_atomic, write_manifest
@@ -206,7 +214,7 @@ def experiment_oc(
     for m in m_list:
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
-    cfg = OCConfig(seed=seed, threads=threads).scaled(epochs * (0.03 if quick else 1.0))
+    cfg = OCConfig(seed=seed, threads=threads).scaled(epoch_scale * (0.03 if quick else 1.0))
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -7,26 +7,38 @@ from pathlib import Path
 
 import typer
 
+from estimators.retlo import MODEL_KINDS
 from macrostate_mj.app.cli.app import app, evaluate_app, experiment_app, train_app
+from macrostate_mj.app.cli.params import (
+    Choice,
+    Count,
+    Fraction,
+    InputFile,
+    InputFiles,
+    OutputDir,
+    OutputFile,
+    Positive,
+    Seed,
+    Switch,
+)
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
+PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
+CSV = (".csv",)
 
 
 @app.command()
 def stats(
-    csv: list[Path] = typer.Argument(..., help="ThymioLoc CSV files (real or from `collect`)."),
-    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
+    csv: list[Path] = InputFiles("ThymioLoc CSV files (real or from `collect`).", CSV),
+    px_per_cm: float = PxPerCm,
 ) -> None:
     """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side."""
     from rich.console import Console
     from rich.table import Table
 
-    from macrostate_mj.core.errors import UserError
     from macrostate_mj.formats.thymioloc import chain_stats, read_csv
 
-    if px_per_cm <= 0:
-        raise UserError(f"--px-per-cm must be positive, got {px_per_cm}")
     found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
     table = Table(title=f"ThymioLoc statistics ({px_per_cm:g} px/cm, 2 Hz)")
     table.add_column("")
@@ -48,50 +60,44 @@ def stats(
     Console().print(table)
 
 
-def _checked_px(px_per_cm: float) -> float:
-    from macrostate_mj.core.errors import UserError
-
-    if px_per_cm <= 0:
-        raise UserError(f"--px-per-cm must be positive, got {px_per_cm}")
-    return px_per_cm
-
-
 @train_app.command("retlo")
 def train_retlo(
-    model: str = typer.Option(..., help="fc (recent observations only) or lstm (§2.6.1.1)."),
-    train: list[Path] = typer.Option(..., "--train", help="Training ThymioLoc CSV (repeatable)."),
-    val: Path = typer.Option(..., help="Validation CSV: selects the checkpoint, stops early."),
-    out: Path = typer.Option(..., help="Checkpoint to write (.pt)."),
-    seed: int = typer.Option(0, help="Seed of every random draw."),
-    epochs: int = typer.Option(60, help="Epochs of the cosine schedule; may stop earlier."),
-    patience: int = typer.Option(20, help="Epochs without a better validation error to stop."),
-    unidirectional: bool = typer.Option(False, help="§3.3: a unidirectional LSTM."),
-    cos_sin: bool = typer.Option(False, "--cos-sin", help="§3.3: angles as cos/sin."),
-    compass_frame: bool = typer.Option(False, help="§2.5.1.1's frame: Tail-centred, compass "
-                                       "axes (default: x axis along Tail→Follower)."),
-    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
-    overwrite: bool = typer.Option(False, help="Replace an existing checkpoint."),
+    model: str = Choice(..., "fc: fully connected layers on the last observations only; "
+                        "lstm: the dissertation's model (section 2.6.1.1), an LSTM over the "
+                        "history.", MODEL_KINDS),
+    train: list[Path] = InputFile(..., "Training ThymioLoc CSV (repeatable).", CSV,
+                                  flag="--train"),
+    val: Path = InputFile(..., "Validation CSV: selects the checkpoint, stops early.", CSV),
+    out: Path = OutputFile(..., "Checkpoint to write.", (".pt",)),
+    seed: int = Seed(),
+    epochs: int = Count(60, "Number of epochs of the cosine schedule; may stop earlier."),
+    patience: int = Count(20, "Epochs without a better validation error to stop."),
+    unidirectional: bool = Switch(False, "A unidirectional LSTM (section 3.3 found it as good "
+                                  "as the bidirectional one, and faster)."),
+    cos_sin: bool = Switch(False, "Angles as cos/sin pairs instead of radians (section 3.3).",
+                           "--cos-sin/--radians"),
+    compass_frame: bool = Switch(False, "The dissertation's frame (section 2.5.1.1): "
+                                 "Tail-centred with compass axes (default: x axis along "
+                                 "Tail→Follower)."),
+    px_per_cm: float = PxPerCm,
+    overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
     """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint."""
     from estimators.retlo.models import ModelConfig
     from estimators.retlo.train import TrainConfig, save_checkpoint
     from estimators.retlo.train import train as fit
-    from macrostate_mj.core.errors import UserError
     from macrostate_mj.core.io import check_writable_file
     from macrostate_mj.formats.thymioloc import read_csv, to_world
 
-    if epochs < 1 or patience < 1:
-        raise UserError("--epochs and --patience must be at least 1")
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, model=ModelConfig(
         kind=model, bidirectional=not unidirectional, cos_sin=cos_sin,
         rotate=not compass_frame))
-    px = _checked_px(px_per_cm)
     check_writable_file(out, overwrite, "--out")
-    worlds = [to_world(read_csv(p).poses, px) for p in train]
-    val_world = to_world(read_csv(val).poses, px)
+    worlds = [to_world(read_csv(p).poses, px_per_cm) for p in train]
+    val_world = to_world(read_csv(val).poses, px_per_cm)
     start = time.perf_counter()
     net, info = fit(worlds, val_world, cfg)
-    save_checkpoint(out, net, px, cfg, info)
+    save_checkpoint(out, net, px_per_cm, cfg, info)
     _manifest_beside(out, "train retlo", cfg, seed, {"train": time.perf_counter() - start},
                      inputs=[str(p) for p in [*train, val]])
     typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
@@ -100,18 +106,18 @@ def train_retlo(
 
 @evaluate_app.command("retlo")
 def evaluate_retlo(
-    model: str = typer.Option(..., help="A checkpoint from `train retlo`, or heuristic2x."),
-    data: Path = typer.Option(..., help="ThymioLoc CSV of any chain length >= 3."),
-    out: Path = typer.Option(..., help="Report to write (.json)."),
-    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
-    overwrite: bool = typer.Option(False, help="Replace an existing report."),
+    model: str = typer.Option(..., help="A checkpoint (.pt) from `train retlo`, or heuristic2x."),
+    data: Path = InputFile(..., "ThymioLoc CSV of any chain length >= 3.", CSV),
+    out: Path = OutputFile(..., "Report to write.", (".json",)),
+    px_per_cm: float = PxPerCm,
+    overwrite: bool = Switch(False, "Replace an existing report."),
 ) -> None:
     """Errors (cm) of every robot the Tail cannot see, per robot and per step."""
     from macrostate_mj.app.experiments.retlo import load_predictor
     from macrostate_mj.core.io import check_writable_file, write_json_atomic
     from macrostate_mj.formats.thymioloc import read_csv, to_world
 
-    px = _checked_px(px_per_cm)
+    px = px_per_cm
     check_writable_file(out, overwrite, "--out")
     pred, name = load_predictor(model)
     from estimators.retlo.chain import evaluate_chain
@@ -126,16 +132,18 @@ def evaluate_retlo(
 
 @experiment_app.command("retlo")
 def experiment_retlo(
-    train: list[Path] = typer.Option(..., "--train", help="Training ThymioLoc CSV (repeatable)."),
-    val: Path = typer.Option(..., help="Validation CSV."),
-    test: list[Path] = typer.Option(None, "--test", help="Test CSV, any team size (repeatable)."),
-    holdout: float = typer.Option(0.0, help="Also hold out this fraction of the training "
-                                  "instances as a test set (when no test file exists)."),
-    seeds: int = typer.Option(5, help="Training seeds per model (0..seeds-1)."),
-    epochs: int = typer.Option(60, help="Epochs per training (cosine schedule, early stop)."),
-    px_per_cm: float = typer.Option(DEFAULT_PX_PER_CM, "--px-per-cm", help=PX_HELP),
-    out: Path = typer.Option(..., help="Output folder."),
-    overwrite: bool = typer.Option(False, help="Replace existing outputs."),
+    train: list[Path] = InputFile(..., "Training ThymioLoc CSV (repeatable).", CSV,
+                                  flag="--train"),
+    val: Path = InputFile(..., "Validation CSV.", CSV),
+    test: list[Path] = InputFile(None, "Test CSV, any team size (repeatable).", CSV,
+                                 flag="--test"),
+    holdout: float = Fraction(0.0, "Also hold out this fraction of the training instances as "
+                              "a test set (when no test file exists)."),
+    seeds: int = Count(5, "Training seeds per model (0..seeds-1)."),
+    epochs: int = Count(60, "Number of epochs per training (cosine schedule, early stop)."),
+    px_per_cm: float = PxPerCm,
+    out: Path = OutputDir(..., "Output folder."),
+    overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
     from macrostate_mj.app.experiments.retlo import PRODUCTS, ExperimentConfig, run_experiment
@@ -143,7 +151,7 @@ def experiment_retlo(
 
     cfg = ExperimentConfig(train=[str(p) for p in train], val=str(val),
                            test=[str(p) for p in test or []], holdout=holdout, seeds=seeds,
-                           epochs=epochs, px_per_cm=_checked_px(px_per_cm))
+                           epochs=epochs, px_per_cm=px_per_cm)
     cfg.validate()
     prepare_out_dir(out, PRODUCTS, overwrite)
     summary = run_experiment(cfg, out)

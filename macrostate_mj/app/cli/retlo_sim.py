@@ -8,17 +8,19 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
+from macrostate_mj.app.cli.params import Count, OutputDir, Seed, Switch
 from macrostate_mj.core.progress import stage_progress
 
 
 @experiment_app.command("retlo-sim")
 def experiment_retlo_sim(
-    out: Path = typer.Option(..., help="Output folder (case_*.png, results.json, manifest)."),
-    seed: int = typer.Option(0, help="Seed of every random draw (noise, weights, batches)."),
-    epochs: int = typer.Option(500, help="Training epochs of the three networks (§2.5.2.1)."),
-    train_steps: int = typer.Option(800, help="Steps (30 Hz ticks) per training treatment."),
-    test_steps: int = typer.Option(1600, help="Steps (30 Hz ticks) per test case."),
-    overwrite: bool = typer.Option(False, help="Replace existing outputs."),
+    out: Path = OutputDir(..., "Output folder (case_*.png, results.json, manifest)."),
+    seed: int = Seed(0, "Seed of every random draw (noise, weights, batches)."),
+    epochs: int = Count(500, "Number of training epochs of the three networks (section "
+                        "2.5.2.1)."),
+    train_steps: int = Count(800, "Steps (30 Hz ticks) per training treatment.", max=10**6),
+    test_steps: int = Count(1600, "Steps (30 Hz ticks) per test case.", max=10**6),
+    overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Fig 2.2: chained MLPs trained on 3 robots, estimating 5- and 6-robot chains."""
     from macrostate_mj.app.experiments.retlo_sim import (

@@ -7,25 +7,35 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.cli.params import (
+    MAX_SECONDS,
+    Count,
+    OutputDir,
+    OutputFile,
+    Positive,
+    Scenario,
+    Seed,
+    Switch,
+)
 from macrostate_mj.core.progress import sim_progress
 
 
 @app.command()
 def simulate(
-    scenario: str = typer.Option("lab", help="lab, webots or robotarium."),
-    robots: int = typer.Option(5, help="Chain length N (Head, N-2 Followers, Tail)."),
-    seconds: float = typer.Option(60.0, help="Simulated seconds."),
-    seed: int = typer.Option(0, help="Seed of every random draw."),
-    out: Path = typer.Option(..., help="Output folder (poses.parquet, manifest.json)."),
-    video: Path = typer.Option(None, help="Also render the overhead camera to this MP4."),
-    rerun: Path = typer.Option(None, help="Also log the run to this rerun .rrd file."),
+    scenario: str = Scenario,
+    robots: int = Count(5, "Chain length N (Head, N-2 Followers, Tail).", min=2),
+    seconds: float = Positive(60.0, "Simulated seconds.", max=MAX_SECONDS),
+    seed: int = Seed(),
+    out: Path = OutputDir(..., "Output folder (poses.parquet, manifest.json)."),
+    video: Path = OutputFile(None, "Also render the overhead camera to this MP4.", (".mp4",)),
+    rerun: Path = OutputFile(None, "Also log the run to this rerun .rrd file.", (".rrd",)),
     overlays: str = typer.Option("ids,waypoint,trails", help="Video overlays, comma-separated "
                                  "from ids, waypoint, trails; 'none' for the bare camera."),
-    head_speed: float = typer.Option(None, help="Override the scenario's Head speed (m/s)."),
-    track: bool = typer.Option(False, help="Film with the overhead camera and track the "
-                               "markers at the command rate: adds x_trk, y_trk, theta_trk, "
-                               "detected."),
-    overwrite: bool = typer.Option(False, help="Replace existing outputs."),
+    head_speed: float = Positive(None, "Override the scenario's Head speed (m/s), up to the "
+                                 "robot's top speed."),
+    track: bool = Switch(False, "Film with the overhead camera and track the markers at the "
+                         "command rate: adds x_trk, y_trk, theta_trk, detected."),
+    overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Simulate a robot chain; write its pose log (and optionally a video and a rerun file)."""
     from macrostate_mj.app.simulate import SimulateRequest, check_request, simulate_run
@@ -41,10 +51,10 @@ def simulate(
 
 @app.command("export-mjcf")
 def export_mjcf(
-    scenario: str = typer.Option("lab", help="lab, webots or robotarium."),
-    robots: int = typer.Option(5, help="Chain length N."),
-    out: Path = typer.Option(..., help="Output .xml file."),
-    overwrite: bool = typer.Option(False, help="Replace an existing file."),
+    scenario: str = Scenario,
+    robots: int = Count(5, "Chain length N.", min=2),
+    out: Path = OutputFile(..., "Output .xml file.", (".xml",)),
+    overwrite: bool = Switch(False, "Replace an existing file."),
 ) -> None:
     """Write one self-contained MJCF of a scenario with N robots (opens in MuJoCo's viewer)."""
     from macrostate_mj.chain.scenarios import scenario_for

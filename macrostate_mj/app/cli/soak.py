@@ -8,6 +8,16 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.cli.params import (
+    MAX_SECONDS,
+    MAX_WORKERS,
+    Count,
+    OutputDir,
+    Positive,
+    Scenario,
+    Seed,
+    Switch,
+)
 
 COLUMNS = [("runs", "runs", "d"), ("tips", "tips", "d"), ("nans", "NaNs", "d"),
            ("escapes", "escapes", "d"), ("climbs", "climbs", "d"),
@@ -18,19 +28,19 @@ COLUMNS = [("runs", "runs", "d"), ("tips", "tips", "d"), ("nans", "NaNs", "d"),
 
 @app.command()
 def soak(
-    scenario: str = typer.Option("lab", help="lab, webots or robotarium."),
-    robots: int = typer.Option(5, help="Chain length N."),
-    seeds: int = typer.Option(24, help="Number of seeds (runs)."),
-    seconds: float = typer.Option(600.0, help="Simulated seconds per run."),
-    first_seed: int = typer.Option(0, help="Seeds are first-seed, first-seed + 1, ..."),
-    workers: int = typer.Option(1, help="Local worker processes."),
+    scenario: str = Scenario,
+    robots: int = Count(5, "Chain length N.", min=2),
+    seeds: int = Count(24, "Number of seeds (runs).", max=10**6),
+    seconds: float = Positive(600.0, "Simulated seconds per run.", max=MAX_SECONDS),
+    first_seed: int = Seed(0, "Seeds are first-seed, first-seed + 1, ..."),
+    workers: int = Count(1, "Local worker processes.", max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run seeds on Ray: local, auto or ADDRESS."),
-    check_hz: float = typer.Option(50.0, help="Health checks per simulated second (a fault "
+    check_hz: float = Positive(50.0, "Health checks per simulated second (a fault "
                                    "is then pinned to its physics step)."),
-    out: Path = typer.Option(None, help="Also write soak.json, manifest.json and runs/ (one file "
+    out: Path = OutputDir(None, "Also write soak.json, manifest.json and runs/ (one file "
                              "per finished seed: a rerun resumes)."),
-    as_json: bool = typer.Option(False, "--json", help="Print the summary as one JSON line."),
-    overwrite: bool = typer.Option(False, help="Replace an existing soak.json."),
+    as_json: bool = Switch(False, "Print the summary as one JSON line.", "--json/--table"),
+    overwrite: bool = Switch(False, "Replace an existing soak.json."),
 ) -> None:
     """Run many seeds and count tips, NaNs, escapes and climbing; exit 1 if any run faulted."""
     import shutil

@@ -1,0 +1,218 @@
+"""The CLI's one validation layer: options that check themselves while the command line is parsed.
+
+Every number, path and choice a command takes is declared through these factories, so a bad
+value fails before anything is imported, built or written, as one line naming the option (the
+parser's error, exit 2). Output paths are also registered here, so that `finish` can remove an
+output a failed command created: bad input leaves nothing behind, and a run that fails or is
+interrupted keeps what it finished (its resumable shards, its poses up to the fault) but no
+empty folder. `tests/app/test_params.py` checks that every option of every command comes from
+here.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import typer
+
+SEED_MAX = 2**63 - 1   # seeds travel through numpy, JSON and Parquet int64
+COUNT_MAX = 10**9      # a count beyond this is a typo (and would overflow what it sizes)
+MAX_WORKERS = 256      # processes or threads on one machine
+MAX_SECONDS = 1e6      # about 11.6 simulated days: longer is a typo, not an experiment
+_outputs: list[tuple[Path, bool]] = []   # (path, existed before this command)
+
+
+def _name(param: typer.CallbackParam) -> str:
+    return param.opts[0] if param.opts else (param.name or "value")
+
+
+def _each(value: Any) -> list:
+    return list(value) if isinstance(value, list | tuple) else [value]
+
+
+def _flags(flag: str | None) -> list[str]:
+    return [flag] if flag else []
+
+
+def _checked(check: Callable[[Any, str], None], role: str) -> Callable:
+    """A typer callback that applies `check(value, option name)` to the value (each value of a
+    repeatable option) and leaves None (an option not given) alone. `role` (number, choice,
+    input_file, input_dir, output_file, output_dir) tells the tests what to throw at it."""
+
+    def callback(param: typer.CallbackParam, value: Any) -> Any:
+        for v in _each(value):
+            if v is not None:
+                check(v, _name(param))
+        return value
+
+    callback.role = role  # type: ignore[attr-defined]
+    return callback
+
+
+def _fail(message: str) -> None:
+    raise typer.BadParameter(message)
+
+
+def _number(lo: float | None, lo_open: bool, hi: float | None) -> Callable[[Any, str], None]:
+    def check(v: float, flag: str) -> None:
+        if not math.isfinite(v):
+            _fail(f"must be a finite number, got {v}")
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            _fail(f"must be {'>' if lo_open else '>='} {lo:g}, got {v:g}")
+        if hi is not None and v > hi:
+            _fail(f"must be at most {hi:g}, got {v:g}")
+    return check
+
+
+def Seed(default: int = 0, help: str = "Seed of every random draw.", **kw: Any) -> Any:  # noqa: N802
+    """A seed: an integer 0..2^63-1 (numpy refuses negative seeds)."""
+    return typer.Option(default, help=f"{help} (0..2^63-1)", min=0, max=SEED_MAX, **kw)
+
+
+def Count(default: Any, help: str, min: int = 1, max: int = COUNT_MAX, **kw: Any) -> Any:  # noqa: N802
+    """An integer count with bounds (click checks them and names the option)."""
+    return typer.Option(default, help=help, min=min, max=max, **kw)
+
+
+def Positive(default: Any, help: str, flag: str | None = None, max: float | None = None,  # noqa: N802
+             **kw: Any) -> Any:
+    """A finite number > 0 (durations, rates, scales)."""
+    return typer.Option(default, *_flags(flag), help=help,
+                        callback=_checked(_number(0, True, max), "number"), **kw)
+
+
+def NonNegative(default: Any, help: str, max: float | None = None, **kw: Any) -> Any:  # noqa: N802
+    """A finite number >= 0."""
+    return typer.Option(default, help=help,
+                        callback=_checked(_number(0, False, max), "number"), **kw)
+
+
+def Fraction(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
+    """A finite number in [0, 1)."""
+    def check(v: float, flag: str) -> None:
+        if not (math.isfinite(v) and 0 <= v < 1):
+            _fail(f"must be a fraction in [0, 1), got {v}")
+    return typer.Option(default, help=help, callback=_checked(check, "number"), **kw)
+
+
+def Choice(default: Any, help: str, choices: Sequence[str], flag: str | None = None,  # noqa: N802
+           **kw: Any) -> Any:
+    """One of `choices` (each, when repeatable), listed in the help text."""
+    def check(v: str, flag: str) -> None:
+        if v not in choices:
+            _fail(f"{v!r} is not one of {', '.join(choices)}")
+    return typer.Option(default, *_flags(flag), help=f"{help} One of: {', '.join(choices)}.",
+                        callback=_checked(check, "choice"), **kw)
+
+
+def _scenario() -> Any:
+    from macrostate_mj.chain.scenarios import SCENARIOS
+
+    return Choice("lab", "Embedded scenario (README: Physics choices).", tuple(SCENARIOS))
+
+
+def _input_file(suffixes: tuple[str, ...]) -> Callable[[Path, str], None]:
+    def check(p: Path, flag: str) -> None:
+        if p.is_dir():
+            _fail(f"{p} is a folder; give a file")
+        if not p.is_file():
+            _fail(f"{p} does not exist")
+        if suffixes and p.suffix.lower() not in suffixes:
+            _fail(f"{p} is not a {' or '.join(suffixes)} file")
+    return check
+
+
+def InputFile(default: Any, help: str, suffixes: tuple[str, ...] = (),  # noqa: N802
+              flag: str | None = None, **kw: Any) -> Any:
+    """An existing file (not a folder); repeatable when declared as a list."""
+    return typer.Option(default, *_flags(flag), help=help,
+                        callback=_checked(_input_file(suffixes), "input_file"), **kw)
+
+
+def InputFiles(help: str, suffixes: tuple[str, ...] = ()) -> Any:  # noqa: N802
+    """Positional existing files."""
+    return typer.Argument(..., help=help, callback=_checked(_input_file(suffixes), "input_file"))
+
+
+def _input_dir(p: Path, flag: str) -> None:
+    if p.is_file():
+        _fail(f"{p} is a file; give a folder")
+    if not p.is_dir():
+        _fail(f"{p} does not exist")
+
+
+def InputDir(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
+    """An existing folder."""
+    return typer.Option(default, help=help, callback=_checked(_input_dir, "input_dir"), **kw)
+
+
+def _writable_parent(p: Path) -> None:
+    probe = p.parent
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        _fail(f"cannot create {p}: {probe} is a file")
+
+
+def _output_file(suffixes: tuple[str, ...]) -> Callable[[Path, str], None]:
+    def check(p: Path, flag: str) -> None:
+        if suffixes and p.suffix.lower() not in suffixes:
+            _fail(f"{p} needs the {' or '.join(suffixes)} extension")
+        if p.is_dir():
+            _fail(f"{p} is a folder; give a file path")
+        _writable_parent(p)
+        _outputs.append((p, p.exists()))
+    return check
+
+
+def OutputFile(default: Any, help: str, suffixes: tuple[str, ...] = (), **kw: Any) -> Any:  # noqa: N802
+    """A file to write: the right extension, not a folder; removed if a failed command made it."""
+    return typer.Option(default, help=help,
+                        callback=_checked(_output_file(suffixes), "output_file"), **kw)
+
+
+def _output_dir(p: Path, flag: str) -> None:
+    if p.exists() and not p.is_dir():
+        _fail(f"{p} is a file; give a folder path")
+    _writable_parent(p)
+    _outputs.append((p, p.exists()))
+
+
+def OutputDir(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
+    """A folder to write into; removed if a failed command created it and left it empty (or if
+    the failure was bad input)."""
+    return typer.Option(default, help=help, callback=_checked(_output_dir, "output_dir"), **kw)
+
+
+def begin() -> None:
+    """Forget the outputs of an earlier command (in-process callers run several)."""
+    _outputs.clear()
+
+
+def _empty(p: Path) -> bool:
+    return p.is_dir() and all(_empty(c) for c in p.iterdir())
+
+
+def finish(bad_input: bool) -> None:
+    """After a failed command: remove each output it created, when the failure was bad input
+    (nothing half-written) or when nothing was written into it (no empty folder)."""
+    for path, existed in reversed(_outputs):
+        if existed or not path.exists():
+            continue
+        if path.is_dir() and (bad_input or _empty(path)):
+            shutil.rmtree(path, ignore_errors=True)
+        elif path.is_file() and bad_input:
+            path.unlink(missing_ok=True)
+    _outputs.clear()
+
+
+def Switch(default: bool, help: str, flag: str | None = None, **kw: Any) -> Any:  # noqa: N802
+    """An on/off option, always with its --no- form."""
+    return typer.Option(default, *_flags(flag), help=help, **kw)
+
+
+Scenario = _scenario()
