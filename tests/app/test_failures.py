@@ -89,3 +89,15 @@ def test_soak_prints_its_table_and_exits_1_on_a_fault(monkeypatch, capsys, tmp_p
     code, out, err = cli_inprocess(capsys, *base, "--json")
     assert code == 1 and json.loads(out)["tips"] == 2
     assert "seed 0" in one_line(err)
+
+
+def test_ctrl_c_in_simulate_leaves_no_empty_output_folder(monkeypatch, capsys, tmp_path):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("macrostate_mj.chain.sim.ChainSim.run", interrupted)
+    out = tmp_path / "run"
+    code, _, err = cli_inprocess(capsys, "simulate", "--robots", "3", "--seconds", "5",
+                                 "--out", str(out))
+    assert code == 130 and err.strip() == "interrupted"
+    assert not out.exists()

@@ -119,3 +119,29 @@ def test_stats_prints_our_dataset_beside_real_data(reference, reference_data):
     res = cli("stats", str(reference / "instances.csv"), str(real))
     assert res.returncode == 0, res.stderr
     assert "instances.csv" in res.stdout and "Train.csv" in res.stdout
+
+
+def test_a_damaged_shard_is_simulated_again(reference, tmp_path):
+    """A shard truncated by something outside the run (disk full, a copy cut short) is not
+    finished work: the rerun simulates that episode again and the datasets come out the same."""
+    args = ["collect", *TINY, "--split", "60/10/30", "--out", str(tmp_path)]
+    shards = tmp_path / "shards"
+    shards.mkdir()
+    for shard in (reference / "shards").glob("episode_*.parquet"):
+        (shards / shard.name).write_bytes(shard.read_bytes())
+    (shards / "plan.json").write_bytes((reference / "shards" / "plan.json").read_bytes())
+    damaged = shards / "episode_00001.parquet"
+    damaged.write_bytes(damaged.read_bytes()[:100])
+    res = cli(*args)
+    assert res.returncode == 0, res.stderr
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["damaged_shards_rerun"] == [1] and manifest["resumed_episodes"] == 2
+    assert (tmp_path / "instances.csv").read_bytes() == (reference / "instances.csv").read_bytes()
+
+
+def test_a_plan_without_finished_episodes_does_not_block_another_collection(tmp_path):
+    (tmp_path / "shards").mkdir()
+    (tmp_path / "shards" / "plan.json").write_text("[]")   # an earlier run stopped at once
+    res = cli("collect", "--robots", "3", "--minutes", "0.25", "--seed", "1", "--out",
+              str(tmp_path))
+    assert res.returncode == 0, res.stderr

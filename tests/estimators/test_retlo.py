@@ -184,6 +184,10 @@ def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsy
     assert "lstm" in stdout and "% below FC" in stdout
 
 
+def _data(tmp_path):
+    return str(write_csv(tmp_path / "d.csv", from_world(_rigid(3, "straight"), 3.0)))
+
+
 def _bad_checkpoint(tmp_path):
     path = tmp_path / "other.pt"
     torch.save({"state_dict": {}, "kind": "dsvdd"}, path)
@@ -199,15 +203,15 @@ BAD_RUNS = {
                                      _rigid(3, "straight", n_steps=8), 3.0))),
                                  "--out", str(p / "r.json")], "steps"),
     "other checkpoint": (lambda p: ["evaluate", "retlo", "--model", str(_bad_checkpoint(p)),
-                                    "--data", "x.csv", "--out", str(p / "r.json")],
+                                    "--data", _data(p), "--out", str(p / "r.json")],
                          "not a ReTLo checkpoint"),
     "not torch": (lambda p: ["evaluate", "retlo", "--model", str(p / "r.json"), "--data",
-                             "x.csv", "--out", str(p / "q.json")], "not a readable torch"),
+                             _data(p), "--out", str(p / "q.json")], "not a readable torch"),
     "unknown eval model": (lambda p: ["evaluate", "retlo", "--model", "heuristic3x", "--data",
-                                      "x.csv", "--out", str(p / "r.json")], "unknown model"),
-    "unknown train model": (lambda p: ["train", "retlo", "--model", "gru", "--train", "x.csv",
-                                       "--val", "x.csv", "--out", str(p / "m.pt")],
-                            "unknown model 'gru'"),
+                                      _data(p), "--out", str(p / "r.json")], "unknown model"),
+    "unknown train model": (lambda p: ["train", "retlo", "--model", "gru", "--train", _data(p),
+                                       "--val", _data(p), "--out", str(p / "m.pt")],
+                            "'--model': 'gru' is not one of fc, lstm"),
 }
 
 

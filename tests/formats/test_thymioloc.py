@@ -129,7 +129,7 @@ def test_malformed_file_exits_2_with_one_line_naming_file_and_row(tmp_path, caps
 
 def test_missing_file_and_bad_scale_exit_2(tmp_path, capsys):
     code, _, err = _cli(capsys, "stats", str(tmp_path / "nope.csv"))
-    assert code == 2 and "no such file" in err
+    assert code == 2 and "nope.csv does not exist" in err
     good = tmp_path / "good.csv"
     good.write_text(GOOD)
     code, _, err = _cli(capsys, "stats", str(good), "--px-per-cm", "0")

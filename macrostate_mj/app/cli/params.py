@@ -57,12 +57,12 @@ def _fail(message: str) -> None:
     raise typer.BadParameter(message)
 
 
-def _number(lo: float | None, lo_open: bool, hi: float | None) -> Callable[[Any, str], None]:
+def _number(lo: float, lo_open: bool, hi: float | None) -> Callable[[Any, str], None]:
     def check(v: float, flag: str) -> None:
         if not math.isfinite(v):
             _fail(f"must be a finite number, got {v}")
-        if lo is not None and (v <= lo if lo_open else v < lo):
-            _fail(f"must be {'>' if lo_open else '>='} {lo:g}, got {v:g}")
+        if (v <= lo if lo_open else v < lo):
+            _fail(f"must be {'positive' if lo_open else 'non-negative'}, got {v:g}")
         if hi is not None and v > hi:
             _fail(f"must be at most {hi:g}, got {v:g}")
     return check
