@@ -36,7 +36,7 @@ class RerunRecorder(Recorder):
     def capture(self, sim: ChainSim) -> None:
         rec = self.rec
         rec.set_time("sim_time", duration=sim.time)
-        poses = sim.poses()
+        poses = sim.poses
         self.trails.add(poses[:, :2])
         heading = 0.08 * np.column_stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])])
         rec.log("world/robots", rr.Points2D(poses[:, :2], radii=0.04, colors=self.colours,

@@ -70,7 +70,7 @@ class VideoRecorder(Recorder):
 
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)
-        poses = sim.poses()
+        poses = sim.poses
         self.trails.add(poses[:, :2])
         bgr = np.ascontiguousarray(rgb[:, :, ::-1])
         draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays)

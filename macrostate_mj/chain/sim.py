@@ -114,7 +114,7 @@ class PoseLog:
 
     def append(self, sim: ChainSim) -> None:
         self.times.append(sim.time)
-        self.poses.append(sim.poses())
+        self.poses.append(sim.poses)
         wp = sim.planner.target
         self.waypoints.append(np.array(wp, float) if wp is not None else np.full(2, np.nan))
         if self.tracker is not None:
@@ -178,12 +178,13 @@ class ChainSim:
         # The 2 Hz log is not synchronized with the 4 Hz commands (seed §2.6.2.2).
         self.log_phase = float(rng.uniform(0, 1 / self.cfg.log_hz)) \
             if self.cfg.log_hz != self.cfg.command_hz else 0.0
-        self.planner.reset(self.poses()[0], rng)
+        self.planner.reset(self.poses[0], rng)
 
     @property
     def time(self) -> float:
         return float(self.data.time)
 
+    @property
     def poses(self) -> np.ndarray:
         """(n, 3) x, y, theta in the world frame; heading from the body frame (not the mesh)."""
         xmat = self.data.xmat[self._body]
@@ -194,7 +195,7 @@ class ChainSim:
     def command(self) -> None:
         """One control tick: planner, motion rules, unicycle tracking, wheel speeds."""
         cfg, w = self.cfg, self.world
-        poses = self.poses()
+        poses = self.poses
         self.planner.update(poses[0], self.time, self.rng)
         vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
                                followers=cfg.followers)

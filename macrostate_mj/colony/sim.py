@@ -262,6 +262,7 @@ class Colony:
             self.advance_frame()
         self.data.time = 0.0
 
+    @property
     def poses(self) -> tuple[np.ndarray, np.ndarray]:
         q = self.data.qpos
         return np.stack([q[self.qx], q[self.qx + 1]], 1), q[self.qx + 2].copy()
@@ -286,7 +287,7 @@ class Colony:
         u = rng.random(n)
         pick = rng.random(n) * rates.sum()
         free = (self.beh <= GROOM) & (self.cooldown <= 0)
-        pos, _ = self.poses()
+        pos, _ = self.poses
         for i in np.flatnonzero(free & (u < rates.sum() * dt)):
             cand = np.flatnonzero(free & (np.arange(n) != i))
             if not free[i] or cand.size == 0:
@@ -305,7 +306,7 @@ class Colony:
     def _control(self, t: float, dt: float) -> None:
         """Turn behaviours into actuator commands: world velocities, yaw rate, joint targets."""
         rg, n = self.regime, self.cfg.n_ants
-        pos, yaw = self.poses()
+        pos, yaw = self.poses
         head = np.stack([np.cos(yaw), np.sin(yaw)], 1)
         tau = 0.5  # s, correlation time of the walking turn rate (Ornstein-Uhlenbeck)
         self.turn += (-self.turn * dt / tau

@@ -14,9 +14,9 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.chain.sim import ChainSim
-from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
+from macrostate_mj.vision.camera import OverheadRenderer
 from macrostate_mj.vision.imaging import NoiseConfig, SceneConditions, degrade, draw_episode
-from macrostate_mj.vision.tracker import Tracker, marker_area
+from macrostate_mj.vision.tracker import Tracker
 
 
 class CameraChain:
@@ -40,7 +40,6 @@ class CameraChain:
         self.renderer = OverheadRenderer(sim.model)
         self.conditions = SceneConditions(sim.model)
         world = sim.world
-        self._area = marker_area(world.spec, f"{world.names[0]}/marker")
         n = len(world.names)
         self._latest = np.full((n, 3), np.nan)
         self._latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
@@ -53,8 +52,7 @@ class CameraChain:
         sim = self.sim
         self.conditions.restore()
         mujoco.mj_forward(sim.model, sim.data)
-        camera = PinholeCamera.from_model(sim.model, sim.data)
-        self.tracker = Tracker(camera, sim.world.colours, sim.world.marker_height, self._area)
+        self.tracker = Tracker.for_world(sim.world, sim.data)
         self.rng = rng
         shape = (self.renderer.height, self.renderer.width, 3)
         self.episode = draw_episode(self.noise, rng, shape)

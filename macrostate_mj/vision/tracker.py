@@ -17,8 +17,10 @@ import colorsys
 from dataclasses import dataclass
 
 import cv2
+import mujoco
 import numpy as np
 
+from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
 
 
@@ -41,6 +43,14 @@ class Tracker:
     min_saturation: int = 90     # of 255
     min_value: int = 50
     min_fill: float = 0.4
+
+    @classmethod
+    def for_world(cls, world: World, data: mujoco.MjData) -> Tracker:
+        """The tracker of a compiled chain world: its overhead camera as calibrated in `data`,
+        its marker colours, plane and area."""
+        camera = PinholeCamera.from_model(world.model, data)
+        area = marker_area(world.spec, f"{world.names[0]}/marker")
+        return cls(camera, world.colours, world.marker_height, area)
 
     def __post_init__(self) -> None:
         hues = np.array([colorsys.rgb_to_hsv(*c)[0] for c in self.colours]) * 256

@@ -98,7 +98,7 @@ def test_camera_model_projects_markers_onto_their_pixels():
     sim.reset(np.random.default_rng(4))
     cam = PinholeCamera.from_model(world.model, sim.data)
     assert cam.px_per_m == pytest.approx(300, rel=0.01)       # 3 px/cm at the floor
-    poses = sim.poses()
+    poses = sim.poses
     xyz = np.column_stack([poses[:, :2], np.full(5, world.marker_height)])
     uv = cam.world_to_pixel(xyz)
     with OverheadRenderer(world.model) as renderer:

@@ -60,8 +60,8 @@ def test_duel_faces_ants_and_drums_antennae_fast():
     for _ in range(150):  # 2.5 s; antennae sampled at 60 Hz
         colony.advance_frame()
         ant_l.append(colony.data.qpos[colony.qa].copy())
-        thorax.append(colony.poses()[0][:2].copy())
-    pos, yaw = colony.poses()
+        thorax.append(colony.poses[0][:2].copy())
+    pos, yaw = colony.poses
     u = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
     head = np.stack([np.cos(yaw), np.sin(yaw)], 1)
     assert head[0] @ head[1] < -0.97  # facing each other ...

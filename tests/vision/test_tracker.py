@@ -27,7 +27,7 @@ def errors_over_run(seconds: float, seed: int, noise: NoiseConfig):
         chain.capture(s)
         if chain.frames == frames or chain.dropped and not chain.detected.any():
             return
-        truth = s.poses()
+        truth = s.poses
         ok = chain.detected
         seen.append(ok)
         pos.extend(np.linalg.norm(chain.latest[ok, :2] - truth[ok, :2], axis=1))
@@ -70,8 +70,8 @@ def test_robots_touching_each_other_and_a_wall():
     sim, _, tracker, rgb = frame_and_tracker(start)
     det = tracker.track(rgb)
     assert det.detected.all()
-    assert np.abs(det.poses[:, :2] - sim.poses()[:, :2]).max() < 0.004
-    assert np.abs(wrap_angle(det.poses[:, 2] - sim.poses()[:, 2])).max() < np.radians(3)
+    assert np.abs(det.poses[:, :2] - sim.poses[:, :2]).max() < 0.004
+    assert np.abs(wrap_angle(det.poses[:, 2] - sim.poses[:, 2])).max() < np.radians(3)
 
 
 def test_partial_occlusion_and_lost_markers():
@@ -79,13 +79,13 @@ def test_partial_occlusion_and_lost_markers():
     sim, cam, tracker, rgb = frame_and_tracker(start)
     z = sim.world.marker_height
     (u0, v0), (u1, v1), _ = np.round(cam.world_to_pixel(
-        np.column_stack([sim.poses()[:, :2], np.full(3, z)]))).astype(int)
+        np.column_stack([sim.poses[:, :2], np.full(3, z)]))).astype(int)
     occluded = rgb.copy()
     occluded[v0 - 20:v0 + 20, u0 + 8:u0 + 30] = 180       # covers the Head's apex third
     occluded[v1 - 20:v1 + 20, u1 - 30:u1 + 20] = 180      # covers F1's marker entirely
     det = tracker.track(occluded)
     assert det.detected.tolist() == [True, False, True]
-    assert np.linalg.norm(det.poses[0, :2] - sim.poses()[0, :2]) < 0.02
+    assert np.linalg.norm(det.poses[0, :2] - sim.poses[0, :2]) < 0.02
     assert abs(wrap_angle(det.poses[0, 2])) < np.radians(10)
 
 
@@ -114,7 +114,7 @@ def test_camera_error_unknown_to_the_tracker_biases_it(shift):
     mujoco.mj_forward(world.model, sim.data)
     with OverheadRenderer(world.model) as renderer:
         det = tracker.track(renderer.render(sim.data))
-    err = det.poses[0, 0] - sim.poses()[0, 0]
+    err = det.poses[0, 0] - sim.poses[0, 0]
     assert err == pytest.approx(-shift, abs=0.001)    # the scene appears shifted the other way
 
 

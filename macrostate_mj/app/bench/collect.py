@@ -34,7 +34,7 @@ def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> 
         chain.capture(s)
         if chain.dropped > dropped:
             return
-        truth, ok = s.poses(), chain.detected
+        truth, ok = s.poses, chain.detected
         seen.append(ok.copy())
         pos.extend(np.linalg.norm(chain.latest[ok, :2] - truth[ok, :2], axis=1))
         head.extend(np.abs(wrap_angle(chain.latest[ok, 2] - truth[ok, 2])))
