@@ -100,8 +100,8 @@ class _Ticks:
 @dataclass
 class PoseLog:
     """Poses at log ticks: times (T,), poses (T, n, 3), Head waypoint (T, 2) or NaN, and, with
-    a `tracker` (anything with `latest` (n, 3), `latest_time` (n,) and `detected` (n,)), its
-    latest output."""
+    a `tracker` (anything with `latest` (n, 3), `latest_time` (n,), `latest_truth` (n, 3) and
+    `detected` (n,)), its latest output and the true poses at the moment it was seen."""
 
     names: list[str]
     tracker: object | None = None
@@ -110,6 +110,7 @@ class PoseLog:
     waypoints: list[np.ndarray] = field(default_factory=list)
     tracked: list[np.ndarray] = field(default_factory=list)
     tracked_time: list[np.ndarray] = field(default_factory=list)
+    tracked_truth: list[np.ndarray] = field(default_factory=list)
     detected: list[np.ndarray] = field(default_factory=list)
 
     def append(self, sim: ChainSim) -> None:
@@ -120,6 +121,7 @@ class PoseLog:
         if self.tracker is not None:
             self.tracked.append(self.tracker.latest.copy())
             self.tracked_time.append(self.tracker.latest_time.copy())
+            self.tracked_truth.append(self.tracker.latest_truth.copy())
             self.detected.append(self.tracker.detected.copy())
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -128,12 +130,14 @@ class PoseLog:
                 np.asarray(self.waypoints).reshape(-1, 2))
 
     def tracked_arrays(self) -> dict[str, np.ndarray] | None:
-        """{"tracked": (T, n, 3), "tracked_time": (T, n), "detected": (T, n)} or None."""
+        """{"tracked": (T, n, 3), "tracked_time": (T, n), "tracked_truth": (T, n, 3),
+        "detected": (T, n)} or None."""
         if self.tracker is None:
             return None
         n = len(self.names)
         return {"tracked": np.asarray(self.tracked).reshape(-1, n, 3),
                 "tracked_time": np.asarray(self.tracked_time).reshape(-1, n),
+                "tracked_truth": np.asarray(self.tracked_truth).reshape(-1, n, 3),
                 "detected": np.asarray(self.detected).reshape(-1, n)}
 
 

@@ -19,6 +19,12 @@ from rich.progress import (
 )
 
 LOG_EVERY = 10  # percent of a task between two plain lines
+_quiet = False   # `macrostate-mj --quiet`: no bars, no log lines (errors and results still print)
+
+
+def set_quiet(quiet: bool) -> None:
+    global _quiet
+    _quiet = quiet
 
 
 class LoggedProgress(Progress):
@@ -32,7 +38,7 @@ class LoggedProgress(Progress):
     def __init__(self, *columns: Any, console: Console | None = None, **kwargs: Any) -> None:
         console = console or Console(stderr=True)
         self._plain = not console.is_terminal
-        self._quiet = bool(kwargs.pop("disable", False))
+        self._quiet = bool(kwargs.pop("disable", False)) or _quiet
         # no live display off a terminal: its final render would only repeat the logged lines
         super().__init__(*columns, console=console, disable=self._quiet or self._plain, **kwargs)
         self._logged: dict[TaskID, int] = {}  # last tenth logged; 0 % is not (see _log)
@@ -56,8 +62,10 @@ class LoggedProgress(Progress):
         if step > self._logged.get(task_id, 0):
             self._logged[task_id] = step
             elapsed = task.elapsed or 0.0
+            left = task.time_remaining
+            eta = f", about {left / 60:.1f} min left" if left is not None and step < 10 else ""
             self.console.print(f"{time.strftime('%H:%M:%S')} {task.description.strip()}: "
-                               f"{task.percentage:.0f} % after {elapsed / 60:.1f} min",
+                               f"{task.percentage:.0f} % after {elapsed / 60:.1f} min{eta}",
                                highlight=False, markup=False)
 
 

@@ -3,7 +3,10 @@
 Columns: t (s), step (log index), robot (H, F1.., T), x, y (m, world frame, origin at the arena
 centre, x along the long side), theta (rad, CCW from +x, in (-pi, pi]), waypoint_x/y (the Head's
 current target, NaN without one) and, when tracking ran, x_trk, y_trk, theta_trk (the latest
-detection, same units), t_trk (when it was made) and detected (seen in the latest frame).
+detection, same units), t_trk (when it was made), x_truth_trk, y_truth_trk, theta_truth_trk
+(the true pose at t_trk: the tracker's own error is x_trk - x_truth_trk, while x_trk - x adds
+the motion since t_trk) and detected (seen in the latest frame). Each field's unit is in the
+schema metadata (`unit`), the frame convention in the table's (`frame`).
 """
 
 from __future__ import annotations
@@ -16,6 +19,13 @@ import pyarrow.parquet as pq
 
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.core.io import atomic_path
+
+UNITS = {"t": "s", "step": "log step", "robot": "name", "x": "m", "y": "m", "theta": "rad",
+         "waypoint_x": "m", "waypoint_y": "m", "x_trk": "m", "y_trk": "m", "theta_trk": "rad",
+         "t_trk": "s", "x_truth_trk": "m", "y_truth_trk": "m", "theta_truth_trk": "rad",
+         "detected": "bool"}
+FRAME = ("world frame: origin at the arena centre, x along the long side, y to its left, "
+         "theta counter-clockwise from +x in (-pi, pi]; robots H, F1.., T from the Head")
 
 
 def poses_table(names: list[str], times: np.ndarray, poses: np.ndarray, waypoints: np.ndarray,
@@ -34,10 +44,15 @@ def poses_table(names: list[str], times: np.ndarray, poses: np.ndarray, waypoint
     }
     if tracking is not None:
         trk = tracking["tracked"]
+        truth = tracking["tracked_truth"]
         cols |= {"x_trk": trk[:, :, 0].ravel(), "y_trk": trk[:, :, 1].ravel(),
                  "theta_trk": trk[:, :, 2].ravel(), "t_trk": tracking["tracked_time"].ravel(),
+                 "x_truth_trk": truth[:, :, 0].ravel(), "y_truth_trk": truth[:, :, 1].ravel(),
+                 "theta_truth_trk": wrap_angle(truth[:, :, 2].ravel()),
                  "detected": np.asarray(tracking["detected"], bool).ravel()}
-    return pa.table(cols)
+    table = pa.table(cols)
+    fields = [f.with_metadata({"unit": UNITS[f.name]}) for f in table.schema]
+    return table.cast(pa.schema(fields, metadata={"frame": FRAME}))
 
 
 def write_poses(path: str | Path, table: pa.Table) -> None:

@@ -43,6 +43,7 @@ class CameraChain:
         n = len(world.names)
         self._latest = np.full((n, 3), np.nan)
         self._latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
+        self._latest_truth = np.full((n, 3), np.nan)   # its true pose at that moment
         self._detected = np.zeros(n, bool)
         self._frames = self._dropped = 0
 
@@ -60,6 +61,7 @@ class CameraChain:
         mujoco.mj_forward(sim.model, sim.data)
         self._latest[:] = np.nan
         self._latest_time[:] = np.nan
+        self._latest_truth[:] = np.nan
         self._detected[:] = False
 
     # -- the `Hook` lifecycle: tracking at the command rate ------------------------------------
@@ -78,10 +80,10 @@ class CameraChain:
     def capture(self, sim: ChainSim) -> None:
         rgb = self.renderer.render(sim.data)         # GL work stays on this thread
         if self._pool is None:
-            self._process(rgb, sim.time)
+            self._process(rgb, sim.time, sim.poses)
             return
         self.sync()
-        self._pending = self._pool.submit(self._process, rgb, sim.time)
+        self._pending = self._pool.submit(self._process, rgb, sim.time, sim.poses)
 
     def sync(self) -> None:
         """Wait for the frame in flight (pipelined mode); a no-op otherwise."""
@@ -101,6 +103,13 @@ class CameraChain:
         return self._latest_time
 
     @property
+    def latest_truth(self) -> np.ndarray:
+        """(n, 3) true pose of each robot when `latest` was seen: the tracker's own error is
+        `latest - latest_truth`, whereas `latest - sim.poses` adds the motion since then."""
+        self.sync()
+        return self._latest_truth
+
+    @property
     def detected(self) -> np.ndarray:
         self.sync()
         return self._detected
@@ -115,7 +124,7 @@ class CameraChain:
         self.sync()
         return self._dropped
 
-    def _process(self, rgb: np.ndarray, t: float) -> None:
+    def _process(self, rgb: np.ndarray, t: float, truth: np.ndarray) -> None:
         self._frames += 1
         frame = degrade(rgb, self.episode, self.noise, self.rng)
         if frame is None:
@@ -125,6 +134,7 @@ class CameraChain:
         det = self.tracker.track(frame)
         self._latest[det.detected] = det.poses[det.detected]
         self._latest_time[det.detected] = t
+        self._latest_truth[det.detected] = truth[det.detected]
         self._detected[:] = det.detected
 
     def close(self) -> None:

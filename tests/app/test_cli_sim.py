@@ -119,3 +119,23 @@ def test_bench_prints_ratios_against_limits():
     steps = next(f for f in figs if f["name"] == "sim_steps_per_s")
     assert steps["ratio"] == pytest.approx(steps["value"] / steps["limit"], rel=1e-3)
     assert steps["ratio"] > 0.5
+
+
+def test_tracked_log_carries_the_truth_at_tracking_time_and_units(tmp_path):
+    """x_trk - x_truth_trk is the tracker's own error (mm); x_trk - x also holds the motion
+    between the frame and the log tick, which is what made a good tracker read as a bad one."""
+    out = tmp_path / "run"
+    res = cli("simulate", "--robots", "3", "--seconds", "20", "--seed", "3", "--track",
+              "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    table = pq.read_table(out / "poses.parquet")
+    assert table.schema.field("x_truth_trk").metadata[b"unit"] == b"m"
+    assert b"arena centre" in table.schema.metadata[b"frame"]
+    col = {name: table.column(name).to_numpy() for name in table.column_names
+           if name != "robot"}
+    seen = np.isfinite(col["x_trk"])
+    own = np.hypot(col["x_trk"] - col["x_truth_trk"], col["y_trk"] - col["y_truth_trk"])[seen]
+    lagged = np.hypot(col["x_trk"] - col["x"], col["y_trk"] - col["y"])[seen]
+    assert seen.mean() > 0.9
+    assert np.median(own) < 0.0015 and np.median(own) < np.median(lagged)
+    assert (col["t_trk"][seen] <= col["t"][seen] + 1e-9).all()

@@ -147,9 +147,10 @@ def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, capsys):
     assert model.is_file() and (tmp_path / "fc.pt.manifest.json").is_file()
     for name in (str(model), "heuristic2x"):
         report_path = tmp_path / f"{name[-5:]}.json"
-        code, _, err = _cli(capsys, "evaluate", "retlo", "--model", name,
-                            "--data", str(five), "--out", str(report_path))
+        code, out, err = _cli(capsys, "evaluate", "retlo", "--model", name,
+                              "--data", str(five), "--out", str(report_path))
         assert code == 0, err
+        assert "F3 (CSV F1)" in out and "F2 (CSV" not in out   # the printed names are mapped
         report = json.loads(report_path.read_text())
         assert list(report["per_robot_cm"]) == ["F2", "F3", "H"]
         assert report["csv_robot"] == {"F2": "F2", "F3": "F1", "H": "H"}

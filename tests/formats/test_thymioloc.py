@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from clitools import cli_inprocess as _cli
@@ -100,6 +102,10 @@ def test_stats_command_prints_files_side_by_side(tmp_path, capsys):
     assert code == 0
     assert "three.csv" in out and "five.csv" in out and "30.0 ± 0.0" in out and "31.0 ± 0.0" in out
     assert "speed F3" in out
+    code, out, _ = _cli(capsys, "stats", str(a), str(b), "--json")
+    rows = [json.loads(line) for line in out.splitlines()]
+    assert code == 0 and [r["file"] for r in rows] == [str(a), str(b)]
+    assert rows[0]["spacing_cm"][0] == pytest.approx(30.0) and "F3" in rows[1]["speed_cm_s"]
 
 
 GOOD = ",".join(header(3, 2)) + "\n" + ",".join(["1"] * 18) + "\n"

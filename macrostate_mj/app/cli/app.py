@@ -33,6 +33,14 @@ def _print_version(value: bool) -> None:
 
 
 @app.callback()
-def _root(version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
-                                       help="Print the version and exit.")) -> None:
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
+    quiet: bool = typer.Option(False, "--quiet/--verbose", "-q",
+                               help="No progress bars or progress lines (results and errors "
+                               "still print); goes before the command."),
+) -> None:
     """MuJoCo testbed for inferring a collective's macrostate from one member or one camera."""
+    from macrostate_mj.core.progress import set_quiet
+
+    set_quiet(quiet)

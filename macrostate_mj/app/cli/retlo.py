@@ -32,14 +32,23 @@ CSV = (".csv",)
 def stats(
     csv: list[Path] = InputFiles("ThymioLoc CSV files (real or from `collect`).", CSV),
     px_per_cm: float = PxPerCm,
+    as_json: bool = Switch(False, "One JSON object per file (its path, then the figures).",
+                           "--json/--table"),
 ) -> None:
     """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side."""
+    import json
+    from dataclasses import asdict
+
     from rich.console import Console
     from rich.table import Table
 
     from macrostate_mj.formats.thymioloc import chain_stats, read_csv
 
     found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
+    if as_json:
+        for path, stats in found:
+            print(json.dumps({"file": str(path), "px_per_cm": px_per_cm, **asdict(stats)}))
+        return
     table = Table(title=f"ThymioLoc statistics ({px_per_cm:g} px/cm, 2 Hz)")
     table.add_column("")
     unique = len({p.name for p, _ in found}) == len(found)
@@ -125,7 +134,9 @@ def evaluate_retlo(
     report = {"model": name, "data": str(data), "px_per_cm": px,
               **evaluate_chain(pred, to_world(read_csv(data).poses, px))}
     write_json_atomic(out, report)
-    robots = ", ".join(f"{r} {v:.2f}" for r, v in report["per_robot_cm"].items())
+    robots = ", ".join(f"{r} {v:.2f}" if r == report["csv_robot"][r] else
+                       f"{r} (CSV {report['csv_robot'][r]}) {v:.2f}"
+                       for r, v in report["per_robot_cm"].items())
     typer.echo(f"mean {report['mean_error_cm']:.2f} cm ({robots}) over "
                f"{report['n_instances']} instances -> {out}")
 
