@@ -112,13 +112,19 @@ def test_camera_model_projects_markers_onto_their_pixels():
     assert np.allclose(proj[:, :2] / proj[:, 2:], uv, atol=1e-6)
 
 
-def test_bench_prints_ratios_against_limits():
-    res = cli("bench", "--json", "--only", "sim")
+def test_bench_prints_ratios_against_limits_in_one_schema():
+    from macrostate_mj.app.bench import FIELDS
+
+    res = cli("bench", "--json", "--only", "sim", "--only", "render", "--only", "flow")
     assert res.returncode == 0, res.stderr
     figs = [json.loads(line) for line in res.stdout.splitlines()]
+    assert {f["suite"] for f in figs} == {"sim", "render", "flow"}
+    assert all(set(FIELDS) <= set(f) and isinstance(f["config"], str) for f in figs), figs
     steps = next(f for f in figs if f["name"] == "sim_steps_per_s")
     assert steps["ratio"] == pytest.approx(steps["value"] / steps["limit"], rel=1e-3)
     assert steps["ratio"] > 0.5
+    table = cli("bench", "--only", "render")
+    assert table.returncode == 0 and "ratio" in table.stdout, table.stderr
 
 
 def test_tracked_log_carries_the_truth_at_tracking_time_and_units(tmp_path):

@@ -11,7 +11,8 @@ import cv2
 import mujoco
 import numpy as np
 
-from macrostate_mj.app.bench.sim import _best_of, figure, record_commands, replay_bare
+from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench.sim import _best_of, record_commands, replay_bare
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world
@@ -164,7 +165,7 @@ def bench_collect(minutes: float = 1.0, robots: int = 3) -> list[dict]:
                               limit_name="bare mj_step + bare renders of the same frames, "
                               "same workers", config=tag))
         figures.append(figure(f"collect_ms_per_frame_{workers}w", t_ours / frames * 1000, "ms",
-                              t_limit / frames * 1000, config=tag,
+                              t_limit / frames * 1000, config=tag, lower_is_better=True,
                               limit_name="bare physics + render per frame"))
     wall_1w = figures[1]["value"] / 1000          # one worker's seconds per frame
     for name, sec in _stages(EpisodeSpec("lab", robots, 30.0, 0.0, 0, 0)).items():

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.app.bench.sim import _best_of, figure
+from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench.sim import _best_of
 from macrostate_mj.colony.sim import Colony, ColonyConfig
 
 

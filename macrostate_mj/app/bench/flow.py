@@ -6,6 +6,8 @@ import time
 
 import numpy as np
 
+from macrostate_mj.app.bench import figure
+
 
 def _pairs(n: int, size: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
     """Textured grey frames, each next one shifted by a random sub-frame motion."""
@@ -53,5 +55,5 @@ def bench_flow(n: int = 400, size: int = 64, repeats: int = 5) -> list[dict]:
                               lambda a, b: encode_flow(ours_fc(a, b))], pairs, repeats)
     finally:
         cv2.setNumThreads(threads)
-    return [{"name": f"flow DIS+encode {size}x{size} (1 core)", "value": ours, "unit": "pairs/s",
-             "limit": limit, "ratio": ours / limit}]
+    return [figure("flow_dis_encode_pairs_per_s", ours, "pairs/s", limit,
+                   config=f"{size}x{size}, 1 core, against bare DIS.calc")]

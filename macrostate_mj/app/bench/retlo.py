@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import time
 
+from macrostate_mj.app.bench import figure
+
 
 def _data() -> tuple[str, list, object]:
     from macrostate_mj.core.paths import real_thymioloc
@@ -66,12 +68,10 @@ def bench_retlo() -> list[dict]:
     torch.set_num_threads(cfg.threads)
     per_batch = _bare_batch_seconds(cfg, n_feat)
     floor = per_batch * info["batches"]
+    tag = f"{label}; limit: bare fwd+bwd+step x batches run"
     return [
-        {"name": f"retlo lstm training, target <= 300 s ({label})", "value": seconds,
-         "unit": "s", "limit": floor, "ratio": floor / seconds},
-        {"name": "retlo lstm epochs run (early stop)", "value": info["epochs_run"],
-         "unit": "epochs"},
-        {"name": "retlo lstm fwd+bwd+step per batch", "value": per_batch * 1e3, "unit": "ms"},
-        {"name": "retlo lstm best validation Head error", "value": info["best_val_cm"],
-         "unit": "cm"},
+        figure("retlo_lstm_train_s", seconds, "s", floor, config=tag, lower_is_better=True),
+        figure("retlo_lstm_epochs_run", info["epochs_run"], "epochs", config=label),
+        figure("retlo_lstm_batch_ms", per_batch * 1e3, "ms", config=label),
+        figure("retlo_lstm_best_val_head_cm", info["best_val_cm"], "cm", config=label),
     ]

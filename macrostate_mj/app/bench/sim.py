@@ -8,6 +8,7 @@ import time
 import mujoco
 import numpy as np
 
+from macrostate_mj.app.bench import figure
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import build_world
@@ -21,13 +22,6 @@ def _best_of(fn, repeats: int = 3) -> float:
         fn()
         best = min(best, time.perf_counter() - t0)
     return best
-
-
-def figure(name: str, value: float, unit: str, limit: float | None = None, **extra) -> dict:
-    fig = {"name": name, "value": round(value, 4), "unit": unit, **extra}
-    if limit is not None:
-        fig |= {"limit": round(limit, 4), "ratio": round(value / limit, 4)}
-    return fig
 
 
 def record_commands(sim: ChainSim, seconds: float, rng: np.random.Generator

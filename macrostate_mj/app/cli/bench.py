@@ -8,8 +8,8 @@ from rich.console import Console
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.cli.params import Choice, Switch
 
-# name -> "module:function"; each function takes no argument and returns a list of figure dicts
-# with at least {"name", "value", "unit"} and, where a limit exists, {"limit", "ratio"}.
+# name -> "module:function"; each function takes no argument and returns a list of figures made
+# by `macrostate_mj.app.bench.figure` (one schema: name, value, unit, limit, ratio, config).
 SUITES: dict[str, str] = {
     "sim": "macrostate_mj.app.bench.sim:bench_sim",
     "render": "macrostate_mj.app.bench.sim:bench_render",
@@ -30,7 +30,7 @@ def bench(
 ) -> None:
     """Measure our loops against their bare limits (simulation, rendering, tracking, ...)."""
     names = only or list(SUITES)
-    console = Console(stderr=True)
+    console, results = Console(stderr=True), Console()   # progress on stderr, figures on stdout
     for name in names:
         module, func = SUITES[name].split(":")
         with console.status(f"bench {name} ..."):
@@ -41,5 +41,5 @@ def bench(
                 print(json.dumps(fig), flush=True)
             else:
                 ratio = (f"  ratio {fig['ratio']:.3f} vs limit {fig['limit']:.4g}"
-                         if "ratio" in fig else "")
-                console.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}")
+                         if fig["ratio"] is not None else "")
+                results.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}")
