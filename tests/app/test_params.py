@@ -73,6 +73,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "oc train": ["--method", "dsvdd", "--data", d, "--out", str(out)],
         "oc evaluate": ["--model", d, "--data", d, "--out", f"{out}.json"],
         "bench": [],
+        "view": [],
     }
 
 
