@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from macrostate_mj.colony.sim import Colony, ColonyConfig, aggression, day_name, parse_days
+from macrostate_mj.core import draw
 from macrostate_mj.core.errors import UserError
 
 PRODUCTS = ["flows", "labels.csv", "boxes.csv", "video", "frames", "manifest.json"]
@@ -143,18 +144,33 @@ def _day_frames(colony: Colony, req: ColonyRequest, day: int, render: set[int] |
         # an unrendered frame is never a sample frame: the last rendered one fills its slot
         last = frame if frame is not None else last
         events[k] = evs
-        for kind, a, b, box in evs:
+        for kind, a, b, xywh in evs:
             frame_rows.append([day_name(day), k, round(k / req.fps, 4), kind, a, b,
-                               *(round(v, 2) for v in box)])
+                               *(round(v, 2) for v in xywh)])
         if writer is not None or frame_dir is not None:
             bgr = cv2.cvtColor(last, cv2.COLOR_RGB2BGR)
-            if writer is not None:
-                writer.write_bgr(bgr)
-            if frame_dir is not None:
+            if frame_dir is not None:     # the raw frames: input for `flow --frames`
                 cv2.imwrite(str(frame_dir / f"{k:06d}.jpg"), bgr)
+            if writer is not None:        # the video is for people: day, clock, true events
+                writer.write_bgr(_annotated(bgr, day, k / req.fps, evs))
         if advance is not None and k % max(1, int(req.fps)) == 0:
             advance(k / req.fps)
         yield last
+
+
+EVENT_COLOURS = {"duel": (0, 140, 255), "bite": (0, 0, 230)}   # BGR: orange, red
+
+
+def _annotated(bgr: np.ndarray, day: int, t: float, evs: list) -> np.ndarray:
+    """A copy of the frame with the day (and its label), the clock and the ground-truth duel
+    and bite boxes of this frame, as boxes.csv lists them."""
+    out = bgr.copy()
+    scale = 0.35 if out.shape[1] < 400 else 0.5
+    state = "stable" if day < 0 else "unstable"
+    draw.label(out, f"{day_name(day)} ({state})  t = {t:6.2f} s", (4, int(28 * scale)), scale)
+    for kind, a, b, xywh in evs:
+        draw.box(out, xywh, EVENT_COLOURS[kind], f"{kind} {a}-{b}")
+    return out
 
 
 def _write_csv(path: Path, header: list[str] | None, rows: list) -> None:

@@ -1,4 +1,5 @@
-"""Diagnostic MP4s of the overhead camera, with optional overlays (ids, waypoint, trails)."""
+"""Diagnostic MP4s of the overhead camera, with overlays: ids, the Head's waypoint, trails, the
+clock, the arena walls, a scale bar and (with a tracker) its detections beside the truth."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ import cv2
 import numpy as np
 
 from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.core.draw import FONT, INK, PAPER, label
 from macrostate_mj.core.io import Mp4Writer
 from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
 
-OVERLAYS = ("ids", "waypoint", "trails")
+OVERLAYS = ("ids", "waypoint", "trails", "clock", "walls", "scale", "detections")
+
 
 
 class Trails:
@@ -57,11 +60,13 @@ class VideoRecorder(Recorder):
     renamed into place only by `finish()` (an interrupted run leaves no broken video)."""
 
     def __init__(self, path: str | Path, sim: ChainSim, fps: float = 10.0,
-                 overlays: tuple[str, ...] = OVERLAYS, trail_seconds: float = 8.0):
+                 overlays: tuple[str, ...] = OVERLAYS, trail_seconds: float = 8.0,
+                 tracker: object | None = None):
         self.path = Path(path)
         self.sim = sim
         self.fps = fps
         self.overlays = overlays
+        self.tracker = tracker          # anything with `latest` (n, 3) and `detected` (n,)
         self.renderer = OverheadRenderer(sim.model)
         self.camera = PinholeCamera.from_model(sim.model, sim.data)
         self.trails = Trails(sim.n, max(2, int(trail_seconds * fps)))
@@ -73,7 +78,10 @@ class VideoRecorder(Recorder):
         poses = sim.poses
         self.trails.add(poses[:, :2])
         bgr = np.ascontiguousarray(rgb[:, :, ::-1])
-        draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays)
+        tracked = None
+        if self.tracker is not None and "detections" in self.overlays:
+            tracked = np.where(self.tracker.detected[:, None], self.tracker.latest, np.nan)
+        draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays, tracked)
         self._writer.write_bgr(bgr)
 
     @property
@@ -91,14 +99,25 @@ class VideoRecorder(Recorder):
 
 
 def draw_overlays(bgr: np.ndarray, camera: PinholeCamera, sim: ChainSim, poses: np.ndarray,
-                  trails: Trails, overlays: tuple[str, ...]) -> None:
-    z = sim.world.marker_height
+                  trails: Trails, overlays: tuple[str, ...],
+                  tracked: np.ndarray | None = None) -> None:
+    """Draw the chosen overlays in place; `tracked` (n, 3), NaN where missed, are the tracker's
+    poses of this frame (drawn as magenta crosshairs with a heading tick over the true robot)."""
+    world = sim.world
+    z = world.marker_height
 
-    def px(xy: np.ndarray) -> np.ndarray:
+    def px(xy: np.ndarray, height: float = z) -> np.ndarray:
         xy = np.atleast_2d(xy)
-        return camera.world_to_pixel(np.column_stack([xy, np.full(len(xy), z)]))
+        return camera.world_to_pixel(np.column_stack([xy, np.full(len(xy), height)]))
 
-    colours = (sim.world.colours[:, ::-1] * 255).astype(int).tolist()
+    colours = (world.colours[:, ::-1] * 255).astype(int).tolist()
+    radius = world.footprint_radius * camera.px_per_m
+    if "walls" in overlays:
+        hx, hy = np.array(world.scenario.arena) / 2
+        corners = np.round(px(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]), 0.0))
+        # walls at the frame's edge (the cameras frame the arena) are drawn just inside it
+        corners = np.clip(corners, 1, [bgr.shape[1] - 2, bgr.shape[0] - 2])
+        cv2.polylines(bgr, [corners.astype(np.int32)], True, INK, 2, cv2.LINE_AA)
     if "trails" in overlays:
         for trail, colour in zip(trails.points, colours, strict=True):
             if len(trail) > 1:
@@ -106,8 +125,41 @@ def draw_overlays(bgr: np.ndarray, camera: PinholeCamera, sim: ChainSim, poses: 
                 cv2.polylines(bgr, [pts], False, colour, 1, cv2.LINE_AA)
     if "waypoint" in overlays and sim.planner.target is not None:
         u, v = np.round(px(sim.planner.target)[0]).astype(int)
-        cv2.circle(bgr, (int(u), int(v)), 6, (0, 0, 220), -1, cv2.LINE_AA)
+        cv2.circle(bgr, (int(u), int(v)), max(3, int(radius / 3)), (0, 0, 220), -1, cv2.LINE_AA)
+    if tracked is not None:
+        _draw_detections(bgr, px, tracked, radius)
     if "ids" in overlays:
-        for name, (u, v) in zip(sim.world.names, px(poses[:, :2]), strict=True):
-            cv2.putText(bgr, name, (int(u) + 14, int(v) - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
-                        (20, 20, 20), 1, cv2.LINE_AA)
+        scale = float(np.clip(radius / 40, 0.3, 0.5))     # a label the size of the robot
+        for name, (u, v) in zip(world.names, px(poses[:, :2]), strict=True):
+            at = (int(u + 0.75 * radius), int(v - 0.75 * radius))
+            label(bgr, name, at, scale)
+    if "clock" in overlays:
+        label(bgr, f"t = {sim.time:7.2f} s", (8, 20), 0.5)
+    if "scale" in overlays:
+        _scale_bar(bgr, camera.px_per_m, world.scenario.arena[0])
+
+
+def _draw_detections(bgr: np.ndarray, px, tracked: np.ndarray, radius: float) -> None:
+    seen = np.all(np.isfinite(tracked), axis=1)
+    arm = max(3, int(radius / 3))
+    for x, y, th in tracked[seen]:
+        u, v = np.round(px(np.array([x, y]))[0]).astype(int)
+        du, dv = np.cos(th), -np.sin(th)            # image v points down
+        tip = (int(u + 2 * arm * du), int(v + 2 * arm * dv))
+        for colour, width in ((INK, 3), (PAPER, 1)):   # white on black: seen on any robot
+            cv2.drawMarker(bgr, (int(u), int(v)), colour, cv2.MARKER_CROSS, 2 * arm, width)
+            cv2.line(bgr, (int(u), int(v)), tip, colour, width, cv2.LINE_AA)
+    label(bgr, "+ tracker's pose and heading; robot = truth", (8, bgr.shape[0] - 34), 0.4)
+
+
+def _scale_bar(bgr: np.ndarray, px_per_m: float, arena_width: float) -> None:
+    """A bar of a round length, about a fifth of the arena's width, at the bottom left."""
+    length = max(m for m in (0.02, 0.05, 0.1, 0.2, 0.5, 1.0) if m <= arena_width / 4)
+    u0, v0 = 10, bgr.shape[0] - 12
+    u1 = u0 + int(round(length * px_per_m))
+    cv2.rectangle(bgr, (u0 - 4, v0 - 16), (u1 + 4, v0 + 6), PAPER, -1)
+    cv2.line(bgr, (u0, v0), (u1, v0), INK, 2)
+    for u in (u0, u1):
+        cv2.line(bgr, (u, v0 - 4), (u, v0 + 4), INK, 1)
+    text = f"{length * 100:g} cm"
+    cv2.putText(bgr, text, (u0, v0 - 6), FONT, 0.4, INK, 1, cv2.LINE_AA)

@@ -33,7 +33,7 @@ class SimulateRequest:
     video_fps: float = 10.0
     head_speed: float | None = None
     track: bool = False
-    overlays: str = "ids,waypoint,trails"
+    overlays: str = "all"
 
 
 def imaging_rng(seed: int) -> np.random.Generator:
@@ -44,10 +44,13 @@ def imaging_rng(seed: int) -> np.random.Generator:
 def parse_overlays(text: str) -> tuple[str, ...]:
     from viz.video import OVERLAYS
 
+    if text.strip() == "all":
+        return OVERLAYS
     names = () if text.strip() == "none" else tuple(n.strip() for n in text.split(",") if n)
     bad = [n for n in names if n not in OVERLAYS]
     if bad:
-        raise UserError(f"unknown overlay {bad[0]!r}; choose from {', '.join(OVERLAYS)} or none")
+        raise UserError(f"unknown overlay {bad[0]!r}; choose from {', '.join(OVERLAYS)}, all or "
+                        "none")
     return names
 
 
@@ -95,7 +98,7 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         from viz.video import VideoRecorder
 
         hooks.append(VideoRecorder(req.video, sim, fps=req.video_fps,
-                                   overlays=parse_overlays(req.overlays)))
+                                   overlays=parse_overlays(req.overlays), tracker=chain))
     if req.rerun is not None:
         from viz.rerun_log import RerunRecorder
 

@@ -111,6 +111,7 @@ class World:
     track: float
     max_wheel_speed: float
     marker_height: float        # world z of the marker's top face (the tracked plane)
+    footprint_radius: float     # the robot-robot collider's radius: the robot's outline (m)
 
     @property
     def top_speed(self) -> float:
@@ -152,5 +153,9 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
     mujoco.mj_forward(model, data)
     # The marker mesh is re-centred by MuJoCo: its geom centre is mid-thickness (1 mm prism).
     marker_top = float(data.geom_xpos[model.geom(f"{h}/marker").id][2]) + 0.0005
+    sphere = mujoco.mjtGeom.mjGEOM_SPHERE
+    colliders = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body[0]
+                 and model.geom_contype[g] == 2 and model.geom_type[g] == sphere]
+    footprint = float(model.geom_size[colliders[0], 0])
     return World(cfg, names, colours, spec, model, body, qpos_adr, qvel_adr, left, right,
-                 wheel_radius, track, max_wheel, marker_top)
+                 wheel_radius, track, max_wheel, marker_top, footprint)

@@ -63,7 +63,8 @@ class LoggedProgress(Progress):
             self._logged[task_id] = step
             elapsed = task.elapsed or 0.0
             left = task.time_remaining
-            eta = f", about {left / 60:.1f} min left" if left is not None and step < 10 else ""
+            eta = "" if left is None or step >= 10 else (
+                f", about {left:.0f} s left" if left < 90 else f", about {left / 60:.0f} min left")
             self.console.print(f"{time.strftime('%H:%M:%S')} {task.description.strip()}: "
                                f"{task.percentage:.0f} % after {elapsed / 60:.1f} min{eta}",
                                highlight=False, markup=False)

@@ -29,8 +29,10 @@ def simulate(
     out: Path = OutputDir(..., "Output folder (poses.parquet, manifest.json)."),
     video: Path = OutputFile(None, "Also render the overhead camera to this MP4.", (".mp4",)),
     rerun: Path = OutputFile(None, "Also log the run to this rerun .rrd file.", (".rrd",)),
-    overlays: str = typer.Option("ids,waypoint,trails", help="Video overlays, comma-separated "
-                                 "from ids, waypoint, trails; 'none' for the bare camera."),
+    overlays: str = typer.Option("all", help="Video overlays, comma-separated from ids, "
+                                 "waypoint, trails, clock, walls, scale, detections (the "
+                                 "tracker's, with --track); 'all', or 'none' for the bare "
+                                 "camera."),
     head_speed: float = Positive(None, "Override the scenario's Head speed (m/s), up to the "
                                  "robot's top speed."),
     track: bool = Switch(False, "Film with the overhead camera and track the markers at the "
