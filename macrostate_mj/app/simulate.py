@@ -102,7 +102,8 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     if req.rerun is not None:
         from viz.rerun_log import RerunRecorder
 
-        hooks.append(RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz, phase=sim.log_phase))
+        hooks.append(RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz, phase=sim.log_phase,
+                                   tracker=chain))
     t0 = time.perf_counter()
     failure: PhysicsError | None = None
     try:

@@ -42,16 +42,42 @@ def test_same_seed_bit_identical_parquet_other_seed_differs(tmp_path):
     assert not tables[0].equals(tables[2])
 
 
+def _rrd_rows(rrd) -> dict[str, int]:
+    """Rows logged per entity, from `rerun rrd print` (the recording as rerun reads it)."""
+    import re
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    exe = shutil.which("rerun", path=str(Path(sys.executable).parent))
+    out = subprocess.run([exe, "rrd", "print", str(rrd)], capture_output=True, text=True,
+                         check=True, env={"RERUN_ANALYTICS": "0"}).stdout
+    rows: dict[str, int] = {}
+    for n, entity in re.findall(r"with (\d+) rows .*? - (/\S+) - ", out):
+        rows[entity] = rows.get(entity, 0) + int(n)
+    return rows
+
+
 def test_video_and_rerun_outputs(tmp_path):
     video, rrd = tmp_path / "v.mp4", tmp_path / "r.rrd"
     res = cli("simulate", "--robots", "3", "--seconds", "3", "--out", str(tmp_path / "o"),
-              "--video", str(video), "--rerun", str(rrd))
+              "--video", str(video), "--rerun", str(rrd), "--track")
     assert res.returncode == 0, res.stderr
     cap = cv2.VideoCapture(str(video))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 30
+    assert int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little") == b"h264"  # plays in browsers
     ok, frame = cap.read()
     assert ok and frame.shape == (570, 750, 3)
-    assert rrd.stat().st_size > 10_000 and rrd.read_bytes()[:4] == b"RRF2"
+    assert rrd.read_bytes()[:4] == b"RRF2"
+    rows = _rrd_rows(rrd)
+    poses = rows["/world/robots"]
+    assert poses == 6 and rows["/camera/overhead"] == poses       # a frame per pose (2 Hz)
+    assert rows["/world/tracked"] == poses and rows["/metrics/tracker_error_mm/H"] >= poses - 1
+    assert "/metrics/spacing_m/H-F1" in rows and "/metrics/speed_m_s/T" in rows
+    assert rows["/world3d/H/thymio"] == poses and any(e.startswith("/world3d/H/thymio/geom")
+                                                      for e in rows)   # MJCF geometry
+    assert any(e.startswith("/view") for e in rows)               # the layout it opens on
     assert not list(tmp_path.glob(".*part*"))            # no temporary left behind
 
 
