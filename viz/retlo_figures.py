@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -86,36 +87,56 @@ def _triangle(x: float, y: float, o_deg: float, size: float) -> np.ndarray:
 
 
 def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray,
-                px_per_cm: float, fps: float = 2.0) -> Path:
-    """Fig 2.9 as an MP4: true poses as triangles, estimates as circles with heading arrows.
+                px_per_cm: float, fps: float = 2.0,
+                backdrop: Callable[[np.ndarray], np.ndarray] | None = None,
+                frame_size: tuple[int, int] | None = None,
+                colours: list[tuple[int, int, int]] | None = None) -> Path:
+    """Fig 2.9 as an MP4: truth as triangles, estimates as circles with heading arrows, robot
+    ids and a legend; over `backdrop(true pose px (robots, 3)) -> BGR camera frame` where one
+    is given (the lab scene rendered at the true poses, `frame_size` its width and height,
+    `colours` BGR of its robots' markers), else over a plain floor.
 
     true_px, est_px: (instances, steps, robots, 3) pixels/degrees in file order, est NaN where
     nothing is estimated. Instances play one after another at the 2 Hz log rate.
     """
-
     size = 11.0 * px_per_cm  # a Thymio is about 11 cm long
-    lo = np.floor(np.nanmin(true_px[..., :2], axis=(0, 1, 2)) - size).astype(int)
-    hi = np.ceil(np.nanmax(true_px[..., :2], axis=(0, 1, 2)) + size).astype(int)
-    w, h = (int(v) + int(v) % 2 for v in hi - lo)
+    lo = np.floor(np.nanmin(true_px[..., :2], axis=(0, 1, 2)) - 2 * size).astype(int)
+    hi = np.ceil(np.nanmax(true_px[..., :2], axis=(0, 1, 2)) + 2 * size).astype(int)
+    if backdrop is not None and frame_size is not None:   # the camera's frame bounds the view
+        lo, hi = np.maximum(lo, 0), np.minimum(hi, frame_size)
+    w, h = (int(v) - int(v) % 2 for v in hi - lo)
     with Mp4Writer(path, fps, (w, h)) as writer:
-        _draw(writer, true_px, est_px, lo, (w, h), size)
+        _draw(writer, true_px, est_px, lo, (w, h), size, backdrop,
+              colours or _colours(true_px.shape[2]))
     return Path(path)
 
 
 def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
-          wh: tuple[int, int], size: float) -> None:
+          wh: tuple[int, int], size: float, backdrop,
+          colours: list[tuple[int, int, int]]) -> None:
     """Write every frame of every instance to an open `Mp4Writer`."""
     import cv2
 
-    colours = _colours(true_px.shape[2])
+    from macrostate_mj.core.draw import label
+    from macrostate_mj.formats.thymioloc import robot_names
+
+    names = robot_names(true_px.shape[2])
     for inst in range(true_px.shape[0]):
         for step in range(true_px.shape[1]):
             frame = np.full((wh[1], wh[0], 3), 245, np.uint8)
+            if backdrop is not None:
+                full = backdrop(true_px[inst, step])
+                crop = full[lo[1]:lo[1] + wh[1], lo[0]:lo[0] + wh[0]]
+                frame[:crop.shape[0], :crop.shape[1]] = crop
             for r, colour in enumerate(colours):
                 x, y, o = true_px[inst, step, r]
                 tri = _triangle(x - lo[0], y - lo[1], o, size)
-                cv2.fillPoly(frame, [tri], colour, cv2.LINE_AA)
-                cv2.polylines(frame, [tri], True, (0, 0, 0), 1, cv2.LINE_AA)
+                if backdrop is None:
+                    cv2.fillPoly(frame, [tri], colour, cv2.LINE_AA)
+                cv2.polylines(frame, [tri], True, colour if backdrop is not None else (0, 0, 0),
+                              2 if backdrop is not None else 1, cv2.LINE_AA)
+                label(frame, names[r], (int(x - lo[0] + 0.6 * size), int(y - lo[1] - 0.5 * size)),
+                      0.4)
                 ex, ey, eo = est_px[inst, step, r]
                 if np.isnan(ex):
                     continue
@@ -127,6 +148,7 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
                        int(round(c[1] - np.sin(a) * size * 0.5)))
                 cv2.arrowedLine(frame, c, tip, (0, 0, 0), 2, cv2.LINE_AA, tipLength=0.35)
             known = "true history" if np.all(np.isnan(est_px[inst, step])) else "estimated"
-            cv2.putText(frame, f"instance {inst + 1}  t = {step / 2:4.1f} s  ({known})",
-                        (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+            label(frame, f"instance {inst + 1}  t = {step / 2:4.1f} s  ({known})", (8, 20), 0.5)
+            label(frame, "triangle: truth   disc + arrow: ReTLo estimate and heading",
+                  (8, wh[1] - 10), 0.4)
             writer.write_bgr(frame)

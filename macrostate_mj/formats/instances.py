@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from macrostate_mj.formats.thymioloc import from_world
+from macrostate_mj.formats.thymioloc import from_world, to_world
 
 INSTANCE_STEPS = 26
 MIN_GAP_S = 7.0
@@ -43,6 +43,17 @@ def to_thymioloc_pixels(poses: np.ndarray, arena: tuple[float, float],
     cm[..., 1] = (poses[..., 1] - arena[1] / 2) * 100      # from the top wall, y up
     cm[..., 2] = poses[..., 2]
     return from_world(cm, px_per_cm)
+
+
+def from_thymioloc_pixels(px: np.ndarray, arena: tuple[float, float],
+                          px_per_cm: float) -> np.ndarray:
+    """Inverse of `to_thymioloc_pixels`: ThymioLoc pixels/degrees -> world m, m, rad."""
+    cm = to_world(px, px_per_cm)
+    out = np.empty_like(cm)
+    out[..., 0] = cm[..., 0] / 100 - arena[0] / 2
+    out[..., 1] = cm[..., 1] / 100 + arena[1] / 2
+    out[..., 2] = cm[..., 2]
+    return out
 
 
 def split_indices(n: int, fractions: tuple[float, ...], rng: np.random.Generator

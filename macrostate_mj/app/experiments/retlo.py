@@ -88,6 +88,52 @@ def _aggregate(reports: list[dict]) -> dict:
     }
 
 
+class LabBackdrop:
+    """The lab scene rendered by its overhead camera with the robots at given ThymioLoc poses:
+    Fig 2.9's camera view. The lab camera frames the 2.5 x 1.9 m arena at 3 px/cm, so its
+    pixels are ThymioLoc pixels (real or collected); other scales get no backdrop."""
+
+    def __init__(self, n_robots: int, px_per_cm: float):
+        import mujoco
+
+        from macrostate_mj.chain.scenarios import get_scenario
+        from macrostate_mj.chain.world import build_world
+        from macrostate_mj.vision.camera import OverheadRenderer
+
+        self.cfg = get_scenario("lab")
+        self.world = build_world(self.cfg, n_robots)
+        self.data = mujoco.MjData(self.world.model)
+        self.renderer = OverheadRenderer(self.world.model)
+        self.px_per_cm = px_per_cm
+        self.size = (self.renderer.width, self.renderer.height)
+        self.colours_bgr = [tuple(int(c) for c in rgb[::-1] * 255) for rgb in self.world.colours]
+
+    def fits(self, px: np.ndarray) -> bool:
+        return (abs(self.px_per_cm - DEFAULT_PX_PER_CM) < 1e-9 and np.nanmin(px[..., :2]) >= 0
+                and all(np.nanmax(px[..., i]) < self.size[i] for i in (0, 1)))
+
+    def __call__(self, px: np.ndarray) -> np.ndarray:
+        """BGR camera frame with robot i at ThymioLoc pose px[i] (x px, y px, o deg)."""
+        import mujoco
+
+        from macrostate_mj.formats.instances import from_thymioloc_pixels
+
+        model, data = self.world.model, self.data
+        for adr, (x, y, th) in zip(self.world.qpos_adr,
+                                   from_thymioloc_pixels(px, self.cfg.arena, self.px_per_cm),
+                                   strict=True):
+            data.qpos[adr:adr + 3] = [x, y, model.qpos0[adr + 2]]
+            data.qpos[adr + 3:adr + 7] = [np.cos(th / 2), 0, 0, np.sin(th / 2)]
+        mujoco.mj_forward(model, data)
+        return np.ascontiguousarray(self.renderer.render(data)[:, :, ::-1])
+
+    def __enter__(self) -> LabBackdrop:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.renderer.close()
+
+
 def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
     """Train, test, plot, draw; return summary lines. `out` has been checked by the caller."""
     from macrostate_mj.core.progress import LoggedProgress
@@ -136,7 +182,12 @@ def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
     lstm0, _ = load_checkpoint(models_dir / "lstm_seed0.pt")
     shown = big["world"][:cfg.video_instances]
     est = predict_chain(TorchPredictor(lstm0), shown)
-    write_video(out / "fig2_9.mp4", from_world(shown, px), from_world(est, px), px)
+    true_px = from_world(shown, px)
+    with LabBackdrop(true_px.shape[2], px) as backdrop:
+        fits = backdrop.fits(true_px)
+        write_video(out / "fig2_9.mp4", true_px, from_world(est, px), px,
+                    backdrop=backdrop if fits else None, frame_size=backdrop.size,
+                    colours=backdrop.colours_bgr if fits else None)
     write_manifest(out, "experiment retlo", cfg, None, timings,
                    products=PRODUCTS, video_test=big["name"])
     return _summary(results, timings)
