@@ -107,12 +107,38 @@ def _with_feedback(net: RetloNet, worlds: list[np.ndarray],
     return {k: torch.cat([data[k], extra[k]]) for k in data}
 
 
+def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torch.Tensor],
+                 signs: dict[str, torch.Tensor], rng: np.random.Generator, cfg: TrainConfig,
+                 ) -> tuple[float, int]:
+    """One pass over shuffled mini-batches (mirrored at random): summed loss, batches run."""
+    net.train()
+    n = len(data["obs"])
+    order = torch.from_numpy(rng.permutation(n))
+    total, batches = 0.0, 0
+    for i in range(0, n, cfg.batch):
+        idx = order[i:i + cfg.batch]
+        batch = {k: v[idx] for k, v in data.items()}
+        if cfg.mirror:
+            flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
+            batch = {k: torch.where(flip.view(-1, *[1] * (v.dim() - 1)), v * signs[k], v)
+                     for k, v in batch.items()}
+        loss = _loss(net, batch, cfg.angle_weight)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        total += float(loss.detach()) * len(idx)
+        batches += 1
+    return total, batches
+
+
 def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
           progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
           ) -> tuple[RetloNet, dict]:
     """Train with Adam, keep the best closed-loop validation checkpoint, stop early.
 
     `progress` shows a bar of its own; a caller with its own bar passes `on_epoch(epoch, val_cm)`.
+    Ctrl-C after the first validated epoch stops training and returns the best checkpoint so
+    far, with `info["interrupted"]` set (before it, the interrupt propagates).
     """
     for i, w in enumerate(train_worlds):
         check_chain(w.shape, cfg.model.history, what=f"training file {i + 1}")
@@ -133,43 +159,35 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
 
     with LoggedProgress(disable=not progress, transient=True) as bar:
         task = bar.add_task(f"train {cfg.model.kind}", total=cfg.epochs)
-        for epoch in range(cfg.epochs):
-            data = {k: torch.from_numpy(v) for k, v in base.items()}
-            if cfg.feedback:
-                data = _with_feedback(net, train_worlds, data)
-            net.train()
-            n = len(data["obs"])
-            order = torch.from_numpy(rng.permutation(n))
-            total = 0.0
-            for i in range(0, n, cfg.batch):
-                idx = order[i:i + cfg.batch]
-                batch = {k: v[idx] for k, v in data.items()}
-                if cfg.mirror:
-                    flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
-                    batch = {k: torch.where(flip.view(-1, *[1] * (v.dim() - 1)), v * signs[k], v)
-                             for k, v in batch.items()}
-                loss = _loss(net, batch, cfg.angle_weight)
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                total += float(loss.detach()) * len(idx)
-                batches += 1
-            sched.step()
-            val_cm = evaluate_chain(TorchPredictor(net), val_world)["mean_error_cm"]
-            curve.append({"epoch": epoch, "train_loss": total / n, "val_cm": val_cm})
-            if val_cm < best[0]:
-                best = (val_cm, epoch, copy.deepcopy(net.state_dict()))
-            bar.update(task, advance=1, description=f"train {cfg.model.kind} epoch {epoch + 1} "
-                       f"val {val_cm:.2f} cm (best {best[0]:.2f} @ {best[1] + 1})")
-            if on_epoch is not None:
-                on_epoch(epoch, val_cm)
-            if epoch - best[1] >= cfg.patience:
-                break
+        interrupted = False
+        try:
+            for epoch in range(cfg.epochs):
+                data = {k: torch.from_numpy(v) for k, v in base.items()}
+                if cfg.feedback:
+                    data = _with_feedback(net, train_worlds, data)
+                n = len(data["obs"])
+                total, done = _train_epoch(net, opt, data, signs, rng, cfg)
+                batches += done
+                sched.step()
+                val_cm = evaluate_chain(TorchPredictor(net), val_world)["mean_error_cm"]
+                curve.append({"epoch": epoch, "train_loss": total / n, "val_cm": val_cm})
+                if val_cm < best[0]:
+                    best = (val_cm, epoch, copy.deepcopy(net.state_dict()))
+                bar.update(task, advance=1, description=f"train {cfg.model.kind} epoch {epoch + 1} "
+                           f"val {val_cm:.2f} cm (best {best[0]:.2f} @ {best[1] + 1})")
+                if on_epoch is not None:
+                    on_epoch(epoch, val_cm)
+                if epoch - best[1] >= cfg.patience:
+                    break
+        except KeyboardInterrupt:
+            if best[1] < 0:
+                raise
+            interrupted = True
     net.load_state_dict(best[2])
     net.eval()
     info = {"best_val_cm": best[0], "best_epoch": best[1] + 1, "epochs_run": len(curve),
             "train_seconds": time.perf_counter() - start, "n_samples": len(base["obs"]),
-            "batches": batches,
+            "batches": batches, "interrupted": interrupted,
             "curve": curve}
     return net, info
 

@@ -251,3 +251,26 @@ def test_heuristic_on_the_real_data_matches_the_dissertation(reference_data):
     train_csv = reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
     report = evaluate_chain(Heuristic2X(), to_world(read_csv(train_csv).poses, 3.0))
     assert 23.0 < report["per_robot_cm"]["H"] < 26.0  # "about 24 cm" (§2.6.3.1, Fig 2.7)
+
+
+def test_ctrl_c_during_training_keeps_the_best_checkpoint(tmp_path, capsys, monkeypatch):
+    import estimators.retlo.train as train_module
+
+    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(30, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(8, 3, 2), 3.0))
+    calls = []
+
+    def validate_then_interrupt(pred, world):
+        calls.append(1)
+        if len(calls) == 3:          # the user presses Ctrl-C during the third epoch
+            raise KeyboardInterrupt
+        return evaluate_chain(pred, world)
+
+    monkeypatch.setattr(train_module, "evaluate_chain", validate_then_interrupt)
+    model = tmp_path / "fc.pt"
+    code, _, err = _cli(capsys, "train", "retlo", "--model", "fc", "--train", str(train_csv),
+                        "--val", str(val_csv), "--out", str(model), "--epochs", "10")
+    assert code == 130 and "kept the best checkpoint" in err and err.strip().endswith(
+        "interrupted")
+    net, meta = load_checkpoint(model)
+    assert meta["train_info"]["interrupted"] and meta["train_info"]["epochs_run"] == 2

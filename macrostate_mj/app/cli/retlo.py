@@ -111,6 +111,10 @@ def train_retlo(
                      inputs=[str(p) for p in [*train, val]])
     typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
                f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
+    if info["interrupted"]:     # the best checkpoint so far is saved; say so and stop as Ctrl-C
+        typer.echo(f"interrupted after epoch {info['epochs_run']}; kept the best checkpoint",
+                   err=True)
+        raise KeyboardInterrupt
 
 
 @evaluate_app.command("retlo")
