@@ -1,4 +1,4 @@
-"""`view`: MuJoCo's interactive viewer with the controllers running, or one line without a display."""
+"""`view`: MuJoCo's viewer with the controllers running, or one line without a display."""
 
 import os
 import shutil

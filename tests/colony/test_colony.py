@@ -114,7 +114,7 @@ SMALL = ["--ants", "12", "--days", "D-1,D+1", "--seconds-per-day", "3", "--size"
 
 def test_simulate_end_to_end_writes_flows_labels_and_boxes(tmp_path, capsys):
     out = tmp_path / "colony"
-    code, _, err = _cli(capsys, "--out", str(out), *SMALL, "--video", "--frames")
+    code, _, err = _cli(capsys, "--out", str(out), *SMALL, "--save-video", "--save-frames")
     assert code == 0, err
     flows = out / "flows"
     stable = sorted(p.name for p in (flows / "Stable").glob("flow_x_*-0.jpg"))

@@ -31,11 +31,14 @@ def simulate(
                       min=32, max=1024),
     seed: int = Seed(0, "Seed of every random draw (per day: seed, day)."),
     prey: int = Count(0, "Number of passive prey items (crickets).", min=0, max=10),
-    video: bool = Switch(False, "Also write video/D±N.mp4 per day."),
-    frames: bool = Switch(False, "Also write frames/D±N/*.jpg per day."),
+    video: bool = Switch(False, "Also write video/D±N.mp4 per day (annotated: day, clock, "
+                         "true duel and bite boxes).", "--save-video/--no-save-video"),
+    frames: bool = Switch(False, "Also write frames/D±N/*.jpg per day (raw, for `flow "
+                          "--frames`).", "--save-frames/--no-save-frames"),
     every: float = Positive(2.0, "Seconds between flow samples."),
     gap: float = Positive(0.5, "Seconds between the two frames of a flow pair."),
-    m: int = Count(4, "Flow pairs per sample."),
+    m: int = Count(4, "Flow pairs per sample written (the dataset's sub-frames; `oc --m` "
+                   "uses up to this many)."),
     method: str = Choice("dis", "Optical-flow method.", FLOW_METHODS),
     overwrite: bool = Switch(False, "Replace earlier outputs."),
 ) -> None:

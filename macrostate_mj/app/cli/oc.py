@@ -50,7 +50,8 @@ def flow(
     frames: Path = InputDir(None, "Input: a folder of frames (natural name order)."),
     every: float = Positive(120.0, "Seconds between samples (the dissertation: 120)."),
     gap: float = Positive(0.5, "Seconds between the two frames of a pair."),
-    m: int = Count(4, "Consecutive flow pairs per sample."),
+    m: int = Count(4, "Flow pairs per sample written (the dataset's sub-frames; `oc --m` "
+                   "uses up to this many)."),
     method: str = Choice("dis", "Optical-flow method (tvl1 needs opencv-contrib).", FLOW_METHODS),
     label: str = Choice(None, "Write into OUT/Stable or OUT/Unstable.", ("Stable", "Unstable")),
     start_id: int = Count(0, "Id of the first sample written.", min=0),
@@ -109,7 +110,8 @@ def oc_train(
     data: Path = InputDir(..., "Dataset folder (Stable/, Unstable/, split1..3/)."),
     out: Path = OutputDir(..., "Model folder to write."),
     split: int = Count(1, "Split 1..3 (its stable train list is the training set).", max=3),
-    m: int = Count(2, "Flow pairs per input."),
+    m: int = Count(2, "Flow pairs per model input, at most the dataset's sub-frames (Table "
+                   "4.1's m; the dissertation's best is 2)."),
     seed: int = Seed(),
     epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe "
                                   "(0.05 = quick).", "--epoch-scale"),
