@@ -91,7 +91,7 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
         flag, value = (("--episode-minutes", req.episode_minutes) if n > 1 else
                        ("--minutes", req.minutes))
         raise UserError(f"{flag} {value:g} is too short for one {INSTANCE_STEPS}-step instance; "
-                        f"give at least {shortest:g} minutes")
+                        f"give at least {math.ceil(shortest * 100) / 100:g} minutes")
     policy = PolicyConfig(req.policy, req.sigma)
     return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
                         head_speed=req.head_speed) for i in range(n)]

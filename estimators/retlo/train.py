@@ -213,6 +213,9 @@ def save_checkpoint(path: str | os.PathLike, net: RetloNet, px_per_cm: float,
 def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:
     """Load a checkpoint written by `save_checkpoint`, refusing anything else in one line."""
     path = Path(path)
+    if path.is_dir():
+        raise UserError(f"{path} is a folder, not a checkpoint; pass a .pt from `train retlo` "
+                        "or heuristic2x")
     if not path.is_file():
         raise UserError(f"{path}: no such checkpoint; pass a .pt from `train retlo` or heuristic2x")
     try:

@@ -150,6 +150,7 @@ def test_cli_train_evaluate_and_bad_input(tmp_path):
     run = _cli("oc", "evaluate", "--model", str(model), "--data", str(data), "--split", "2",
                "--out", str(report))
     assert run.returncode == 0, run.stderr
+    assert "4 stable and 4 unstable samples is a smoke test" in run.stderr   # said, not hidden
     rep = json.loads(report.read_text())
     assert set(rep["auc_bins"]) == {"D+1", "D+2", "D+3-6", "D+7-10", "D+11-14", "D+15-18"}
     # n_stable = 20: ids 1333, 2000, 3000, 9500 sit at positions 1313, 1980, 2980, 9480
