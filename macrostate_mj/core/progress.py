@@ -67,7 +67,7 @@ class LoggedProgress(Progress):
                 f", about {left:.0f} s left" if left < 90 else f", about {left / 60:.0f} min left")
             self.console.print(f"{time.strftime('%H:%M:%S')} {task.description.strip()}: "
                                f"{task.percentage:.0f} % after {elapsed / 60:.1f} min{eta}",
-                               highlight=False, markup=False)
+                               highlight=False, markup=False, soft_wrap=True)
 
 
 @contextlib.contextmanager
