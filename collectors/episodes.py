@@ -62,5 +62,6 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     table = poses_table(world.names, times, poses, waypoints, log.tracked_arrays())
     table = table.append_column("episode", pa.array(np.full(table.num_rows, spec.index)))
     stats = {"seconds": time.perf_counter() - t0, "frames": chain.frames,
-             "dropped": chain.dropped, "steps": int(round(sim.time / sim.model.opt.timestep))}
+             "dropped": chain.dropped, "windowed": chain.windowed,
+             "steps": int(round(sim.time / sim.model.opt.timestep))}
     return spec.index, table, stats

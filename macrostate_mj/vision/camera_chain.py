@@ -4,6 +4,11 @@ It keeps the latest detection of every robot (and when it was made), as the real
 logger did: the 2 Hz pose log records whatever the 4 Hz tracker saw last, up to one command
 period earlier (`t_trk` in the log says exactly when). A robot missed in a frame keeps its previous
 tracked pose (NaN before its first detection) with `detected` False.
+
+Where every robot was seen in the previous frame, imaging and tracking run only in a window
+around each (`regions`): the window holds the marker wherever the robot can have driven in one
+period, and `imaging.regions` makes its pixels exactly as the whole frame's chain would. After
+a miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 """
 
 from __future__ import annotations
@@ -14,8 +19,9 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.vision import imaging
 from macrostate_mj.vision.camera import OverheadRenderer
-from macrostate_mj.vision.imaging import NoiseConfig, SceneConditions, degrade, draw_episode
+from macrostate_mj.vision.imaging import NoiseConfig, SceneConditions, draw_episode
 from macrostate_mj.vision.tracker import Tracker
 
 
@@ -30,7 +36,8 @@ class CameraChain:
     """
 
     def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None, pipelined: bool = False,
-                 rng: np.random.Generator | None = None, phase: float = 0.0):
+                 rng: np.random.Generator | None = None, phase: float = 0.0,
+                 windows: bool = True):
         self.sim = sim
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
@@ -45,7 +52,8 @@ class CameraChain:
         self._latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
         self._latest_truth = np.full((n, 3), np.nan)   # its true pose at that moment
         self._detected = np.zeros(n, bool)
-        self._frames = self._dropped = 0
+        self._frames = self._dropped = self._windowed = 0
+        self.windows = windows
 
     def start(self, rng: np.random.Generator) -> None:
         """Calibrate on the nominal camera, then draw this episode's conditions."""
@@ -124,14 +132,42 @@ class CameraChain:
         self.sync()
         return self._dropped
 
+    @property
+    def windowed(self) -> int:
+        """Frames processed in windows around the robots rather than whole."""
+        self.sync()
+        return self._windowed
+
+    def regions(self) -> list[tuple[int, int, int, int]] | None:
+        """Pixel windows (x0, y0, x1, y1) around every robot's last detection, or None for the
+        whole frame (a robot was missed last frame, or windows are off)."""
+        if not (self.windows and self._detected.all()):
+            return None
+        tracker, sim = self.tracker, self.sim
+        z = sim.world.marker_height
+        uv = tracker.camera.world_to_pixel(np.column_stack(
+            [self._latest[:, :2], np.full(len(self._latest), z)]))
+        reach = sim.world.top_speed * self.period * tracker.camera.px_per_m
+        half = tracker.marker_radius_px + reach + 2
+        h, w = self.renderer.height, self.renderer.width
+        rects = [(max(0, int(u - half)), max(0, int(v - half)),
+                  min(w, int(np.ceil(u + half))), min(h, int(np.ceil(v + half))))
+                 for u, v in uv]
+        return rects
+
     def _process(self, rgb: np.ndarray, t: float, truth: np.ndarray) -> None:
         self._frames += 1
-        frame = degrade(rgb, self.episode, self.noise, self.rng)
-        if frame is None:
+        draw = imaging.draw_frame(self.episode, self.noise, self.rng)
+        if draw is None:
             self._dropped += 1
             self._detected[:] = False
             return
-        det = self.tracker.track(frame)
+        rects = self.regions()
+        if rects is None:
+            det = self.tracker.track(imaging.apply_chain(rgb, self.episode, draw))
+        else:
+            self._windowed += 1
+            det = self.tracker.track_regions(imaging.regions(rgb, self.episode, draw, rects))
         self._latest[det.detected] = det.poses[det.detected]
         self._latest_time[det.detected] = t
         self._latest_truth[det.detected] = truth[det.detected]
@@ -143,3 +179,4 @@ class CameraChain:
             self._pool.shutdown()
         self.conditions.restore()
         self.renderer.close()
+

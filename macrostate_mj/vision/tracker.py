@@ -62,13 +62,42 @@ class Tracker:
         self._area_px = self.marker_area * scale**2
         self._radius_px = 1.2 * np.sqrt(self.marker_area * 2.5) * scale
 
+    @property
+    def marker_radius_px(self) -> float:
+        """How far from its centre a marker's pixels are kept (px): a generous outline."""
+        return float(self._radius_px)
+
     def track(self, rgb: np.ndarray) -> Detections:
-        hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV_FULL)
-        mask = cv2.inRange(hsv, (0, self.min_saturation, self.min_value), (255, 255, 255))
-        found = cv2.findNonZero(mask)                    # 6x faster than np.nonzero here
-        found = np.empty((0, 2), np.int32) if found is None else found.reshape(-1, 2)
-        us, vs = found[:, 0], found[:, 1]
-        hue = hsv[vs, us, 0].astype(np.int32)
+        """Detections in a whole frame."""
+        return self.track_regions([(0, 0, rgb)])
+
+    def track_regions(self, parts: list[tuple[int, int, np.ndarray]]) -> Detections:
+        """Detections from parts of a frame, each (x0, y0, image), possibly overlapping (a pixel
+        counts once): the same as `track` on a frame whose marker pixels all lie in the parts."""
+        us, vs, hue = [], [], []
+        seen: list[tuple[int, int, int, int]] = []
+        for x0, y0, img in parts:
+            hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV_FULL)
+            mask = cv2.inRange(hsv, (0, self.min_saturation, self.min_value), (255, 255, 255))
+            found = cv2.findNonZero(mask)                # 6x faster than np.nonzero here
+            box = (x0, y0, x0 + img.shape[1], y0 + img.shape[0])
+            if found is not None:
+                found = found.reshape(-1, 2)
+                u, v = found[:, 0] + x0, found[:, 1] + y0
+                fresh = np.ones(len(u), bool)
+                for a0, b0, a1, b1 in seen:              # already counted in an earlier part
+                    fresh &= ~((u >= a0) & (u < a1) & (v >= b0) & (v < b1))
+                us.append(u[fresh])
+                vs.append(v[fresh])
+                hue.append(hsv[found[fresh, 1], found[fresh, 0], 0].astype(np.int32))
+            seen.append(box)
+        if len(parts) == 1 and us:          # one part: same arrays as before, no copies
+            us, vs, hue = us[0], vs[0], hue[0]
+        elif us:
+            order = np.lexsort((np.concatenate(us), np.concatenate(vs)))  # the frame's raster
+            us, vs, hue = (np.concatenate(a)[order] for a in (us, vs, hue))
+        else:
+            us = vs = hue = np.empty(0, np.int32)
         n = len(self._hues)
         uv = np.full((n, 2), np.nan)
         axis = np.full((n, 2), np.nan)
