@@ -171,3 +171,17 @@ def test_tracked_log_carries_the_truth_at_tracking_time_and_units(tmp_path):
     assert seen.mean() > 0.9
     assert np.median(own) < 0.0015 and np.median(own) < np.median(lagged)
     assert (col["t_trk"][seen] <= col["t"][seen] + 1e-9).all()
+
+
+def test_tracker_and_collect_suites_share_the_schema():
+    """The suites too slow for `bench` in a test, run small: the same keys on every figure."""
+    from macrostate_mj.app.bench import FIELDS
+    from macrostate_mj.app.bench.collect import bench_collect, bench_tracker
+
+    figs = bench_tracker(episodes=1, seconds=3.0, robots=3) + bench_collect(
+        minutes=0.1, robots=3, repeats=1)
+    assert all(set(FIELDS) <= set(f) and isinstance(f["config"], str) for f in figs), figs
+    names = {f["name"] for f in figs}
+    assert {"collect_stage_imaging_in_windows_ms_per_frame",
+            "collect_stage_tracking_in_windows_ms_per_frame"} <= names
+    assert all(0 < f["ratio"] for f in figs if f["ratio"] is not None)
