@@ -144,11 +144,13 @@ class PoseLog:
 class ChainSim:
     """Runs one chain world; owns its MjData, planner and the controller's state."""
 
-    def __init__(self, world: World, k_t: float | None = None, planner: Planner | None = None):
+    def __init__(self, world: World, k_t: float | None = None, planner: Planner | None = None,
+                 data: mujoco.MjData | None = None):
         self.world = world
         self.cfg = world.scenario
         self.model = world.model
-        self.data = mujoco.MjData(self.model)
+        # `data`: someone else's MjData of this model (dm_control's Physics, in `env`)
+        self.data = mujoco.MjData(self.model) if data is None else data
         self.planner = planner or self.cfg.planner.build(self.cfg.arena, self.cfg.wall_margin,
                                                          self.cfg.reach_radius)
         self.k_t = self.cfg.k_t if k_t is None else k_t

@@ -98,3 +98,30 @@ def bench_render(scenario: str = "lab", robots: int = 5, frames: int = 60) -> li
         bare.close()
     return [figure("render_fps", frames / t_ours, "frames/s", frames / t_bare,
                    limit_name="bare mujoco.Renderer, same camera", config=f"{w}x{h}")]
+
+
+def bench_env(seconds: float = 60.0, robots: int = 3) -> list[dict]:
+    """One Gymnasium step of the Tail environment against the same simulated time through
+    `ChainSim` (controller and physics, no hooks): the issue's bound is 1.2x, ratio >= 0.83."""
+    from macrostate_mj.env.gym import TailEnv
+
+    env = TailEnv(robots=robots, time_limit=seconds + 1.0)
+    steps = int(round(seconds * env._task.sim.cfg.command_hz))
+    zero = np.zeros(2, np.float32)
+
+    def ours() -> None:
+        env.reset(seed=0)
+        for _ in range(steps):
+            env.step(zero)
+
+    sim = ChainSim(build_world(get_scenario("lab"), robots))
+
+    def bare() -> None:
+        sim.reset(np.random.default_rng(0))
+        sim.run(seconds, [])
+
+    t_ours, t_bare = _best_of(ours), _best_of(bare)
+    env.close()
+    return [figure("env_steps_per_s", steps / t_ours, "steps/s", steps / t_bare,
+                   config=f"ExploreTail-v0, lab, {robots} robots, truth observations, "
+                   f"{seconds:g} s episodes", limit_name="ChainSim.run of the same seconds")]

@@ -13,6 +13,7 @@ from macrostate_mj.app.cli.params import Choice, Switch
 SUITES: dict[str, str] = {
     "sim": "macrostate_mj.app.bench.sim:bench_sim",
     "render": "macrostate_mj.app.bench.sim:bench_render",
+    "env": "macrostate_mj.app.bench.sim:bench_env",
     "tracker": "macrostate_mj.app.bench.collect:bench_tracker",
     "collect": "macrostate_mj.app.bench.collect:bench_collect",
     "colony": "macrostate_mj.app.bench.colony:bench_colony",
@@ -42,4 +43,5 @@ def bench(
             else:
                 ratio = (f"  ratio {fig['ratio']:.3f} vs limit {fig['limit']:.4g}"
                          if fig["ratio"] is not None else "")
-                results.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}")
+                results.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}",
+                              soft_wrap=True)

@@ -1,0 +1,10 @@
+"""The Tail as an agent: a dm_control environment (`task`) and its Gymnasium view (`gym`).
+
+Importing this package registers the Gymnasium ids (`gymnasium.make("macrostate_mj/
+ExploreTail-v0")`). The testbed core never imports it; it imports the core.
+"""
+
+import gymnasium
+
+gymnasium.register(id="macrostate_mj/ExploreTail-v0", entry_point="macrostate_mj.env.gym:TailEnv",
+                   kwargs={"task": "explore"})

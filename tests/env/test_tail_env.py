@@ -1,0 +1,105 @@
+"""The Tail as an agent: the dm_control environment and its Gymnasium view, as an RL user tries
+them (gymnasium.make, check_env, seeding, vector envs, rendering, bad actions)."""
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import macrostate_mj.env  # noqa: F401  (registers the ids)
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.env.task import make_environment
+
+ID = "macrostate_mj/ExploreTail-v0"
+
+
+@pytest.mark.parametrize("observe", ["truth", "camera"])
+def test_check_env_passes(observe):
+    env = gymnasium.make(ID, observe=observe, render_mode="rgb_array")
+    try:
+        check_env(env.unwrapped, skip_render_check=False)
+    finally:
+        env.close()
+
+
+def _rollout(seed: int, steps: int = 40, **kw) -> np.ndarray:
+    env = gymnasium.make(ID, **kw)
+    try:
+        obs, _ = env.reset(seed=seed)
+        env.action_space.seed(seed)
+        out = [np.concatenate([obs["tail"][-1], obs["neighbour"][-1]])]
+        for _ in range(steps):
+            obs, reward, term, trunc, _ = env.step(env.action_space.sample())
+            out.append(np.concatenate([obs["tail"][-1], obs["neighbour"][-1], [reward]]))
+            if term or trunc:
+                break
+        return np.concatenate(out)
+    finally:
+        env.close()
+
+
+def test_same_seed_same_episode_other_seed_another():
+    for seed in (0, 5, 11):
+        assert np.array_equal(_rollout(seed), _rollout(seed))
+    assert not np.array_equal(_rollout(0), _rollout(1))
+
+
+def test_the_action_moves_the_tail():
+    """Offsetting the destination to the Tail's left for 5 s puts it left of where the
+    passive Tail drives (the SRS control, §3.3)."""
+    env, task = make_environment(robots=3, random=4)
+    left = np.array([0.0, task.max_offset])
+    finals = []
+    for offset in (np.zeros(2), left):
+        env.task.random.seed(4)
+        env.reset()
+        for _ in range(20):
+            env.step(offset)
+        finals.append(task.sim.poses[-1, :2])
+    assert np.linalg.norm(finals[1] - finals[0]) > 0.05
+
+
+def test_two_copies_run_in_an_async_vector_env():
+    envs = gymnasium.vector.AsyncVectorEnv([lambda: gymnasium.make(ID)] * 2)
+    try:
+        obs, _ = envs.reset(seed=[1, 2])
+        assert obs["tail"].shape == (2, 10, 3)
+        for _ in range(5):
+            obs, reward, term, trunc, _ = envs.step(envs.action_space.sample())
+        assert reward.shape == (2,) and not np.array_equal(obs["tail"][0], obs["tail"][1])
+    finally:
+        envs.close()
+
+
+def test_render_is_the_overhead_camera():
+    env = gymnasium.make(ID, render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        frame = env.render()
+        assert frame.shape == (570, 750, 3) and frame.dtype == np.uint8 and frame.std() > 5
+    finally:
+        env.close()
+
+
+def test_bad_input():
+    env = gymnasium.make(ID)
+    try:
+        env.reset(seed=0)
+        with pytest.raises(gymnasium.error.InvalidAction):
+            env.step(np.array([5.0, 0.0]))
+    finally:
+        env.close()
+    with pytest.raises(UserError, match="unknown task"):
+        make_environment(task="cage-the-moon")
+    with pytest.raises(UserError, match="observe="):
+        make_environment(observe="sonar")
+    with pytest.raises(UserError, match="do not fit"):
+        make_environment(scenario="robotarium", robots=400)
+
+
+def test_a_short_ppo_run_trains_without_error():
+    sb3 = pytest.importorskip("stable_baselines3")   # an optional extra
+    env = gymnasium.wrappers.FlattenObservation(gymnasium.make(ID))
+    model = sb3.PPO("MlpPolicy", env, n_steps=256, batch_size=64, seed=0, device="cpu")
+    model.learn(total_timesteps=1024)
+    env.close()
