@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -50,6 +50,7 @@ class AntFlowData:
     unstable_ids: tuple[int, ...]
     subframes: int  # sub-frames every sample has (the smallest count over samples)
     bins: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> [first, end) ids
+    unstable_dir: Path | None = None  # Unstable/ held apart (a dev set); default root/Unstable
 
     def split(self, k: int) -> tuple[list[int], list[int]]:
         """Stable (train, test) ids of split k."""
@@ -60,7 +61,16 @@ class AntFlowData:
         if m < 1 or m > self.subframes:
             raise UserError(f"--m {m} needs {m} sub-frames per sample but {self.root} has "
                             f"{self.subframes}; choose m in 1..{self.subframes}")
-        return load_samples(self.root / label, ids, m)
+        folder = self.unstable_dir if label == "Unstable" and self.unstable_dir else (
+            self.root / label)
+        return load_samples(folder, ids, m)
+
+    def with_unstable(self, folder: str | Path) -> AntFlowData:
+        """The same stable samples, splits and bins, with the unstable samples of `folder` (a
+        dev set such as OpticalFlows_HsAnts-dev/Unstable, whose ids are the full colony's)."""
+        ids, subframes = _index(Path(folder))
+        return replace(self, unstable_ids=ids, subframes=min(self.subframes, subframes),
+                       unstable_dir=Path(folder))
 
     def time_bin(self, ids: list[int] | tuple[int, ...]) -> list[str | None]:
         """Day bin of each unstable id (None when it falls outside every bin)."""
@@ -81,17 +91,22 @@ def open_dataset(root: str | Path) -> AntFlowData:
         if not folder.is_dir():
             raise UserError(f"dataset {root} has no {label}/ folder; point --data at the folder "
                             "holding Stable/, Unstable/ and split1..3/")
-        counts: dict[int, int] = {}
-        for name in (p.name for p in folder.iterdir()):
-            hit = SAMPLE_NAME.match(name)
-            if hit:
-                counts[int(hit.group(1))] = counts.get(int(hit.group(1)), 0) + 1
-        if not counts:
-            raise UserError(f"{folder} holds no flow_x_*.jpg samples; extract flows first")
-        ids[label] = tuple(sorted(counts))
-        subs.append(min(counts.values()))
+        ids[label], sub = _index(folder)
+        subs.append(sub)
     return AntFlowData(root, ids["Stable"], ids["Unstable"], min(subs),
                        _read_bins(root, len(ids["Stable"])))
+
+
+def _index(folder: Path) -> tuple[tuple[int, ...], int]:
+    """Sample ids in a folder of samples, and the sub-frames every one of them has."""
+    counts: dict[int, int] = {}
+    for name in (p.name for p in folder.iterdir()):
+        hit = SAMPLE_NAME.match(name)
+        if hit:
+            counts[int(hit.group(1))] = counts.get(int(hit.group(1)), 0) + 1
+    if not counts:
+        raise UserError(f"{folder} holds no flow_x_*.jpg samples; extract flows first")
+    return tuple(sorted(counts)), min(counts.values())
 
 
 def _read_bins(root: Path, n_stable: int) -> dict[str, tuple[int, int]]:

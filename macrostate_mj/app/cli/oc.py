@@ -153,19 +153,31 @@ def oc_evaluate(
     out: Path = OutputFile(..., "Report to write.", (".json",)),
     split: int = Count(1, "Split whose stable test list is scored.", max=3),
     method: str = Choice(None, "Method to score (default: the model's last).", METHODS),
+    unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
+                              "(a dev set; ids of the full colony, so bins hold)."),
+    baseline: str = Choice(None, "Also test the method against this one of the same model "
+                           "(paired stratified bootstrap, overall and per bin).", METHODS),
+    intervals: bool = Switch(True, "Bootstrap 95 % intervals of every AUC (2,000 resamples)."),
     overwrite: bool = Switch(False, "Replace an earlier report."),
 ) -> None:
-    """AUC of stable test vs unstable samples (unstable = positive), overall and per time bin."""
+    """AUC of stable test vs unstable samples (unstable = positive), overall and per time bin,
+    with bootstrap intervals and, against a baseline, paired p-values."""
     from macrostate_mj.core.io import check_writable_file, write_json_atomic
 
     check_writable_file(out, overwrite, "--out")
     from estimators.oneclass import OCModel
-    from estimators.oneclass.metrics import auc_report
+    from estimators.oneclass.metrics import auc_report, interval_report, paired_report
     from macrostate_mj.formats.hsants import open_dataset
 
     oc = OCModel.load(model)
     meth = method or oc.methods[-1]
+    for name in (meth, baseline):
+        if name is not None and name not in oc.methods:
+            raise UserError(f"{model} holds {', '.join(oc.methods)}, not {name}; train it with "
+                            f"`oc train --method {name}` or choose another")
     d = open_dataset(data)
+    if unstable is not None:
+        d = d.with_unstable(unstable)
     _, test = d.split(split)
     m = oc.channels // 2
     n_unstable = len(d.unstable_ids)
@@ -175,13 +187,27 @@ def oc_evaluate(
     if min(len(test), n_unstable) < FEW_AUC_SAMPLES:
         typer.echo(f"note: an AUC from {len(test)} stable and {n_unstable} unstable samples is "
                    "a smoke test, not a measurement", err=True)
-    report = auc_report(oc.score(meth, d.load("Stable", test, m)),
-                        oc.score(meth, d.load("Unstable", d.unstable_ids, m)),
-                        d.time_bin(d.unstable_ids), tuple(d.bins))
-    report.update(method=meth, split=split, m=m, model=str(model), data=str(data))
+    x_stable, x_unstable = d.load("Stable", test, m), d.load("Unstable", d.unstable_ids, m)
+    s_stable, s_unstable = oc.score(meth, x_stable), oc.score(meth, x_unstable)
+    bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
+    report = auc_report(s_stable, s_unstable, bins, names)
+    if intervals:
+        report["auc_ci95"] = interval_report(s_stable, s_unstable, bins, names)
+    if baseline is not None:
+        report["vs_baseline"] = {"baseline": baseline, **paired_report(
+            s_stable, s_unstable, oc.score(baseline, x_stable), oc.score(baseline, x_unstable),
+            bins, names)}
+    report.update(method=meth, split=split, m=m, model=str(model), data=str(data),
+                  unstable=str(unstable or d.root / "Unstable"))
     write_json_atomic(out, report)
-    bins = ", ".join(f"{k} {v:.3f}" for k, v in report["auc_bins"].items() if v is not None)
-    typer.echo(f"{meth}: AUC {report['auc_all']:.3f} ({bins}) -> {out}")
+    ci = report.get("auc_ci95", {}).get("all")
+    band = f" [{ci[0]:.3f}, {ci[1]:.3f}]" if ci else ""
+    bins_text = ", ".join(f"{k} {v:.3f}" for k, v in report["auc_bins"].items() if v is not None)
+    typer.echo(f"{meth}: AUC {report['auc_all']:.3f}{band} ({bins_text}) on "
+               f"{report['n_unstable']} unstable -> {out}")
+    if baseline is not None:
+        vs = report["vs_baseline"]["all"]
+        typer.echo(f"  vs {baseline}: {vs['diff']:+.3f} (paired bootstrap p = {vs['p']:.3g})")
 
 
 @experiment_app.command("oc")
