@@ -14,7 +14,7 @@ import torch  # noqa: E402
 from estimators.oneclass import train as T  # noqa: E402
 from estimators.oneclass.model import METHODS, OCModel, flow_magnitude  # noqa: E402
 from macrostate_mj.core.io import atomic_path, write_text_atomic  # noqa: E402
-from macrostate_mj.formats.hsants import AntFlowData, load_images  # noqa: E402
+from macrostate_mj.formats.hsants import AntFlowData, load_images, sample_file  # noqa: E402
 from viz import gradcam as gc  # noqa: E402
 from viz.figures import save_png
 
@@ -96,12 +96,15 @@ def gradcam_outputs(folder: Path, model: OCModel, d: AntFlowData, xu: np.ndarray
     maps = gc.upsample(gc.gradcam(model.dsvdd, model.classifiers["iogen"], xu))
     top = gc.top_share(maps)  # position-wise minimum over all unstable samples
     order = np.argsort(-model.score("iogen", xu))[:n]
-    imgs = load_images(d.root / "Unstable", [d.unstable_ids[i] for i in order], m)
-    gc.write_png(folder / "overlay_raw.png", gc.overlay_grid(imgs, maps[order]))
-    gc.write_png(folder / "overlay_top5.png", gc.overlay_grid(imgs, top[order]))
-    frames = [gc.overlay(f, top[i]) for i, fs in zip(order, imgs, strict=True) for f in fs]
-    gc.write_mp4(folder / "overlay_top5.mp4", [np.kron(f, np.ones((4, 4, 1), np.uint8))
-                                               for f in frames], fps=2.0)
+    source = d.unstable_dir or d.root / "Unstable"
+    ids = [d.unstable_ids[i] for i in order]
+    if all((source / sample_file("img", i, 0)).is_file() for i in ids):  # a dev set has none
+        imgs = load_images(source, ids, m)
+        gc.write_png(folder / "overlay_raw.png", gc.overlay_grid(imgs, maps[order]))
+        gc.write_png(folder / "overlay_top5.png", gc.overlay_grid(imgs, top[order]))
+        frames = [gc.overlay(f, top[i]) for i, fs in zip(order, imgs, strict=True) for f in fs]
+        gc.write_mp4(folder / "overlay_top5.mp4", [np.kron(f, np.ones((4, 4, 1), np.uint8))
+                                                   for f in frames], fps=2.0)
     with atomic_path(folder / "heatmaps.npy") as tmp, open(tmp, "wb") as fh:
         np.save(fh, maps)
     out = {"samples": [int(d.unstable_ids[i]) for i in order],

@@ -105,8 +105,9 @@ def flow(
 
 @oc_app.command("train")
 def oc_train(
-    method: str = Choice(..., "The one-class method (README: Ant colony), or all of them.",
-                         (*METHODS, "all")),
+    method: list[str] = Choice(..., "The one-class method (README: Ant colony), or all of "
+                               "them; repeat it to train several on shared stages.",
+                               (*METHODS, "all")),
     data: Path = InputDir(..., "Dataset folder (Stable/, Unstable/, split1..3/)."),
     out: Path = OutputDir(..., "Model folder to write."),
     split: int = Count(1, "Split 1..3 (its stable train list is the training set).", max=3),
@@ -121,7 +122,7 @@ def oc_train(
     overwrite: bool = Switch(False, "Replace an earlier model."),
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
-    methods = tuple(METHODS) if method == "all" else (method,)
+    methods = tuple(METHODS) if "all" in method else tuple(dict.fromkeys(method))
     from macrostate_mj.core.io import prepare_out_dir, write_manifest
 
     prepare_out_dir(out, ["weights.pt", "model.json"], overwrite)
@@ -221,6 +222,8 @@ def experiment_oc(
     epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe.",
                                   "--epoch-scale"),
     quick: bool = Switch(False, "Smoke run: epoch scale x0.03, 200 train samples."),
+    unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
+                              "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
     overwrite: bool = Switch(False, "Replace earlier outputs."),
 ) -> None:
@@ -243,7 +246,8 @@ def experiment_oc(
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
     cfg = OCConfig(seed=seed, threads=threads).scaled(epoch_scale * (0.03 if quick else 1.0))
-    exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None)
+    exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
+                       unstable=unstable)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     with stage_progress() as tick:

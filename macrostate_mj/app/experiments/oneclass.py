@@ -25,6 +25,7 @@ class OCExperiment:
     config: OCConfig = OCConfig()
     max_train: int | None = None  # subsample the stable train split (quick runs only)
     gradcam_samples: int = 6
+    unstable: Path | None = None   # unstable samples held apart (a dev set), else data/Unstable
 
 
 def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int):
@@ -45,6 +46,8 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     from viz import oneclass_figures as figures
 
     d = open_dataset(exp.data)
+    if exp.unstable is not None:
+        d = d.with_unstable(exp.unstable)
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     runs: dict[str, dict[str, dict]] = {}
