@@ -242,3 +242,17 @@ def test_evaluate_on_a_held_apart_unstable_set_with_intervals_and_a_baseline(tmp
     assert lo <= rep["auc_all"] <= hi
     assert rep["vs_baseline"]["baseline"] == "dsvdd" and 0 <= rep["vs_baseline"]["all"]["p"] <= 1
     assert "vs dsvdd" in run.stdout
+
+
+def test_significance_marks_need_every_split_to_agree():
+    from macrostate_mj.app.experiments.oneclass import significance_marks
+
+    def t(diff, p):
+        return {"diff": diff, "p": p}
+
+    splits = [{"all": t(0.05, 0.01), "bins": {"D+1": t(0.1, 0.001), "D+2": t(-0.1, 0.01),
+                                              "D+3-6": None}},
+              {"all": t(0.04, 0.03), "bins": {"D+1": t(0.1, 0.2), "D+2": t(-0.2, 0.001),
+                                              "D+3-6": t(0.3, 0.0)}}]
+    assert significance_marks(splits, ("D+1", "D+2", "D+3-6")) == {
+        "all": "+", "D+1": "", "D+2": "-", "D+3-6": ""}

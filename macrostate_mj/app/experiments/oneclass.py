@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.oneclass.metrics import auc_report
+from estimators.oneclass.metrics import auc_report, paired_report
 from estimators.oneclass.model import METHODS, OCModel, fit, flow_weight
 from estimators.oneclass.train import OCConfig, Tick
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
@@ -41,6 +41,23 @@ def _mean_std(values: list[float | None]) -> dict[str, float | None]:
     return {"mean": float(v.mean()) if len(v) else None, "std": float(v.std()) if len(v) else None}
 
 
+def significance_marks(tests: list[dict], names: tuple[str, ...], alpha: float = 0.05
+                       ) -> dict[str, str]:
+    """Per bin (and "all"): "+" where IO-GEN beats DSVDD with p < alpha on every split, "-"
+    where it loses so on every split, "" otherwise (paired stratified bootstrap per split)."""
+    def mark(per_split: list[dict | None]) -> str:
+        if any(t is None for t in per_split):
+            return ""
+        if all(t["p"] < alpha and t["diff"] > 0 for t in per_split):
+            return "+"
+        if all(t["p"] < alpha and t["diff"] < 0 for t in per_split):
+            return "-"
+        return ""
+
+    return {"all": mark([t["all"] for t in tests]),
+            **{b: mark([t["bins"][b] for t in tests]) for b in names}}
+
+
 def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     """Train and score every (m, split); summarise; draw the figures into `out`."""
     from viz import oneclass_figures as figures
@@ -58,9 +75,12 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
             methods = METHODS if m == main_m else ("iogen",)
             cfg = replace(exp.config, m=m)
             model = fit(x, methods, cfg, lambda s, f, m=m, k=split: tick(f"m={m} split {k} {s}", f))
+            scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
             runs[f"m{m}_split{split}"] = {
-                meth: auc_report(model.score(meth, xs), model.score(meth, xu), bins, names)
-                for meth in methods}
+                meth: auc_report(*scores[meth], bins, names) for meth in methods}
+            if m == main_m:   # Fig 4.8's marks: IO-GEN against DSVDD on the same samples
+                runs[f"m{m}_split{split}"]["iogen_vs_dsvdd"] = paired_report(
+                    *scores["iogen"], *scores["dsvdd"], bins, names, seed=exp.config.seed)
             if m == main_m and keep is None:
                 keep = (model, x, xs, xu)
     table41 = {m: _mean_std([runs[f"m{m}_split{k}"]["iogen"]["auc_all"] for k in exp.splits])
@@ -69,19 +89,22 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
                for meth in METHODS}
     fig48 = {meth: {b: _mean_std([runs[f"m{main_m}_split{k}"][meth]["auc_bins"][b]
                                   for k in exp.splits]) for b in names} for meth in METHODS}
-    results = {"table4_1_iogen_auc_by_m": table41, f"table4_2_auc_m{main_m}": table42,
+    marks = significance_marks([runs[f"m{main_m}_split{k}"]["iogen_vs_dsvdd"]
+                                for k in exp.splits], names)
+    results = {"table4_1_iogen_auc_by_m": table41, "fig4_8_iogen_vs_dsvdd_marks": marks,
+               f"table4_2_auc_m{main_m}": table42,
                f"fig4_8_auc_by_bin_m{main_m}": fig48, "runs": runs,
                "n_unstable": len(d.unstable_ids), "n_unstable_by_bin":
                    {b: bins.count(b) for b in names}}
     weights = _flow_weights(d)
     figures.flow_weight_figure(out / PRODUCTS[2], *weights)
-    figures.bins_figure(out / PRODUCTS[3], fig48)
+    figures.bins_figure(out / PRODUCTS[3], fig48, marks)
     model, x, xs, xu = keep
     results["fig4_10"] = figures.model_figures(out / PRODUCTS[4], out / PRODUCTS[5], model, x, xs,
                                                xu)
     results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xu,
                                                  exp.gradcam_samples, main_m)
-    figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids))
+    figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks)
     return results
 
 
