@@ -34,16 +34,29 @@ def stats(
     px_per_cm: float = PxPerCm,
     as_json: bool = Switch(False, "One JSON object per file (its path, then the figures).",
                            "--json/--table"),
+    compare: bool = Switch(False, "Two files (SIM REAL): compare distributions, per robot and "
+                           "pooled, with the Kolmogorov-Smirnov distance of each feature."),
+    plot: Path = OutputFile(None, "With --compare: histograms side by side to this PNG.",
+                            (".png",)),
+    overwrite: bool = Switch(False, "Replace an existing --plot."),
 ) -> None:
-    """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side."""
+    """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side;
+    with --compare, the distributions of two files and their KS distances."""
     import json
     from dataclasses import asdict
 
     from rich.console import Console
     from rich.table import Table
 
+    from macrostate_mj.core.errors import UserError
     from macrostate_mj.formats.thymioloc import chain_stats, read_csv
 
+    if compare or plot is not None:
+        if not compare or len(csv) != 2:
+            raise UserError("--compare takes exactly two files (SIM.csv REAL.csv), and --plot "
+                            "needs --compare")
+        _compare(csv, px_per_cm, plot, overwrite, as_json)
+        return
     found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
     if as_json:
         for path, stats in found:
@@ -172,6 +185,45 @@ def experiment_retlo(
     summary = run_experiment(cfg, out)
     for line in summary:
         typer.echo(line)
+
+
+def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bool,
+             as_json: bool) -> None:
+    import json
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from macrostate_mj.core.io import check_writable_file
+    from macrostate_mj.formats import motion_stats
+    from macrostate_mj.formats.thymioloc import read_csv
+
+    if plot is not None:
+        check_writable_file(plot, overwrite, "--plot")
+    poses = [read_csv(p).poses for p in csv]
+    motion_stats.check_comparable(poses[0].shape, poses[1].shape, (csv[0].name, csv[1].name))
+    feats = [motion_stats.features(p, px_per_cm) for p in poses]
+    rows = motion_stats.compare(*feats)
+    if plot is not None:
+        from viz.compare_figures import compare_figure
+
+        compare_figure(plot, *feats, rows, (csv[0].name, csv[1].name))
+    if as_json:
+        for row in rows:
+            print(json.dumps({"files": [str(p) for p in csv], **row}))
+        return
+    table = Table(title=f"{csv[0].name} vs {csv[1].name}: median (mean) and KS distance")
+    for col in ("feature", "robot", csv[0].name, csv[1].name, "KS", "p"):
+        table.add_column(col, justify="left" if col in ("feature", "robot") else "right")
+    for r in rows:
+        if r["feature"].endswith(tuple(f"lag{k}" for k in range(2, 11))) and r["robot"] != "pooled":
+            continue            # lags 2..10 pooled only; --json has every row
+        table.add_row(r["feature"], r["robot"],
+                      *(f"{r['median'][i]:.3g} ({r['mean'][i]:.3g})" for i in (0, 1)),
+                      f"{r['ks']:.3f}", f"{r['p']:.2g}")
+    Console(width=120).print(table)
+    if plot is not None:
+        print(f"plot      {plot}")
 
 
 def _manifest_beside(path: Path, command: str, config: object, seed: int | None,
