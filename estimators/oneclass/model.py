@@ -13,10 +13,12 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -25,6 +27,7 @@ from estimators.oneclass import METHODS
 from estimators.oneclass import train as T
 from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.io import atomic_path
 from macrostate_mj.vision.flow import BOUND
 
 # stages each method needs, in training order
@@ -56,6 +59,7 @@ class OCModel:
     classifiers: dict[str, Classifier] = field(default_factory=dict)
     ocsvm: dict[str, torch.Tensor] = field(default_factory=dict)
     history: dict[str, list[float]] = field(default_factory=dict)
+    resumed: list[str] = field(default_factory=list)   # stages reused from disk (not saved)
 
     def score(self, method: str, x: np.ndarray) -> np.ndarray:
         """Novelty score per sample; larger means more likely unstable."""
@@ -144,9 +148,45 @@ class OCModel:
         return model
 
 
+class StageCache:
+    """Each finished training stage kept on disk (`stages/<name>.pt`) with the generator and
+    torch states after it, so that a killed run resumes from its last finished stage and ends
+    with the same weights as an uninterrupted one. A stage file made with another config or
+    other inputs is not reused (`key`)."""
+
+    def __init__(self, folder: Path | None, key: str, gen: torch.Generator):
+        self.folder, self.key, self.gen = folder, key, gen
+        self.reused: list[str] = []
+
+    def run(self, name: str, train: Callable[[], Any]) -> Any:
+        path = None if self.folder is None else self.folder / f"{name}.pt"
+        if path is not None and path.is_file():
+            saved = torch.load(path, map_location="cpu", weights_only=False)
+            if saved.get("key") == self.key:
+                self.gen.set_state(saved["gen"])
+                torch.set_rng_state(saved["torch"])
+                self.reused.append(name)
+                return saved["out"]
+        out = train()
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as tmp:
+                torch.save({"key": self.key, "out": out, "gen": self.gen.get_state(),
+                            "torch": torch.get_rng_state()}, tmp)
+        return out
+
+
+def stage_key(x: np.ndarray, cfg: T.OCConfig) -> str:
+    """What a stage's result depends on: the inputs' bytes and the whole config."""
+    digest = hashlib.sha1(np.ascontiguousarray(x).tobytes())
+    digest.update(json.dumps(asdict(cfg), sort_keys=True).encode())
+    return digest.hexdigest()
+
+
 def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | None = None,
-        ) -> OCModel:
-    """Train every stage `methods` need on stable training inputs x (N × 2m × 64 × 64)."""
+        stages_dir: Path | None = None) -> OCModel:
+    """Train every stage `methods` need on stable training inputs x (N × 2m × 64 × 64); with
+    `stages_dir`, keep each finished stage there and reuse those already done (`StageCache`)."""
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise UserError(f"unknown method {unknown[0]!r}; choose from {', '.join(METHODS)}")
@@ -154,6 +194,7 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)  # weight initialisation
     gen = torch.Generator().manual_seed(cfg.seed)
+    cache = StageCache(stages_dir, stage_key(x, cfg), gen)
     perm = np.random.default_rng(cfg.seed).permutation(len(x))
     n_val = max(1, round(len(x) * cfg.val_fraction))
     xall = torch.from_numpy(np.ascontiguousarray(x)).to(cfg.device)
@@ -161,25 +202,33 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     model = OCModel(cfg, tuple(methods), x.shape[1])
     stages = {s for m in methods for s in NEEDS[m]}
     if "dcae" in stages:
-        model.ae, model.history["dcae_val"] = T.train_dcae(xtr, xval, cfg, gen, tick)
+        model.ae, model.history["dcae_val"] = cache.run(
+            "dcae", lambda: T.train_dcae(xtr, xval, cfg, gen, tick))
     if "ocsvm" in stages:
-        model.ocsvm = fit_ocsvm(T.encode(model.ae.encoder, xall).cpu(), cfg.ocsvm_nu)
+        model.ocsvm = cache.run("ocsvm", lambda: fit_ocsvm(T.encode(model.ae.encoder, xall).cpu(),
+                                                           cfg.ocsvm_nu))
     if "dsvdd" in stages:
-        model.dsvdd, model.c, model.history["dsvdd_val"] = T.train_dsvdd(
-            model.ae, xtr, xval, cfg, gen, tick)
+        model.dsvdd, model.c, model.history["dsvdd_val"] = cache.run(
+            "dsvdd", lambda: T.train_dsvdd(model.ae, xtr, xval, cfg, gen, tick))
     for kind in ("iogen", "gen"):
         if kind in stages:
-            model.generators[kind], log = T.train_generator(
-                model.ae, model.dsvdd, model.c, xtr, cfg, gen, tick, kind)
+            model.generators[kind], log = cache.run(kind, lambda kind=kind: T.train_generator(
+                model.ae, model.dsvdd, model.c, xtr, cfg, gen, tick, kind))
             model.history.update({f"{kind}_{k}": v[::10] for k, v in log.items()})
     if any(s.startswith("cls_") for s in stages):
         real, real_val = T.encode(model.dsvdd, xtr), T.encode(model.dsvdd, xval)
         for kind in ("iogen", "gen", "ngen"):
             if f"cls_{kind}" not in stages:
                 continue
-            fake, fake_val = _synthetic(model, kind, 2 * len(xtr), len(xval), gen)
-            model.classifiers[kind], model.history[f"cls_{kind}_val"] = T.train_classifier(
-                real, real_val, fake, fake_val, model.c, cfg, gen, tick, f"CLS-{kind.upper()}")
+
+            def classifier(kind: str = kind) -> tuple:
+                fake, fake_val = _synthetic(model, kind, 2 * len(xtr), len(xval), gen)
+                return T.train_classifier(real, real_val, fake, fake_val, model.c, cfg, gen,
+                                          tick, f"CLS-{kind.upper()}")
+
+            model.classifiers[kind], model.history[f"cls_{kind}_val"] = cache.run(
+                f"cls_{kind}", classifier)
+    model.resumed = cache.reused
     return model
 
 

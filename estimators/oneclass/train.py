@@ -10,12 +10,14 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from estimators.oneclass.nets import DCAE, LATENT, Classifier, Discriminator, Encoder, Generator
+from macrostate_mj.core.errors import UserError
 
 Tick = Callable[[str, float], None]  # (stage, completed fraction) -> None, for a progress bar
 
@@ -50,6 +52,15 @@ class OCConfig:
     threads: int = 1
     device: str = "cpu"  # "cuda" where a GPU exists; random draws stay on the CPU generator
 
+    @classmethod
+    def recipe(cls, name: str, **kw: Any) -> OCConfig:
+        """A named recipe: "short" (these defaults, for a 2-core CPU) or "published" (the
+        epoch and step counts of the published code: DCAE 750, DSVDD 160, 20,000 GAN steps,
+        classifier 40)."""
+        if name not in RECIPES:
+            raise UserError(f"unknown recipe {name!r}; choose one of {', '.join(RECIPES)}")
+        return cls(**{**RECIPES[name], **kw})
+
     def scaled(self, factor: float) -> OCConfig:
         """The same recipe with every epoch/step count scaled (for --quick runs and tests)."""
         def k(n: int) -> int:
@@ -57,6 +68,12 @@ class OCConfig:
         return OCConfig(**{**self.__dict__, "dcae_epochs": k(self.dcae_epochs),
                            "dsvdd_epochs": k(self.dsvdd_epochs), "gan_steps": k(self.gan_steps),
                            "cls_epochs": k(self.cls_epochs)})
+
+
+RECIPES: dict[str, dict[str, int]] = {
+    "short": {},
+    "published": {"dcae_epochs": 750, "dsvdd_epochs": 160, "gan_steps": 20_000, "cls_epochs": 40},
+}
 
 
 def cl(x: torch.Tensor) -> torch.Tensor:

@@ -256,3 +256,26 @@ def test_significance_marks_need_every_split_to_agree():
                                               "D+3-6": t(0.3, 0.0)}}]
     assert significance_marks(splits, ("D+1", "D+2", "D+3-6")) == {
         "all": "+", "D+1": "", "D+2": "-", "D+3-6": ""}
+
+
+def test_a_killed_training_resumes_from_its_last_stage_with_the_same_weights(tmp_path):
+    """Stages cached on disk: a rerun that finds dcae and dsvdd done (the later stages lost, as
+    when a run is killed) ends with the same scores as one uninterrupted run."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(0, 0.1, (40, 4, 64, 64)).astype(np.float32)
+    probe = rng.normal(0, 0.3, (6, 4, 64, 64)).astype(np.float32)
+    cfg = OCConfig.recipe("short", seed=2).scaled(0.02)
+    plain = fit(x, ("dsvdd", "iogen"), cfg)
+    stages = tmp_path / "stages"
+    first = fit(x, ("dsvdd", "iogen"), cfg, stages_dir=stages)
+    assert {p.stem for p in stages.iterdir()} == {"dcae", "dsvdd", "iogen", "cls_iogen"}
+    for late in ("iogen", "cls_iogen"):
+        (stages / f"{late}.pt").unlink()
+    resumed = fit(x, ("dsvdd", "iogen"), cfg, stages_dir=stages)
+    assert resumed.resumed == ["dcae", "dsvdd"]
+    for meth in ("dsvdd", "iogen"):
+        assert np.array_equal(plain.score(meth, probe), first.score(meth, probe))
+        assert np.array_equal(plain.score(meth, probe), resumed.score(meth, probe))
+    other = fit(x, ("dsvdd",), OCConfig.recipe("short", seed=3).scaled(0.02), stages_dir=stages)
+    assert other.resumed == []                      # another config: nothing reused
+    assert OCConfig.recipe("published").gan_steps == 20_000

@@ -114,7 +114,10 @@ def oc_train(
     m: int = Count(2, "Flow pairs per model input, at most the dataset's sub-frames (Table "
                    "4.1's m; the dissertation's best is 2)."),
     seed: int = Seed(),
-    epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe "
+    recipe: str = Choice("short", "Epoch and step counts: short (for a 2-core CPU) or "
+                         "published (the published code's; hours on a CPU).",
+                         ("short", "published")),
+    epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the recipe "
                                   "(0.05 = quick).", "--epoch-scale"),
     threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
                          "threads).", max=MAX_WORKERS),
@@ -136,14 +139,16 @@ def oc_train(
     d = open_dataset(data)
     train, _ = d.split(split)
     x = d.load("Stable", train, m)
-    cfg = OCConfig(m=m, seed=seed, threads=threads, device=device).scaled(epoch_scale)
+    cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device).scaled(
+        epoch_scale)
     t0 = time.perf_counter()
-    with stage_progress() as tick:
-        model = fit(x, methods, cfg, tick)
+    with stage_progress() as tick:     # finished stages wait in OUT/stages: a rerun resumes
+        model = fit(x, methods, cfg, tick, stages_dir=out / "stages")
     out.mkdir(parents=True, exist_ok=True)
     model.save(out)
     write_manifest(out, "oc train", cfg, seed, {"train": time.perf_counter() - t0},
-                   methods=list(methods), data=data, split=split, n_train=len(x))
+                   methods=list(methods), data=data, split=split, n_train=len(x), recipe=recipe,
+                   resumed_stages=model.resumed)
     typer.echo(f"trained {', '.join(methods)} on {len(x)} stable samples -> {out}")
 
 
@@ -221,6 +226,9 @@ def experiment_oc(
     seed: int = Seed(),
     epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe.",
                                   "--epoch-scale"),
+    recipe: str = Choice("short", "Epoch and step counts: short (for a 2-core CPU) or "
+                         "published (the published code's; hours on a CPU).",
+                         ("short", "published")),
     quick: bool = Switch(False, "Smoke run: epoch scale x0.03, 200 train samples."),
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
                               "(a dev set; ids of the full colony, so bins hold)."),
@@ -245,7 +253,8 @@ def experiment_oc(
     for m in m_list:
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
-    cfg = OCConfig(seed=seed, threads=threads).scaled(epoch_scale * (0.03 if quick else 1.0))
+    cfg = OCConfig.recipe(recipe, seed=seed, threads=threads).scaled(
+        epoch_scale * (0.03 if quick else 1.0))
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
                        unstable=unstable)
     out.mkdir(parents=True, exist_ok=True)

@@ -74,7 +74,8 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
             x, xs, xu = _inputs(d, split, m, exp.max_train, exp.config.seed)
             methods = METHODS if m == main_m else ("iogen",)
             cfg = replace(exp.config, m=m)
-            model = fit(x, methods, cfg, lambda s, f, m=m, k=split: tick(f"m={m} split {k} {s}", f))
+            model = fit(x, methods, cfg, lambda s, f, m=m, k=split: tick(f"m={m} split {k} {s}", f),
+                        stages_dir=out / "stages" / f"m{m}_split{split}")   # a rerun resumes
             scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
             runs[f"m{m}_split{split}"] = {
                 meth: auc_report(*scores[meth], bins, names) for meth in methods}
