@@ -274,3 +274,21 @@ def test_ctrl_c_during_training_keeps_the_best_checkpoint(tmp_path, capsys, monk
         "interrupted")
     net, meta = load_checkpoint(model)
     assert meta["train_info"]["interrupted"] and meta["train_info"]["epochs_run"] == 2
+
+
+def test_chapter_three_predictor_from_the_command_line(tmp_path, capsys):
+    """§3.3's variant: a unidirectional LSTM, angles as cos/sin, and the history ℓ chosen."""
+    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(20, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(6, 3, 2), 3.0))
+    model = tmp_path / "ch3.pt"
+    code, _, err = _cli(capsys, "train", "retlo", "--model", "lstm", "--train", str(train_csv),
+                        "--val", str(val_csv), "--out", str(model), "--epochs", "1",
+                        "--unidirectional", "--cos-sin", "--history", "6")
+    assert code == 0, err
+    _, ckpt = load_checkpoint(model)
+    cfg = ckpt["model_config"]
+    assert (cfg["history"], cfg["bidirectional"], cfg["cos_sin"]) == (6, False, True)
+    code, _, err = _cli(capsys, "evaluate", "retlo", "--model", str(model), "--data",
+                        str(val_csv), "--out", str(tmp_path / "r.json"))
+    assert code == 0, err
+    assert json.loads((tmp_path / "r.json").read_text())["first_step"] == 6

@@ -25,6 +25,8 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
 PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
+History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
+                max=24)
 CSV = (".csv",)
 
 
@@ -101,6 +103,7 @@ def train_retlo(
     compass_frame: bool = Switch(False, "The dissertation's frame (section 2.5.1.1): "
                                  "Tail-centred with compass axes (default: x axis along "
                                  "Tail→Follower)."),
+    history: int = History,
     px_per_cm: float = PxPerCm,
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
@@ -113,7 +116,7 @@ def train_retlo(
 
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, model=ModelConfig(
         kind=model, bidirectional=not unidirectional, cos_sin=cos_sin,
-        rotate=not compass_frame))
+        rotate=not compass_frame, history=history))
     check_writable_file(out, overwrite, "--out")
     worlds = [to_world(read_csv(p).poses, px_per_cm) for p in train]
     val_world = to_world(read_csv(val).poses, px_per_cm)
@@ -169,17 +172,25 @@ def experiment_retlo(
                               "a test set (when no test file exists)."),
     seeds: int = Count(5, "Training seeds per model (0..seeds-1)."),
     epochs: int = Count(60, "Number of epochs per training (cosine schedule, early stop)."),
+    history: int = History,
+    unidirectional: bool = Switch(False, "A unidirectional LSTM (chapter 3's predictor, with "
+                                  "--cos-sin)."),
+    cos_sin: bool = Switch(False, "Angles as cos/sin pairs (chapter 3's predictor).",
+                           "--cos-sin/--radians"),
     px_per_cm: float = PxPerCm,
     out: Path = OutputDir(..., "Output folder."),
     overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
+    from estimators.retlo.models import ModelConfig
     from macrostate_mj.app.experiments.retlo import PRODUCTS, ExperimentConfig, run_experiment
     from macrostate_mj.core.io import prepare_out_dir
 
     cfg = ExperimentConfig(train=[str(p) for p in train], val=str(val),
                            test=[str(p) for p in test or []], holdout=holdout, seeds=seeds,
-                           epochs=epochs, px_per_cm=px_per_cm)
+                           epochs=epochs, px_per_cm=px_per_cm,
+                           model=ModelConfig(history=history, bidirectional=not unidirectional,
+                                             cos_sin=cos_sin))
     cfg.validate()
     prepare_out_dir(out, PRODUCTS, overwrite)
     summary = run_experiment(cfg, out)

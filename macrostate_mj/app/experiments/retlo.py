@@ -9,7 +9,7 @@ deterministic numbers (timings go to the manifest), so the same command gives th
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +49,7 @@ class ExperimentConfig:
     epochs: int = 60
     px_per_cm: float = DEFAULT_PX_PER_CM
     video_instances: int = 3
+    model: ModelConfig = ModelConfig()   # its kind is set per run; history, LSTM direction, angles
 
     def validate(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
@@ -157,7 +158,7 @@ def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
         overall = bar.add_task("experiment retlo", total=len(runs))
         for kind, seed in runs:
             epoch_task = bar.add_task(f"{kind} seed {seed}", total=cfg.epochs)
-            tcfg = TrainConfig(epochs=cfg.epochs, seed=seed, model=ModelConfig(kind=kind))
+            tcfg = TrainConfig(epochs=cfg.epochs, seed=seed, model=replace(cfg.model, kind=kind))
             start = time.perf_counter()
             net, info = train(trains, val, tcfg, progress=False, on_epoch=lambda e, v, t=epoch_task:
                               bar.update(t, completed=e + 1, description=f"val {v:.2f} cm"))
