@@ -292,3 +292,18 @@ def test_chapter_three_predictor_from_the_command_line(tmp_path, capsys):
                         str(val_csv), "--out", str(tmp_path / "r.json"))
     assert code == 0, err
     assert json.loads((tmp_path / "r.json").read_text())["first_step"] == 6
+
+
+def test_chained_samples_give_the_follower_an_estimate_error_and_keep_the_targets():
+    from estimators.retlo.train import as_chained
+
+    world = synthetic_chains(6, 3, 5)
+    est = np.full_like(world, np.nan)
+    est[:, 10:-1, 0, :2] = world[:, 10:-1, 0, :2] + np.arange(6)[:, None, None] + 1.0
+    out = as_chained(world, est, np.random.default_rng(0))
+    shift = out[:, :, 1, :2] - world[:, :, 1, :2]
+    assert np.array_equal(out[:, :, [0, 2]], world[:, :, [0, 2]])      # Head, Tail: true
+    assert np.all(shift[:, :10] == 0) and np.all(shift[:, -1] == 0)    # known before τ
+    per_instance = shift[:, 10, 0] - 1.0
+    assert sorted(per_instance) == list(range(6))                      # another's error each
+    assert not np.array_equal(per_instance, np.arange(6))

@@ -25,6 +25,9 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
 PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
+Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
+                 "error, as modules k >= 1 of a longer chain see them (README: ReTLo).",
+                 "--chained/--no-chained")
 History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
                 max=24)
 CSV = (".csv",)
@@ -104,6 +107,7 @@ def train_retlo(
                                  "Tail-centred with compass axes (default: x axis along "
                                  "Tail→Follower)."),
     history: int = History,
+    chained: bool = Chained,
     px_per_cm: float = PxPerCm,
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
@@ -114,9 +118,10 @@ def train_retlo(
     from macrostate_mj.core.io import check_writable_file
     from macrostate_mj.formats.thymioloc import read_csv, to_world
 
-    cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, model=ModelConfig(
-        kind=model, bidirectional=not unidirectional, cos_sin=cos_sin,
-        rotate=not compass_frame, history=history))
+    cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained,
+                      model=ModelConfig(kind=model, bidirectional=not unidirectional,
+                                        cos_sin=cos_sin, rotate=not compass_frame,
+                                        history=history))
     check_writable_file(out, overwrite, "--out")
     worlds = [to_world(read_csv(p).poses, px_per_cm) for p in train]
     val_world = to_world(read_csv(val).poses, px_per_cm)
