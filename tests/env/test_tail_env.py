@@ -102,4 +102,10 @@ def test_a_short_ppo_run_trains_without_error():
     env = gymnasium.wrappers.FlattenObservation(gymnasium.make(ID))
     model = sb3.PPO("MlpPolicy", env, n_steps=256, batch_size=64, seed=0, device="cpu")
     model.learn(total_timesteps=1024)
+    obs, _ = env.reset(seed=1)
+    action, _ = model.predict(obs, deterministic=True)
     env.close()
+    assert model.num_timesteps >= 1024
+    assert env.action_space.contains(np.clip(action, env.action_space.low,
+                                             env.action_space.high).astype(np.float32))
+    assert action.shape == (2,) and np.all(np.isfinite(action))
