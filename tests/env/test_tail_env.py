@@ -106,6 +106,4 @@ def test_a_short_ppo_run_trains_without_error():
     action, _ = model.predict(obs, deterministic=True)
     env.close()
     assert model.num_timesteps >= 1024
-    assert env.action_space.contains(np.clip(action, env.action_space.low,
-                                             env.action_space.high).astype(np.float32))
     assert action.shape == (2,) and np.all(np.isfinite(action))
