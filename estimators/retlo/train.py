@@ -110,8 +110,7 @@ def as_chained(world: np.ndarray, est: np.ndarray, rng: np.random.Generator) -> 
 
 
 def _with_feedback(net: RetloNet, worlds: list[np.ndarray], data: dict[str, torch.Tensor],
-                   chained: bool = False, rng: np.random.Generator | None = None,
-                   ) -> dict[str, torch.Tensor]:
+                   chained: bool, rng: np.random.Generator) -> dict[str, torch.Tensor]:
     """Add the samples the current model would meet at test time: histories holding its own
     fed-back predictions, frames built from its own estimates, paired with the true targets.
     Teacher forcing alone leaves the LSTM blind to its own drift (errors grow step after step);

@@ -150,10 +150,8 @@ class CameraChain:
         reach = sim.world.top_speed * self.period * tracker.camera.px_per_m
         half = tracker.marker_radius_px + reach + 2
         h, w = self.renderer.height, self.renderer.width
-        rects = [(max(0, int(u - half)), max(0, int(v - half)),
-                  min(w, int(np.ceil(u + half))), min(h, int(np.ceil(v + half))))
-                 for u, v in uv]
-        return rects
+        return [(max(0, int(u - half)), max(0, int(v - half)),
+                 min(w, int(np.ceil(u + half))), min(h, int(np.ceil(v + half)))) for u, v in uv]
 
     def _process(self, rgb: np.ndarray, t: float, truth: np.ndarray) -> None:
         self._frames += 1
@@ -179,4 +177,3 @@ class CameraChain:
             self._pool.shutdown()
         self.conditions.restore()
         self.renderer.close()
-

@@ -26,10 +26,6 @@ MAX_SECONDS = 1e6      # about 11.6 simulated days: longer is a typo, not an exp
 _outputs: list[tuple[Path, bool]] = []   # (path, existed before this command)
 
 
-def _name(param: typer.CallbackParam) -> str:
-    return param.opts[0] if param.opts else (param.name or "value")
-
-
 def _each(value: Any) -> list:
     return list(value) if isinstance(value, list | tuple) else [value]
 
@@ -38,15 +34,16 @@ def _flags(flag: str | None) -> list[str]:
     return [flag] if flag else []
 
 
-def _checked(check: Callable[[Any, str], None], role: str) -> Callable:
-    """A typer callback that applies `check(value, option name)` to the value (each value of a
-    repeatable option) and leaves None (an option not given) alone. `role` (number, choice,
-    input_file, input_dir, output_file, output_dir) tells the tests what to throw at it."""
+def _checked(check: Callable[[Any], None], role: str) -> Callable:
+    """A typer callback that applies `check` to the value (each value of a repeatable option)
+    and leaves None (an option not given) alone; the parser's error names the option. `role`
+    (number, choice, input_file, input_dir, output_file, output_dir) tells the tests what to
+    throw at it."""
 
-    def callback(param: typer.CallbackParam, value: Any) -> Any:
+    def callback(value: Any) -> Any:
         for v in _each(value):
             if v is not None:
-                check(v, _name(param))
+                check(v)
         return value
 
     callback.role = role  # type: ignore[attr-defined]
@@ -57,8 +54,8 @@ def _fail(message: str) -> None:
     raise typer.BadParameter(message)
 
 
-def _number(lo: float, lo_open: bool, hi: float | None) -> Callable[[Any, str], None]:
-    def check(v: float, flag: str) -> None:
+def _number(lo: float, lo_open: bool, hi: float | None) -> Callable[[Any], None]:
+    def check(v: float) -> None:
         if not math.isfinite(v):
             _fail(f"must be a finite number, got {v}")
         if (v <= lo if lo_open else v < lo):
@@ -93,7 +90,7 @@ def NonNegative(default: Any, help: str, max: float | None = None, **kw: Any) ->
 
 def Fraction(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
     """A finite number in [0, 1)."""
-    def check(v: float, flag: str) -> None:
+    def check(v: float) -> None:
         if not (math.isfinite(v) and 0 <= v < 1):
             _fail(f"must be a fraction in [0, 1), got {v}")
     return typer.Option(default, help=help, callback=_checked(check, "number"), **kw)
@@ -102,7 +99,7 @@ def Fraction(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
 def Choice(default: Any, help: str, choices: Sequence[str], flag: str | None = None,  # noqa: N802
            **kw: Any) -> Any:
     """One of `choices` (each, when repeatable), listed in the help text."""
-    def check(v: str, flag: str) -> None:
+    def check(v: str) -> None:
         if v not in choices:
             _fail(f"{v!r} is not one of {', '.join(choices)}")
     return typer.Option(default, *_flags(flag), help=f"{help} One of: {', '.join(choices)}.",
@@ -116,7 +113,7 @@ def _scenario() -> Any:
 
 
 def _input_file(suffixes: tuple[str, ...]) -> Callable[[Path, str], None]:
-    def check(p: Path, flag: str) -> None:
+    def check(p: Path) -> None:
         if p.is_dir():
             _fail(f"{p} is a folder; give a file")
         if not p.is_file():
@@ -138,7 +135,7 @@ def InputFiles(help: str, suffixes: tuple[str, ...] = ()) -> Any:  # noqa: N802
     return typer.Argument(..., help=help, callback=_checked(_input_file(suffixes), "input_file"))
 
 
-def _input_dir(p: Path, flag: str) -> None:
+def _input_dir(p: Path) -> None:
     if p.is_file():
         _fail(f"{p} is a file; give a folder")
     if not p.is_dir():
@@ -159,7 +156,7 @@ def _writable_parent(p: Path) -> None:
 
 
 def _output_file(suffixes: tuple[str, ...]) -> Callable[[Path, str], None]:
-    def check(p: Path, flag: str) -> None:
+    def check(p: Path) -> None:
         if suffixes and p.suffix.lower() not in suffixes:
             _fail(f"{p} needs the {' or '.join(suffixes)} extension")
         if p.is_dir():
@@ -175,7 +172,7 @@ def OutputFile(default: Any, help: str, suffixes: tuple[str, ...] = (), **kw: An
                         callback=_checked(_output_file(suffixes), "output_file"), **kw)
 
 
-def _output_dir(p: Path, flag: str) -> None:
+def _output_dir(p: Path) -> None:
     if p.exists() and not p.is_dir():
         _fail(f"{p} is a file; give a folder path")
     _writable_parent(p)
