@@ -52,8 +52,8 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     sim.reset(spec.rng(0))
     # Pipelined imaging (a helper thread beside the GL context) only in the main process: in
     # spawned workers it is suspected of a rare native crash (malloc corruption, seen 3 times
-    # in two-worker runs), and with both cores busy it buys nothing (bench: 2-worker ratio
-    # 0.76 with it, 0.76 without). Results are identical either way.
+    # in two-worker runs), and with both cores busy it bought nothing measurable (2-worker
+    # bench ratio 0.80 with it, 0.76 without, within run-to-run noise). Results are identical.
     chain = CameraChain(sim, spec.noise, pipelined=multiprocessing.parent_process() is None,
                         rng=spec.rng(1))
     log = PoseLog(world.names, tracker=chain)
