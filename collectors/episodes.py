@@ -6,14 +6,13 @@ depend on which worker, process or machine runs it, or in which order.
 
 from __future__ import annotations
 
-import multiprocessing
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import pyarrow as pa
 
-from collectors.policies import PolicyConfig, TailPolicy
+from collectors.policies import PolicyConfig, PolicySpec
 from macrostate_mj.formats.poses import poses_table
 from macrostate_mj.vision.imaging import NoiseConfig
 
@@ -26,7 +25,7 @@ class EpisodeSpec:
     warmup: float               # settling time at the start (s), logged but never cut
     seed: int
     index: int
-    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    policy: PolicySpec = field(default_factory=PolicyConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     head_speed: float | None = None
 
@@ -50,14 +49,9 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     world = build_world(cfg, spec.robots)
     sim = ChainSim(world)
     sim.reset(spec.rng(0))
-    # Pipelined imaging (a helper thread beside the GL context) only in the main process: in
-    # spawned workers it is suspected of a rare native crash (malloc corruption, seen 3 times
-    # in two-worker runs), and with both cores busy it bought nothing measurable (2-worker
-    # bench ratio 0.80 with it, 0.76 without, within run-to-run noise). Results are identical.
-    chain = CameraChain(sim, spec.noise, pipelined=multiprocessing.parent_process() is None,
-                        rng=spec.rng(1))
+    chain = CameraChain(sim, spec.noise, rng=spec.rng(1))
     log = PoseLog(world.names, tracker=chain)
-    policy = TailPolicy(spec.policy, spec.rng(2))
+    policy = spec.policy.build(spec.rng(2))
     step = 1 / cfg.log_hz
     hooks = [chain, Every(step, policy, sim.log_phase), Every(step, log.append, sim.log_phase)]
     try:
@@ -69,5 +63,7 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     table = table.append_column("episode", pa.array(np.full(table.num_rows, spec.index)))
     stats = {"seconds": time.perf_counter() - t0, "frames": chain.frames,
              "dropped": chain.dropped, "windowed": chain.windowed,
-             "steps": int(round(sim.time / sim.model.opt.timestep))}
+             "rendered": chain.rendered,
+             "steps": int(round(sim.time / sim.model.opt.timestep)),
+             "decisions": policy.records()}
     return spec.index, table, stats

@@ -5,15 +5,23 @@ logger did: the 2 Hz pose log records whatever the 4 Hz tracker saw last, up to 
 period earlier (`t_trk` in the log says exactly when). A robot missed in a frame keeps its previous
 tracked pose (NaN before its first detection) with `detected` False.
 
-Where every robot was seen in the previous frame, imaging and tracking run only in a window
-around each (`regions`): the window holds the marker wherever the robot can have driven in one
-period, and `imaging.regions` makes its pixels exactly as the whole frame's chain would. After
-a miss or a dropped frame, or with `windows=False`, the whole frame is processed.
+Frames are filmed lazily, with exactly the eager results. A frame's draws (drop, noise) are made
+when it is taken, but its render, imaging and tracking wait until someone reads the tracker
+(`latest`, `detected`, ...) or the next frame is taken. The next frame is then processed first:
+if it sees every robot, it overwrites everything the waiting frame would have set, so that frame
+is never rendered; otherwise the waiting frame is rendered from a copy of the physics state it
+was taken in (`mj_copyData`: the same pixels) and applied first. With a 2 Hz log over 4 Hz
+frames about half the frames are never rendered.
+
+Where every robot was seen in the last processed frame, imaging and tracking run only in a
+window around each (`regions`): the window holds the marker wherever the robot can have driven
+since, and `imaging.regions` makes its pixels exactly as the whole frame's chain would. After a
+miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 """
 
 from __future__ import annotations
 
-from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -21,44 +29,52 @@ import numpy as np
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.vision import imaging
 from macrostate_mj.vision.camera import OverheadRenderer
-from macrostate_mj.vision.imaging import NoiseConfig, SceneConditions, draw_episode
-from macrostate_mj.vision.tracker import Tracker
+from macrostate_mj.vision.imaging import FrameDraw, NoiseConfig, SceneConditions, draw_episode
+from macrostate_mj.vision.tracker import Detections, Tracker
+
+
+@dataclass
+class _Frame:
+    """A frame taken but not yet processed: the physics state it shows, when, the true poses
+    then, and its imaging draws."""
+
+    data: mujoco.MjData
+    time: float
+    truth: np.ndarray
+    draw: FrameDraw
 
 
 class CameraChain:
     """Owns a renderer; `start(rng)` once per episode, then `capture` at the command rate, then
     `close()`. As a `Hook` (given `rng`), `ChainSim.episode` makes those calls itself.
 
-    With `pipelined`, the imaging chain and the tracker of one frame run on a helper thread
-    (OpenCV releases the GIL) while the physics moves on; reading `latest`, `latest_time`,
-    `detected`, `frames` or `dropped` waits for the frame in flight first. Frames are still
-    processed in order, with the same draws, so the results are identical either way.
-    """
+    With `lazy=False` every frame is rendered and processed when it is taken (the results are
+    the same: tested)."""
 
-    def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None, pipelined: bool = False,
+    def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None,
                  rng: np.random.Generator | None = None, phase: float = 0.0,
-                 windows: bool = True):
+                 windows: bool = True, lazy: bool = True):
         self.sim = sim
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
-        self._pool = ThreadPoolExecutor(1) if pipelined else None
-        self._pending: Future | None = None
         self.noise = noise or NoiseConfig()
         self.renderer = OverheadRenderer(sim.model)
         self.conditions = SceneConditions(sim.model)
-        world = sim.world
-        n = len(world.names)
+        n = len(sim.world.names)
         self._latest = np.full((n, 3), np.nan)
         self._latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
         self._latest_truth = np.full((n, 3), np.nan)   # its true pose at that moment
         self._detected = np.zeros(n, bool)
-        self._frames = self._dropped = self._windowed = 0
-        self.windows = windows
+        self._seen_at = np.nan           # time of the frame behind `_latest` when all were seen
+        self.frames = self.dropped = self._windowed = self._rendered = 0
+        self.windows, self.lazy = windows, lazy
+        self._waiting: _Frame | None = None
+        self._spare = mujoco.MjData(sim.model)     # the waiting frame's copy of the state
 
     def start(self, rng: np.random.Generator) -> None:
         """Calibrate on the nominal camera, then draw this episode's conditions."""
-        self.sync()
         sim = self.sim
+        self._waiting = None
         self.conditions.restore()
         mujoco.mj_forward(sim.model, sim.data)
         self.tracker = Tracker.for_world(sim.world, sim.data)
@@ -71,6 +87,7 @@ class CameraChain:
         self._latest_time[:] = np.nan
         self._latest_truth[:] = np.nan
         self._detected[:] = False
+        self._seen_at = np.nan
 
     # -- the `Hook` lifecycle: tracking at the command rate ------------------------------------
     def initialize_episode(self, sim: ChainSim) -> None:
@@ -86,18 +103,30 @@ class CameraChain:
         self.close()
 
     def capture(self, sim: ChainSim) -> None:
-        rgb = self.renderer.render(sim.data)         # GL work stays on this thread
-        if self._pool is None:
-            self._process(rgb, sim.time, sim.poses)
+        """Take a frame of the current state: its draws now, its processing now or later."""
+        self.frames += 1
+        draw = imaging.draw_frame(self.episode, self.noise, self.rng)
+        if draw is None:                 # lost: the frame before stands until this clears it
+            self.sync()
+            self.dropped += 1
+            self._detected[:] = False
             return
-        self.sync()
-        self._pending = self._pool.submit(self._process, rgb, sim.time, sim.poses)
+        if self._waiting is None and self.lazy:
+            spare = self._spare
+            mujoco.mj_copyData(spare, sim.model, sim.data)
+            self._waiting = _Frame(spare, sim.time, sim.poses, draw)
+            return
+        det = self._detect(sim.data, sim.time, draw)
+        if not det.detected.all():       # the waiting frame's detections show through
+            self.sync()
+        self._waiting = None
+        self._apply(det, sim.time, sim.poses)
 
     def sync(self) -> None:
-        """Wait for the frame in flight (pipelined mode); a no-op otherwise."""
-        if self._pending is not None:
-            pending, self._pending = self._pending, None
-            pending.result()
+        """Process the waiting frame, if any (every read of the tracker does this first)."""
+        if self._waiting is not None:
+            f, self._waiting = self._waiting, None
+            self._apply(self._detect(f.data, f.time, f.draw), f.time, f.truth)
 
     @property
     def latest(self) -> np.ndarray:
@@ -123,57 +152,52 @@ class CameraChain:
         return self._detected
 
     @property
-    def frames(self) -> int:
-        self.sync()
-        return self._frames
-
-    @property
-    def dropped(self) -> int:
-        self.sync()
-        return self._dropped
-
-    @property
     def windowed(self) -> int:
         """Frames processed in windows around the robots rather than whole."""
         self.sync()
         return self._windowed
 
-    def regions(self) -> list[tuple[int, int, int, int]] | None:
-        """Pixel windows (x0, y0, x1, y1) around every robot's last detection, or None for the
-        whole frame (a robot was missed last frame, or windows are off)."""
+    @property
+    def rendered(self) -> int:
+        """Frames rendered: those taken, less the dropped ones and those never needed."""
+        self.sync()
+        return self._rendered
+
+    def regions(self, t: float) -> list[tuple[int, int, int, int]] | None:
+        """Pixel windows (x0, y0, x1, y1) around every robot's last detection for a frame at
+        time `t`, or None for the whole frame (a robot was missed in the last processed frame,
+        or windows are off)."""
         if not (self.windows and self._detected.all()):
             return None
         tracker, sim = self.tracker, self.sim
         z = sim.world.marker_height
         uv = tracker.camera.world_to_pixel(np.column_stack(
             [self._latest[:, :2], np.full(len(self._latest), z)]))
-        reach = sim.world.top_speed * self.period * tracker.camera.px_per_m
+        elapsed = max(t - self._seen_at, self.period)
+        reach = sim.world.top_speed * elapsed * tracker.camera.px_per_m
         half = tracker.marker_radius_px + reach + 2
         h, w = self.renderer.height, self.renderer.width
         return [(max(0, int(u - half)), max(0, int(v - half)),
                  min(w, int(np.ceil(u + half))), min(h, int(np.ceil(v + half)))) for u, v in uv]
 
-    def _process(self, rgb: np.ndarray, t: float, truth: np.ndarray) -> None:
-        self._frames += 1
-        draw = imaging.draw_frame(self.episode, self.noise, self.rng)
-        if draw is None:
-            self._dropped += 1
-            self._detected[:] = False
-            return
-        rects = self.regions()
+    def _detect(self, data: mujoco.MjData, t: float, draw: FrameDraw) -> Detections:
+        """Render the state in `data`, put it through the imaging chain and track it."""
+        rgb = self.renderer.render(data)
+        self._rendered += 1
+        rects = self.regions(t)
         if rects is None:
-            det = self.tracker.track(imaging.apply_chain(rgb, self.episode, draw))
-        else:
-            self._windowed += 1
-            det = self.tracker.track_regions(imaging.regions(rgb, self.episode, draw, rects))
+            return self.tracker.track(imaging.apply_chain(rgb, self.episode, draw))
+        self._windowed += 1
+        return self.tracker.track_regions(imaging.regions(rgb, self.episode, draw, rects))
+
+    def _apply(self, det: Detections, t: float, truth: np.ndarray) -> None:
         self._latest[det.detected] = det.poses[det.detected]
         self._latest_time[det.detected] = t
         self._latest_truth[det.detected] = truth[det.detected]
         self._detected[:] = det.detected
+        self._seen_at = t
 
     def close(self) -> None:
-        self.sync()
-        if self._pool is not None:
-            self._pool.shutdown()
+        self._waiting = None
         self.conditions.restore()
         self.renderer.close()

@@ -118,26 +118,38 @@ def test_camera_error_unknown_to_the_tracker_biases_it(shift):
     assert err == pytest.approx(-shift, abs=0.001)    # the scene appears shifted the other way
 
 
-def test_pipelined_camera_chain_gives_the_same_log():
-    """Imaging and tracking on a helper thread overlap the physics, but change nothing."""
+@pytest.mark.parametrize(("scenario", "robots", "seed", "log_phase"),
+                         [("lab", 3, 8, 0.1), ("lab", 5, 9, 0.3), ("webots", 4, 10, 0.0),
+                          ("robotarium", 5, 11, 0.02)])
+def test_lazy_filming_gives_the_same_log(scenario, robots, seed, log_phase):
+    """Frames rendered only when their result can be read give the eager log bit for bit,
+    misses and drops included (a high drop rate makes both happen), and skip frames."""
     from macrostate_mj.chain.sim import PoseLog
 
-    logs = []
-    for pipelined in (False, True):
-        world = build_world(get_scenario("lab"), 3)
+    logs, rendered = [], []
+    noise = NoiseConfig(drop_prob=0.1)
+    for lazy in (False, True):
+        world = build_world(get_scenario(scenario), robots)
         sim = ChainSim(world)
-        sim.reset(np.random.default_rng(8))
-        chain = CameraChain(sim, pipelined=pipelined)
-        chain.start(np.random.default_rng([8, 1]))
+        sim.reset(np.random.default_rng(seed))
+        chain = CameraChain(sim, noise, lazy=lazy)
+        chain.start(np.random.default_rng([seed, 1]))
         log = PoseLog(world.names, tracker=chain)
+        period = 1 / world.scenario.log_hz
         try:
-            sim.run(8.0, [Every(0.25, chain.capture), Every(0.5, log.append, 0.1)])
+            sim.run(12.0, [Every(chain.period, chain.capture),
+                           Every(period, log.append, log_phase)])
         finally:
             chain.close()
         logs.append(log.tracked_arrays())
-    for key in ("tracked", "tracked_time", "detected"):
+        rendered.append((chain.rendered, chain.frames, chain.dropped))
+    for key in ("tracked", "tracked_time", "tracked_truth", "detected"):
         assert np.array_equal(logs[0][key], logs[1][key], equal_nan=key != "detected")
-    assert np.isfinite(logs[0]["tracked"][2:]).all()
+    assert np.isfinite(logs[0]["tracked"][4:]).all()
+    (eager, frames, dropped), (lazy, _, _) = rendered
+    assert dropped > 0 and eager == frames - dropped
+    if period > chain.period:            # a log slower than the camera leaves frames unread
+        assert lazy < 0.75 * eager
 
 
 @pytest.mark.parametrize(("scenario", "robots", "seed"),

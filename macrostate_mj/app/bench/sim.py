@@ -4,6 +4,7 @@ run on the same model: bare `mj_step` in C for physics, a bare `mujoco.Renderer`
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -37,12 +38,16 @@ def record_commands(sim: ChainSim, seconds: float, rng: np.random.Generator
 
 
 def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int, np.ndarray]],
-                end: int) -> mujoco.MjData:
-    """The physics alone: bare `mj_step(nstep)` replaying recorded commands, same contacts."""
+                end: int, at_tick: Callable[[int, mujoco.MjData], None] | None = None
+                ) -> mujoco.MjData:
+    """The physics alone: bare `mj_step(nstep)` replaying recorded commands, same contacts;
+    `at_tick(k, data)` runs at tick k before its command is applied (a camera's frame)."""
     data = mujoco.MjData(model)
     data.qpos[:] = start
     ends = [t[0] for t in ticks[1:]] + [end]
-    for (step, ctrl), nxt in zip(ticks, ends, strict=True):
+    for k, ((step, ctrl), nxt) in enumerate(zip(ticks, ends, strict=True)):
+        if at_tick is not None:
+            at_tick(k, data)
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data, nstep=nxt - step)
     return data
