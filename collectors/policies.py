@@ -8,14 +8,34 @@ size, drawing a new perturbation every log step, and alternates random and passi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
+import pyarrow as pa
 
+from macrostate_mj.chain.motion import draw_tail_offsets
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.core.errors import UserError
 
-ROBOT_SIZE_M = 0.11        # Thymio II size used by the seed to scale sigma (§3.3)
 POLICIES = ("passive", "random")
+
+
+class PolicyHook(Protocol):
+    """Called once per log step to set `sim.tail_offset`; `records()` is what it decided, per
+    step, for the collection to keep beside the poses (None: nothing worth keeping)."""
+
+    def __call__(self, sim: ChainSim) -> None: ...
+
+    def records(self) -> pa.Table | None: ...
+
+
+class PolicySpec(Protocol):
+    """A picklable policy configuration that an episode task carries to its worker, where
+    `build` makes the hook (the SR phase's lives in `estimators.srs.policy`)."""
+
+    name: str
+
+    def build(self, rng: np.random.Generator) -> PolicyHook: ...
 
 
 @dataclass(frozen=True)
@@ -30,6 +50,9 @@ class PolicyConfig:
         if self.sigma < 0:
             raise UserError(f"--sigma must be non-negative, got {self.sigma}")
 
+    def build(self, rng: np.random.Generator) -> TailPolicy:
+        return TailPolicy(self, rng)
+
 
 class TailPolicy:
     """A periodic hook, one call per log step, setting the simulation's Tail offset."""
@@ -42,7 +65,10 @@ class TailPolicy:
     def __call__(self, sim: ChainSim) -> None:
         random_mode = self.cfg.name == "random" and (self.step // self.cfg.alternate) % 2 == 0
         if random_mode:
-            sim.tail_offset = self.rng.normal(0.0, self.cfg.sigma * ROBOT_SIZE_M, size=2)
+            sim.tail_offset = draw_tail_offsets(self.rng, self.cfg.sigma)
         else:
             sim.tail_offset = np.zeros(2)
         self.step += 1
+
+    def records(self) -> pa.Table | None:
+        return None

@@ -21,7 +21,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
-from collectors.policies import PolicyConfig
+from collectors.policies import PolicyConfig, PolicySpec
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
@@ -39,6 +39,7 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, write_csv
 
 SPLIT_NAMES = ("Train", "Val", "Test")
 PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.json",
+            "decisions.parquet",
             *(f"{s}{t}.csv" for s in SPLIT_NAMES for t in ("", "_truth"))]
 
 
@@ -59,6 +60,8 @@ class CollectRequest:
     warmup: float = 10.0
     px_per_cm: float = DEFAULT_PX_PER_CM
     head_speed: float | None = None
+    first_episode: int = 0      # index of the first episode (a later phase of one collection)
+    policy_spec: PolicySpec | None = None   # overrides policy/sigma (the SR phase's Tail)
 
 
 def parse_split(text: str | None) -> tuple[float, float, float] | None:
@@ -92,9 +95,10 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
                        ("--minutes", req.minutes))
         raise UserError(f"{flag} {value:g} is too short for one {INSTANCE_STEPS}-step instance; "
                         f"give at least {math.ceil(shortest * 100) / 100:g} minutes")
-    policy = PolicyConfig(req.policy, req.sigma)
+    policy = req.policy_spec or PolicyConfig(req.policy, req.sigma)
     return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
-                        head_speed=req.head_speed) for i in range(n)]
+                        head_speed=req.head_speed)
+            for i in range(req.first_episode, req.first_episode + n)]
 
 
 def collect(req: CollectRequest, progress: Callable[[int, float], None] | None = None
@@ -105,7 +109,7 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
     out = prepare_out_dir(req.out, PRODUCTS, req.overwrite)
     runner = runner_for(req.ray)
     shards = out / "shards"
-    plan_json = json.dumps([asdict(s) for s in specs], sort_keys=True, default=str)
+    plan_json = _plan_json(specs)
     if req.overwrite and shards.exists():
         shutil.rmtree(shards)
     finished = list(shards.glob("episode_*.parquet")) if shards.is_dir() else []
@@ -131,6 +135,10 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
         if table is None:
             failures[index] = stats["failure"]
             continue
+        decisions = stats.pop("decisions", None)
+        if decisions is not None:         # before the shard: a shard means the episode is done
+            with atomic_path(_shard(shards, index, "decisions")) as tmp:
+                pq.write_table(decisions, tmp, compression="zstd")
         with atomic_path(_shard(shards, index)) as tmp:
             pq.write_table(table, tmp, compression="zstd")
         episode_stats[index] = stats
@@ -157,6 +165,18 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
     return written
 
 
+def _plan_json(specs: list[EpisodeSpec]) -> str:
+    return json.dumps([asdict(s) for s in specs], sort_keys=True, default=str)
+
+
+def finished(req: CollectRequest) -> bool:
+    """Has this very collection (same plan) run to the end in `req.out`?"""
+    out = Path(req.out)
+    plan_file = out / "shards" / "plan.json"
+    return ((out / "manifest.json").is_file() and plan_file.is_file()
+            and plan_file.read_text() == _plan_json(plan(req)))
+
+
 def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
              fractions: tuple[float, ...] | None) -> dict[str, Path]:
     """Shards -> full log + ThymioLoc instances (tracked and truth) + optional splits."""
@@ -179,6 +199,17 @@ def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
                "instances": write_csv(out / "instances.csv", tracked_px),
                "instances_truth": write_csv(out / "instances_truth.csv", truth_px)}
     write_poses(written["poses"], pa.concat_tables(tables))
+    decisions = []
+    for spec in specs:          # a policy's per-step decisions, where it kept any (SRS)
+        path = _shard(out / "shards", spec.index, "decisions")
+        if path.exists():
+            table = pq.read_table(path)
+            decisions.append(table.append_column(
+                "episode", pa.array(np.full(table.num_rows, spec.index))))
+    if decisions:
+        with atomic_path(out / "decisions.parquet") as tmp:
+            pq.write_table(pa.concat_tables(decisions), tmp, compression="zstd")
+        written["decisions"] = out / "decisions.parquet"
     if fractions is not None:
         parts = split_indices(len(tracked_px), fractions, np.random.default_rng([req.seed, 99]))
         for name, idx in zip(SPLIT_NAMES, parts, strict=True):
@@ -197,5 +228,5 @@ def _readable(path: Path) -> bool:
     return True
 
 
-def _shard(shards: Path, index: int) -> Path:
-    return shards / f"episode_{index:05d}.parquet"
+def _shard(shards: Path, index: int, kind: str = "episode") -> Path:
+    return shards / f"{kind}_{index:05d}.parquet"

@@ -18,10 +18,11 @@ import warnings
 
 import numpy as np
 
-from estimators.retlo.frames import from_frame, module_inputs, module_targets
+from estimators.retlo.frames import module_inputs, module_targets
 from estimators.retlo.models import Predictor
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.frames import from_frame
 from macrostate_mj.formats.thymioloc import STEP_S, robot_names
 
 

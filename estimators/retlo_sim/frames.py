@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.retlo.frames import frame_of, from_frame, to_frame
 from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.core.frames import frame_of, from_frame, to_frame
 
 
 def module_base(ref_xy: np.ndarray, fol_pose: np.ndarray, fol_xy_next: np.ndarray

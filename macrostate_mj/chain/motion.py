@@ -155,3 +155,36 @@ def body_twist(wheel_left: float, wheel_right: float, wheel_radius: float,
     v = wheel_radius * (wheel_left + wheel_right) / 2
     omega = wheel_radius * (wheel_right - wheel_left) / track
     return v, omega
+
+
+ROBOT_SIZE_M = 0.11        # Thymio II size that scales the Tail's perturbation σ (seed §3.3)
+
+
+def draw_tail_offsets(rng: np.random.Generator, sigma: float, shape: tuple[int, ...] = ()
+                      ) -> np.ndarray:
+    """The Tail's destination perturbation w ~ N(0, (σ · robot size)² I) of §3.3, `shape` of
+    them: the RO phase draws one, the SR phase k."""
+    return rng.normal(0.0, sigma * ROBOT_SIZE_M, size=(*shape, 2))
+
+
+def drive_tail(tail: np.ndarray, fol_xy: np.ndarray, offsets: np.ndarray, d: float, k_t: float,
+               k_omega: float, v_max: float, allow_reverse: bool, period: float, ticks: int,
+               substeps: int = 5) -> np.ndarray:
+    """Where the Tail (x, y, θ) is after `ticks` command ticks of `period` s toward each
+    destination offset (K, 2) (the SRS perturbation), its neighbour held at `fol_xy`: the
+    Tail rule plus `k_t |F - T| w` as `ChainSim.command` applies it, tracked through
+    `unicycle_from_holonomic`, (v, ω) held over a tick and integrated in `substeps`."""
+    out = np.empty((len(offsets), 3))
+    fol_xy = np.asarray(fol_xy, float)
+    h = period / substeps
+    for k, w in enumerate(np.asarray(offsets, float)):
+        x, y, th = (float(v) for v in tail)
+        for _ in range(ticks):
+            p = np.array([x, y])
+            u = tail_velocity(p, fol_xy, d, k_t) + k_t * np.linalg.norm(fol_xy - p) * w
+            v, omega = unicycle_from_holonomic(u, th, k_omega, v_max, allow_reverse)
+            for _ in range(substeps):
+                x, y = x + v * np.cos(th) * h, y + v * np.sin(th) * h
+                th += omega * h
+        out[k] = x, y, wrap_angle(th)
+    return out

@@ -4,7 +4,8 @@
 import numpy as np
 import pytest
 
-from collectors.policies import ROBOT_SIZE_M, PolicyConfig, TailPolicy
+from collectors.policies import PolicyConfig, TailPolicy
+from macrostate_mj.chain.motion import ROBOT_SIZE_M
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world

@@ -10,7 +10,6 @@ import torch
 from clitools import cli_inprocess as _cli
 
 from estimators.retlo.chain import evaluate_chain, predict_chain
-from estimators.retlo.frames import from_frame, to_frame
 from estimators.retlo.models import Heuristic2X, ModelConfig, RetloNet, TorchPredictor
 from estimators.retlo.synthetic import synthetic_chains
 from estimators.retlo.train import (
@@ -21,6 +20,7 @@ from estimators.retlo.train import (
     train,
 )
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.frames import from_frame, to_frame
 from macrostate_mj.formats.thymioloc import from_world, to_world, write_csv
 
 TINY = dict(k=16, m=16, d=16)

@@ -14,7 +14,6 @@ from collectors.robotarium import (
     twists_of,
 )
 from collectors.robotarium_cases import tail_view
-from estimators.retlo.frames import frame_of, from_frame, to_frame
 from estimators.retlo_sim.estimate import (
     chain_errors,
     estimate_chain,
@@ -26,6 +25,7 @@ from estimators.retlo_sim.frames import training_pairs
 from estimators.retlo_sim.mlp import init_mlp, mse, standardize, train_mlp
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.world import build_world
+from macrostate_mj.core.frames import frame_of, from_frame, to_frame
 
 CFG = get_scenario("robotarium")
 

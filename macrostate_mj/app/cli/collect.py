@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from collectors.policies import POLICIES
+from estimators.srs import PICKS
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.cli.params import (
     MAX_SECONDS,
@@ -27,11 +28,19 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 def collect(
     scenario: str = Scenario,
     robots: int = Count(3, "Chain length N.", min=2),
-    minutes: float = Positive(..., "Simulated driving time, in minutes.",
+    minutes: float = Positive(None, "Simulated driving time, in minutes (passive, random).",
                               max=MAX_SECONDS / 60),
     policy: str = Choice("passive", "The Tail's policy: passive follows the chain rule, random "
-                         "adds noise to it (SRS, dissertation section 3.3).", POLICIES),
-    sigma: float = NonNegative(0.75, "random: noise sigma as a fraction of robot size."),
+                         "adds noise to its destination (Rand-Only), srs runs a Rand-Only phase, "
+                         "trains the novelty models on it, then picks among k noisy "
+                         "destinations by novelty (dissertation section 3.3).",
+                         (*POLICIES, "srs")),
+    sigma: float = NonNegative(0.75, "random, srs: noise sigma as a fraction of robot size."),
+    srs: str = Choice("max", "srs: which candidate to drive to, by its novelty e: max, the "
+                      "upper quartile q3, the median med, the lower quartile q2.", tuple(PICKS)),
+    instances: int = Count(None, "srs: instances in all (Rand-Only phase included)."),
+    ro_instances: int = Count(100, "srs: instances of the Rand-Only phase.", min=2),
+    k: int = Count(30, "srs: candidate destinations per step.", min=2),
     seed: int = Seed(0, "Collection seed; each episode derives its own."),
     workers: int = Count(1, "Local worker processes.", max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run episodes on Ray: local, auto or ADDRESS."),
@@ -47,13 +56,40 @@ def collect(
     """Collect tracked pose datasets in the ThymioLoc layout; resumes after an interruption."""
     from collectors.runner import CollectRequest, plan
     from collectors.runner import collect as run_collect
+    from macrostate_mj.core.errors import UserError
     from macrostate_mj.core.progress import sim_progress
 
+    if policy == "srs":
+        if instances is None:
+            raise UserError("--policy srs needs --instances (the dataset's size, the Rand-Only "
+                            "phase included)")
+        req = CollectRequest(scenario, robots, 0.0, seed, out, "random", sigma, workers, ray,
+                             split, overwrite, episode_minutes, px_per_cm=px_per_cm,
+                             head_speed=head_speed)
+        _collect_srs(req, srs, instances, ro_instances, k)
+        return
+    if minutes is None:
+        raise UserError(f"--policy {policy} needs --minutes (the simulated driving time)")
     req = CollectRequest(scenario, robots, minutes, seed, out, policy, sigma, workers, ray,
                          split, overwrite, episode_minutes, px_per_cm=px_per_cm,
                          head_speed=head_speed)
     episodes = len(plan(req))
     with sim_progress(minutes, f"collecting {episodes} episodes", unit="sim min") as bar:
         written = run_collect(req, lambda done, sim_minutes: bar(sim_minutes))
+    for kind, path in written.items():
+        typer.echo(f"{kind:<16} {path}")
+
+
+def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int) -> None:
+    from macrostate_mj.app.srs import SRSRequest, collect_srs
+    from macrostate_mj.core.progress import LoggedProgress
+
+    with LoggedProgress(transient=True) as bar:
+        task = bar.add_task("collect srs", total=None)
+
+        def progress(stage: str, done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total, description=stage)
+
+        written = collect_srs(SRSRequest(req, pick, instances, ro_instances, k), progress)
     for kind, path in written.items():
         typer.echo(f"{kind:<16} {path}")

@@ -1,0 +1,120 @@
+"""The SR phase's Tail (seed §3.3.1): in random mode it draws k candidate destinations, scores
+each by the novelty of the team motion it would lead to, and drives to the policy's pick.
+
+Per random-mode log step, from the last `WINDOW` steps of the team's poses (ground truth):
+1. k offsets w ~ N(0, σ²I), the RO draw repeated (the RO phase is k = 1 and no scoring);
+2. ζ(φ(h′)) hallucinates F's and H's poses at the next log step;
+3. for each w the Tail's own pose then, driving toward its destination moved by w with the rule
+   and unicycle conversion the robots run (`chain.motion.drive_tail`);
+4. each candidate's window (the last WINDOW − 1 real steps and the hallucinated one, in the frame
+   of the Tail's candidate pose) scored by the autoencoder: e, the novelty index;
+5. the pick: the order statistic of e at the policy's quantile.
+Passive mode (every other `alternate` steps) and the first steps of an episode, before a whole
+window exists, behave as the RO phase does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pyarrow as pa
+
+from estimators.srs import PICKS
+from macrostate_mj.chain.motion import draw_tail_offsets, drive_tail
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.frames import frame_of
+from macrostate_mj.formats.srs_windows import WINDOW, features_to_poses, module_of, window_features
+
+if TYPE_CHECKING:
+    from estimators.srs.novelty import NoveltyModel
+
+
+
+def pick_index(e: np.ndarray, quantile: float) -> int:
+    """The candidate at `quantile` of e: the order statistic floor(q (k − 1)) (ties keep the
+    draw order); max is the largest, med with an even k the lower of the two middle ones."""
+    order = np.argsort(e, kind="stable")
+    return int(order[int(np.floor(quantile * (len(e) - 1) + 1e-9))])
+
+
+@dataclass(frozen=True)
+class SRSConfig:
+    """The SR phase's policy: a `collectors` policy config (`build` makes its hook)."""
+
+    model: str                 # path of the novelty model (φ, ψ, ζ)
+    model_sha256: str          # which model: part of the collection's plan
+    pick: str = "max"
+    k: int = 30
+    sigma: float = 0.75        # fraction of the robot size, as in the RO phase
+    alternate: int = 6
+    name: str = field(default="srs", init=False)
+
+    def __post_init__(self) -> None:
+        if self.pick not in PICKS:
+            raise UserError(f"unknown SRS pick {self.pick!r}; choose one of {', '.join(PICKS)}")
+        if self.k < 2:
+            raise UserError(f"--k must be at least 2 candidates, got {self.k}")
+        if self.sigma < 0:
+            raise UserError(f"--sigma must be non-negative, got {self.sigma}")
+
+    def build(self, rng: np.random.Generator) -> SRSPolicy:
+        from estimators.srs.novelty import load_novelty  # torch, only where the hook runs
+
+        return SRSPolicy(self, load_novelty(self.model), rng)
+
+
+class SRSPolicy:
+    """A periodic hook, one call per log step, setting the simulation's Tail offset; keeps per
+    scored step the candidates' e and the pick (`records`)."""
+
+    def __init__(self, cfg: SRSConfig, model: NoveltyModel, rng: np.random.Generator):
+        self.cfg, self.model, self.rng = cfg, model, rng
+        self.step = 0
+        self._history: list[np.ndarray] = []
+        self._rows: dict[str, list] = {"t": [], "e": [], "offsets": [], "pick": []}
+
+    def __call__(self, sim: ChainSim) -> None:
+        self._history = [*self._history[-(WINDOW - 1):], sim.poses]
+        random_mode = (self.step // self.cfg.alternate) % 2 == 0
+        self.step += 1
+        if not random_mode:
+            sim.tail_offset = np.zeros(2)
+            return
+        if len(self._history) < WINDOW:
+            sim.tail_offset = draw_tail_offsets(self.rng, self.cfg.sigma)
+            return
+        offsets = draw_tail_offsets(self.rng, self.cfg.sigma, (self.cfg.k,))
+        e = self.scores(sim, np.array(self._history), offsets)
+        pick = pick_index(e, PICKS[self.cfg.pick])
+        sim.tail_offset = offsets[pick]
+        for key, value in (("t", sim.time), ("e", e), ("offsets", offsets), ("pick", pick)):
+            self._rows[key].append(value)
+
+    def scores(self, sim: ChainSim, history: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """e of each candidate offset (K, 2) from the team's last WINDOW poses (WINDOW, n, 3)."""
+        tail, fol, head = module_of(history)
+        window = window_features(tail, fol, head)
+        nxt = self.model.predict_next(window[None])[0]
+        origin, alpha = frame_of(tail[-1, :2], fol[-1, :2])
+        fol_next, head_next = features_to_poses(nxt, origin, alpha)
+        cfg = sim.cfg
+        ticks = int(round(cfg.command_hz / cfg.log_hz))
+        tails = drive_tail(tail[-1], fol[-1, :2], offsets, cfg.spacing, sim.k_t, cfg.k_omega,
+                           cfg.chain_speed, cfg.allow_reverse, 1 / cfg.command_hz, ticks)
+        k = len(offsets)
+        fols = np.broadcast_to(np.concatenate([fol[1:], fol_next[None]]), (k, WINDOW, 3))
+        heads = np.broadcast_to(np.concatenate([head[1:], head_next[None]]), (k, WINDOW, 3))
+        cand_tails = np.broadcast_to(tails[:, None, :], (k, WINDOW, 3))
+        return self.model.novelty(window_features(cand_tails, fols, heads))
+
+    def records(self) -> pa.Table | None:
+        """One row per scored step: time, the k candidates' offsets (m) and e, the pick."""
+        rows = self._rows
+        return pa.table({"t": pa.array(rows["t"], pa.float64()),
+                         "offsets": pa.array([o.ravel().tolist() for o in rows["offsets"]],
+                                             pa.list_(pa.float64())),
+                         "e": pa.array([e.tolist() for e in rows["e"]], pa.list_(pa.float64())),
+                         "pick": pa.array(rows["pick"], pa.int32())})

@@ -1,0 +1,173 @@
+"""`collect --policy srs`: the two phases of seed §3.3 as one resumable collection.
+
+1. RO (Rand-Only): `ro_instances` instances with the Tail's destination perturbed at random
+   (`OUT/ro/`, an ordinary collection);
+2. the novelty models (φ, ψ, ζ) trained on the RO phase's ground-truth tracks (`OUT/novelty.pt`);
+3. SR (Selective-Random): `instances - ro_instances` more with the SRS Tail (`OUT/sr/`, with
+   `decisions.parquet`: per scored step the k candidates' offsets, e and the pick);
+4. the dataset in `OUT/`: the RO instances then the SR ones, in the ThymioLoc layout.
+Each stage is cached: a rerun after a kill resumes where it stopped (the collections shard by
+shard). SR episodes take indices after the RO ones, so no episode repeats another's seeds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from collectors.runner import SPLIT_NAMES, CollectRequest, collect, finished, parse_split, plan
+from macrostate_mj.chain.scenarios import scenario_for
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.io import atomic_path, prepare_out_dir, write_manifest
+from macrostate_mj.formats.instances import (
+    INSTANCE_STEPS,
+    from_thymioloc_pixels,
+    instance_starts,
+    split_indices,
+)
+from macrostate_mj.formats.thymioloc import read_csv, write_csv
+
+PRODUCTS = ["instances.csv", "instances_truth.csv", "decisions.parquet",  # novelty.pt: a stage
+            "manifest.json", *(f"{s}{t}.csv" for s in SPLIT_NAMES for t in ("", "_truth"))]
+
+
+@dataclass(frozen=True)
+class SRSRequest:
+    base: CollectRequest        # scenario, robots, seed, out, workers, split, ... (policy unused)
+    pick: str
+    instances: int
+    ro_instances: int
+    k: int = 30
+    novelty: object = field(default=None)     # a NoveltyConfig; None: its defaults
+
+
+def episodes_for(req: CollectRequest, instances: int) -> int:
+    """Episodes of `req.episode_minutes` that yield at least `instances` instances (the log's
+    first step may come up to one period late: counted without it)."""
+    cfg = scenario_for(req.scenario, req.head_speed)
+    steps = int(math.floor((req.warmup + req.episode_minutes * 60) * cfg.log_hz)) - 1
+    per = len(instance_starts(steps, cfg.log_hz, first=int(round(req.warmup * cfg.log_hz))))
+    if per < 1:
+        raise UserError(f"--episode-minutes {req.episode_minutes:g} is too short for one "
+                        f"{INSTANCE_STEPS}-step instance")
+    return math.ceil(instances / per)
+
+
+def _phase(req: SRSRequest, name: str, instances: int, first: int, policy: object
+           ) -> CollectRequest:
+    base = req.base
+    n = episodes_for(base, instances)
+    return replace(base, out=base.out / name, minutes=n * base.episode_minutes, split=None,
+                   first_episode=first, policy_spec=policy)
+
+
+def validate(req: SRSRequest) -> None:
+    if req.ro_instances < 2:
+        raise UserError(f"--ro-instances must be at least 2, got {req.ro_instances}")
+    if req.ro_instances >= req.instances:
+        raise UserError(f"--ro-instances {req.ro_instances} leaves no SR phase within "
+                        f"--instances {req.instances}; give fewer RO instances than instances")
+    from estimators.srs.policy import SRSConfig
+
+    SRSConfig("", "", req.pick, req.k, req.base.sigma)     # checks pick, k and sigma
+    if req.base.robots < 3:
+        raise UserError(f"--policy srs needs a team of at least 3 robots, got {req.base.robots}")
+
+
+def collect_srs(req: SRSRequest, progress: Callable[[str, int, int], None] | None = None
+                ) -> dict[str, Path]:
+    """Run (or resume) the four stages; returns the written paths."""
+    from collectors.policies import PolicyConfig
+    from estimators.srs.novelty import NoveltyConfig, load_novelty, save_novelty, train_novelty
+    from estimators.srs.policy import SRSConfig
+
+    validate(req)
+    fractions = parse_split(req.base.split)
+    out = prepare_out_dir(req.base.out, PRODUCTS, req.base.overwrite)
+    model_path = out / "novelty.pt"
+    robots, scenario = req.base.robots, req.base.scenario
+    cached = None
+    if model_path.exists() and not req.base.overwrite:  # an earlier run's must fit this team
+        cached = load_novelty(model_path, robots, scenario)
+    out.mkdir(parents=True, exist_ok=True)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    ro_req = _phase(req, "ro", req.ro_instances, 0, PolicyConfig("random", req.base.sigma))
+    n_ro = len(plan(ro_req))
+    if req.base.overwrite or not finished(ro_req):
+        collect(ro_req, _reporter(progress, "RO phase", n_ro))
+    timings["ro_phase"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    cfg = req.novelty or NoveltyConfig(seed=req.base.seed)
+    data = ro_req.out / "instances_truth.csv"
+    key = hashlib.sha256(data.read_bytes() + repr((cfg, req.ro_instances)).encode()).hexdigest()
+    if cached is None or cached.info.get("data_key") != key:     # else: the cached stage
+        tracks = _tracks(data, ro_req, req.ro_instances)
+        model, info = train_novelty(tracks, cfg, scenario, progress=progress is not None)
+        save_novelty(model_path, model, {**info, "data_key": key})
+    timings["novelty_models"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    sha = hashlib.sha256(model_path.read_bytes()).hexdigest()
+    srs = SRSConfig(str(model_path.resolve()), sha, req.pick, req.k, req.base.sigma)
+    sr_req = _phase(req, "sr", req.instances - req.ro_instances, n_ro, srs)
+    if req.base.overwrite or not finished(sr_req):
+        collect(sr_req, _reporter(progress, f"SR phase (SRS-{req.pick})", len(plan(sr_req))))
+    timings["sr_phase"] = time.perf_counter() - t0
+
+    with atomic_path(out / "decisions.parquet") as tmp:
+        shutil.copyfile(sr_req.out / "decisions.parquet", tmp)
+    written = _assemble(req, ro_req, sr_req, fractions) | {
+        "novelty": model_path, "decisions": out / "decisions.parquet"}
+    written["manifest"] = write_manifest(
+        out, "collect --policy srs", {"request": asdict(req)}, req.base.seed, timings,
+        phases={"ro": str(ro_req.out), "sr": str(sr_req.out)}, novelty_sha256=sha,
+        outputs={k: str(v) for k, v in written.items()})
+    return written
+
+
+def _reporter(progress: Callable[[str, int, int], None] | None, stage: str, total: int
+              ) -> Callable[[int, float], None] | None:
+    if progress is None:
+        return None
+    return lambda done, _minutes: progress(stage, done, total)
+
+
+def _tracks(path: Path, req: CollectRequest, count: int) -> np.ndarray:
+    """The first `count` instances of a collection's truth CSV as world tracks (m, rad)."""
+    cfg = scenario_for(req.scenario, req.head_speed)
+    px = read_csv(path).poses[:count].astype(float)
+    return from_thymioloc_pixels(px, cfg.arena, req.px_per_cm)
+
+
+def _assemble(req: SRSRequest, ro: CollectRequest, sr: CollectRequest,
+              fractions: tuple[float, ...] | None) -> dict[str, Path]:
+    """The RO phase's first instances, then the SR phase's, as one dataset (and splits)."""
+    out = req.base.out
+    counts = ((ro.out, req.ro_instances), (sr.out, req.instances - req.ro_instances))
+    written = {}
+    for kind in ("", "_truth"):
+        parts = []
+        for folder, count in counts:
+            poses = read_csv(folder / f"instances{kind}.csv").poses
+            if len(poses) < count:
+                raise UserError(f"{folder} holds {len(poses)} instances, fewer than the "
+                                f"{count} asked for; rerun with --overwrite")
+            parts.append(poses[:count])
+        poses = np.concatenate(parts)
+        written[f"instances{kind}"] = write_csv(out / f"instances{kind}.csv", poses)
+        if fractions is not None:
+            split = split_indices(len(poses), fractions,
+                                  np.random.default_rng([req.base.seed, 99]))
+            for name, idx in zip(SPLIT_NAMES, split, strict=True):
+                if len(idx):
+                    written[f"{name}{kind}"] = write_csv(out / f"{name}{kind}.csv", poses[idx])
+    return written

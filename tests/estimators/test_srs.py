@@ -1,0 +1,211 @@
+"""Chapter 3's SR phase (§3.3.1): novelty windows, the (φ, ψ, ζ) models, the Tail's candidate
+motion, the pick policies, and `collect --policy srs` end to end."""
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import torch
+from clitools import assert_clean_error, cli
+
+from collectors.policies import PolicyConfig
+from estimators.srs import PICKS
+from estimators.srs.novelty import (
+    NoveltyConfig,
+    NoveltyModel,
+    NoveltyNet,
+    load_novelty,
+    save_novelty,
+    train_novelty,
+)
+from estimators.srs.policy import SRSConfig, pick_index
+from macrostate_mj.chain.motion import drive_tail
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
+from macrostate_mj.chain.world import build_world
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.formats.instances import cut_instances, instance_starts
+from macrostate_mj.formats.srs_windows import (
+    WINDOW,
+    features_to_poses,
+    module_of,
+    step_features,
+    training_windows,
+    window_features,
+)
+from macrostate_mj.formats.thymioloc import read_csv
+
+
+def _tracks(seed: int, seconds: float = 400.0, sigma: float = 0.75) -> np.ndarray:
+    """Rand-Only team tracks of a 3-robot webots team: (instances, 26, 3, 3)."""
+    world = build_world(get_scenario("webots"), 3)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(seed))
+    log = PoseLog(world.names)
+    policy = PolicyConfig("random", sigma).build(np.random.default_rng([seed, 2]))
+    sim.episode(seconds, [Every(0.5, policy), Every(0.5, log.append)])
+    _, poses, _ = log.arrays()
+    return cut_instances(poses, instance_starts(len(poses), 2.0, first=10))
+
+
+@pytest.fixture(scope="module")
+def trained() -> tuple[NoveltyModel, dict, np.ndarray]:
+    tracks = _tracks(1, 800)
+    model, info = train_novelty(tracks, NoveltyConfig(epochs=120), "webots")
+    return model, info, tracks
+
+
+def test_window_features_are_in_the_tail_frame_and_invert():
+    rng = np.random.default_rng(0)
+    team = rng.normal(0, 0.5, (4, WINDOW, 3, 3))
+    tail, fol, head = module_of(team)
+    feat = window_features(tail, fol, head)
+    assert feat.shape == (4, WINDOW, 8)
+    assert np.allclose(feat[:, -1, 1], 0)            # F on the frame's x axis at the last step
+    dist = np.linalg.norm(fol[:, -1, :2] - tail[:, -1, :2], axis=1) * 100
+    assert np.allclose(feat[:, -1, 0], dist)
+    assert np.allclose(np.hypot(feat[..., 2], feat[..., 3]), 1)
+    origin = tail[:, -1, :2]
+    alpha = np.arctan2(*(fol[:, -1, :2] - origin).T[::-1])
+    f_back, h_back = features_to_poses(step_features(fol[:, 3], head[:, 3], origin, alpha),
+                                       origin, alpha)
+    assert np.allclose(f_back[:, :2], fol[:, 3, :2]) and np.allclose(h_back[:, :2], head[:, 3, :2])
+    d = np.angle(np.exp(1j * (h_back[:, 2] - head[:, 3, 2])))
+    assert np.allclose(d, 0)
+
+
+def test_tail_drives_toward_its_perturbed_destination():
+    """The candidate motion: zero offset keeps the Tail rule; an offset to the left ends left."""
+    tail, fol = np.array([0.0, 0.0, 0.0]), np.array([0.5, 0.0])
+    offsets = np.array([[0.0, 0.0], [0.0, 0.08], [0.0, -0.08]])
+    ends = drive_tail(tail, fol, offsets, 0.3, 3.0, 1.5, 0.2, True, 0.5, 1)
+    assert ends[0, 0] > 0.05 and abs(ends[0, 1]) < 1e-9         # straight toward F
+    assert ends[1, 1] > 0.005 and ends[2, 1] < -0.005           # left, right
+    assert np.allclose(ends[1] * [1, -1, -1], ends[2])              # mirror images
+
+
+def test_training_learns_and_novelty_flags_unseen_motion(trained):
+    model, info, tracks = trained
+    curve = info["curve"]
+    assert info["best_val_loss"] < 0.25 * curve[0]["val_loss"]
+    x, y = training_windows(_tracks(2, 200))                   # an unseen episode, same policy
+    e_seen = model.novelty(x)
+    # the same windows with F and H swapped: a team order the RO data never showed
+    swapped = np.concatenate([x[..., 4:], x[..., :4]], axis=-1)
+    assert np.median(model.novelty(swapped)) > 3 * np.median(e_seen)
+    nxt = model.predict_next(x)                                 # ζ beats "no motion"
+    still = x[:, -1]
+    assert np.mean((nxt - y)[:, [0, 1, 4, 5]] ** 2) < np.mean((still - y)[:, [0, 1, 4, 5]] ** 2)
+
+
+def test_pick_index_takes_the_quantile_order_statistic():
+    e = np.random.default_rng(0).permutation(np.arange(30.0))
+    assert e[pick_index(e, PICKS["max"])] == 29
+    assert e[pick_index(e, PICKS["med"])] == 14          # the lower of the two middle ones
+    assert e[pick_index(e, PICKS["q3"])] == 21 and e[pick_index(e, PICKS["q2"])] == 7
+
+
+@pytest.mark.parametrize("pick", ["max", "med"])
+def test_the_srs_tail_drives_to_its_pick_on_a_fixed_model(tmp_path, pick):
+    """On a fixed model (seeded weights), every scored step's pick is the candidate of largest
+    (median) e, the offset set is that candidate's, and the same seed repeats the choices."""
+    torch.manual_seed(0)
+    model = NoveltyModel(NoveltyNet(NoveltyConfig()), NoveltyConfig(), 3, "webots")
+    path = save_novelty(tmp_path / "m.pt", model, {})
+
+    def run(seed: int):
+        world = build_world(get_scenario("webots"), 3)
+        sim = ChainSim(world)
+        sim.reset(np.random.default_rng(seed))
+        policy = SRSConfig(str(path), "", pick, k=9).build(np.random.default_rng([seed, 2]))
+        offsets = []
+        sim.run(30.0, [Every(0.5, lambda s: (policy(s), offsets.append(s.tail_offset.copy())))])
+        return policy.records(), np.array(offsets)
+
+    rec, offsets = run(4)
+    assert rec.num_rows >= 10
+    picks, es = rec["pick"].to_numpy(), np.array(rec["e"].to_pylist())
+    cands = np.array(rec["offsets"].to_pylist()).reshape(rec.num_rows, 9, 2)
+    order = np.sort(es, axis=1)
+    chosen = es[np.arange(len(es)), picks]
+    assert np.array_equal(chosen, order[:, -1] if pick == "max" else order[:, 4])
+    times = np.round(rec["t"].to_numpy() / 0.5).astype(int)
+    assert np.array_equal(offsets[times], cands[np.arange(len(picks)), picks])
+    rec2, _ = run(4)
+    assert rec2.equals(rec)
+
+
+def test_novelty_models_refuse_another_team_or_format(tmp_path, trained):
+    model, info, _ = trained
+    path = save_novelty(tmp_path / "n.pt", model, info)
+    assert load_novelty(path, 3, "webots").robots == 3
+    with pytest.raises(UserError, match="3-robot team"):
+        load_novelty(path, 5)
+    with pytest.raises(UserError, match="scenario 'webots'"):
+        load_novelty(path, 3, "lab")
+    torch.save({"format": "macrostate-mj/srs-novelty", "version": 99}, tmp_path / "v.pt")
+    with pytest.raises(UserError, match="version 99"):
+        load_novelty(tmp_path / "v.pt")
+    with pytest.raises(UserError, match="at least 2 candidates"):
+        SRSConfig("x", "", "max", k=1)
+
+
+SRS = ["collect", "--scenario", "webots", "--robots", "3", "--policy", "srs", "--srs", "med",
+       "--ro-instances", "4", "--instances", "8", "--k", "5", "--episode-minutes", "1",
+       "--seed", "3"]
+
+
+def test_collect_srs_end_to_end_and_resumes(tmp_path):
+    out = tmp_path / "srs"
+    res = cli(*SRS, "--split", "50/25/25", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert read_csv(out / "instances.csv").n_instances == 8
+    assert read_csv(out / "Train.csv").n_instances == 4
+    assert load_novelty(out / "novelty.pt", 3, "webots").robots == 3
+    dec = pq.read_table(out / "decisions.parquet")
+    es = np.array(dec["e"].to_pylist())
+    assert dec.num_rows > 20 and es.shape[1] == 5
+    assert np.array_equal(es[np.arange(len(es)), dec["pick"].to_numpy()], np.sort(es)[:, 2])
+    first = {p.name: p.read_bytes() for p in out.glob("*.csv")}
+    model = (out / "novelty.pt").stat().st_mtime_ns
+    # killed during the SR phase: the final files and one SR episode gone; a rerun resumes
+    for path in [*out.glob("*.*"), *(out / "sr").glob("*.*"),
+                 *(out / "sr" / "shards").glob("*_00003.parquet")]:
+        if path.name != "novelty.pt":
+            path.unlink()
+    res = cli(*SRS, "--split", "50/25/25", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert first == {p.name: p.read_bytes() for p in out.glob("*.csv")}
+    assert (out / "novelty.pt").stat().st_mtime_ns == model          # not trained again
+    res = cli(*SRS, "--split", "50/25/25", "--out", str(out), "--overwrite")
+    assert res.returncode == 0, res.stderr
+    assert first == {p.name: p.read_bytes() for p in out.glob("*.csv")}
+
+
+@pytest.mark.parametrize(("args", "names"), [
+    (["--ro-instances", "8", "--instances", "8"], "--ro-instances"),
+    (["--k", "1"], "--k"),
+    (["--srs", "q4"], "--srs"),
+    (["--sigma", "-1"], "--sigma"),
+])
+def test_collect_srs_bad_input(tmp_path, args, names):
+    base = [a for a in SRS]
+    for flag, value in zip(args[::2], args[1::2], strict=True):
+        i = base.index(flag) if flag in base else None
+        if i is None:
+            base += [flag, value]
+        else:
+            base[i + 1] = value
+    res = cli(*base, "--out", str(tmp_path / "bad"))
+    assert_clean_error(res, names)
+    assert not (tmp_path / "bad").exists()
+
+
+def test_collect_srs_refuses_a_novelty_model_of_another_team(tmp_path, trained):
+    model, info, _ = trained
+    out = tmp_path / "other"
+    out.mkdir()
+    save_novelty(out / "novelty.pt", model, info)
+    args = [a if a != "3" else "4" for a in SRS]          # --robots 4 (and seed 4)
+    res = cli(*args, "--out", str(out))
+    assert_clean_error(res, "3-robot team")
+    assert not (out / "ro").exists()
