@@ -209,3 +209,28 @@ def test_collect_srs_refuses_a_novelty_model_of_another_team(tmp_path, trained):
     res = cli(*args, "--out", str(out))
     assert_clean_error(res, "3-robot team")
     assert not (out / "ro").exists()
+
+
+def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
+    """The chapter's task graph on the quick profile: every figure, and what must hold on any
+    machine: Rand-Only with σ = 0 is Passive, and an SRS dataset begins with its RO phase, the
+    same instances as the Rand-Only dataset of the same seed."""
+    import json
+
+    out = tmp_path / "chapter3"
+    res = cli("experiment", "srs", "--quick", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    for name in ("fig3_4.png", "fig3_5a.png", "fig3_5b.png", "fig3_6.png", "fig3_7.png"):
+        assert (out / name).stat().st_size > 1000
+    results = json.loads((out / "results.json").read_text())
+    cfg = results["configs"]
+    assert cfg["ro_0"]["1.0000"]["head_cm"] == cfg["passive"]["1.0000"]["head_cm"]
+    ro = read_csv(out / "data" / "ro_0.75_d0" / "instances.csv").poses
+    srs = read_csv(out / "data" / "srs_max_d0" / "instances.csv").poses
+    m = results["profile"]["ro_instances"]
+    assert np.array_equal(ro[:m], srs[:m]) and not np.array_equal(ro[m:2 * m], srs[m:2 * m])
+    assert set(results["distances"]) == {"srs_max", "ro_0.75"}
+    before = (out / "results.json").read_bytes()
+    res = cli("experiment", "srs", "--quick", "--out", str(out), "--overwrite")
+    assert res.returncode == 0, res.stderr
+    assert (out / "results.json").read_bytes() == before      # every task from its cache
