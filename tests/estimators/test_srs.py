@@ -231,6 +231,13 @@ def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
     assert np.array_equal(ro[:m], srs[:m]) and not np.array_equal(ro[m:2 * m], srs[m:2 * m])
     assert set(results["distances"]) == {"srs_max", "ro_0.75"}
     before = (out / "results.json").read_bytes()
-    res = cli("experiment", "srs", "--quick", "--out", str(out), "--overwrite")
+    res = cli("experiment", "srs", "--profile", "quick", "--out", str(out), "--overwrite")
     assert res.returncode == 0, res.stderr
     assert (out / "results.json").read_bytes() == before      # every task from its cache
+
+
+def test_experiment_srs_profiles_are_the_cli_choices():
+    from macrostate_mj.app.cli.srs import PROFILE_NAMES
+    from macrostate_mj.app.experiments.srs import PROFILES
+
+    assert set(PROFILE_NAMES) == set(PROFILES)

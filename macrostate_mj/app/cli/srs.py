@@ -7,13 +7,18 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
-from macrostate_mj.app.cli.params import MAX_WORKERS, Count, OutputDir, Seed, Switch
+from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Seed, Switch
+
+PROFILE_NAMES = ("full", "fig3.5b", "quick")
 
 
 @experiment_app.command("srs")
 def experiment_srs(
-    quick: bool = Switch(False, "A smoke profile (small datasets, one of each, few epochs) "
-                         "instead of Table 3.1's sizes with 3 datasets and 3 models each."),
+    profile: str = Choice("full", "full: Table 3.1's sizes, every configuration, 3 datasets "
+                          "and 3 models each; fig3.5b: Passive, Rand-Only and SRS-Med only, 1 "
+                          "model per dataset; quick: a smoke run of every figure.",
+                          PROFILE_NAMES),
+    quick: bool = Switch(False, "Shorthand for --profile quick."),
     seed: int = Seed(0, "Experiment seed; dataset j of every configuration uses seed*1000+j."),
     workers: int = Count(1, "Local worker processes (collections and trainings).",
                          max=MAX_WORKERS),
@@ -24,10 +29,10 @@ def experiment_srs(
 ) -> None:
     """Table 3.1, Fig 3.4 (σ sweep), Fig 3.5a/b (policies over budgets), Fig 3.6 (step-wise,
     5 robots) and Fig 3.7 (distance histograms); resumes after an interruption."""
-    from macrostate_mj.app.experiments.srs import PRODUCTS, SRSProfile, run_srs_experiment
+    from macrostate_mj.app.experiments.srs import PRODUCTS, PROFILES, run_srs_experiment
     from macrostate_mj.core.io import prepare_out_dir
 
     prepare_out_dir(out, PRODUCTS, overwrite)
-    profile = SRSProfile.quick() if quick else SRSProfile()
-    for line in run_srs_experiment(profile, out, seed, workers, ray):
+    chosen = PROFILES["quick" if quick else profile]
+    for line in run_srs_experiment(chosen, out, seed, workers, ray):
         typer.echo(line)

@@ -50,11 +50,16 @@ class SRSProfile:
     epochs: int = 60
     episode_minutes: float = 5.0
 
-    @classmethod
-    def quick(cls) -> SRSProfile:
-        return cls(train=12, val=6, test=6, datasets=1, models=1, sigmas=(0.0, 0.75),
-                   budgets=(0.5, 1.0), picks=("max", "med"), ro_instances=6, k=8, epochs=3,
-                   episode_minutes=1.0)
+
+
+PROFILES = {
+    "full": SRSProfile(),
+    # Fig 3.5b alone at Table 3.1's sizes: Passive, Rand-Only and SRS-Med, 3 datasets, 1 model
+    "fig3.5b": SRSProfile(sigmas=(0.75,), picks=("med",), models=1),
+    "quick": SRSProfile(train=12, val=6, test=6, datasets=1, models=1, sigmas=(0.0, 0.75),
+                        budgets=(0.5, 1.0), picks=("max", "med"), ro_instances=6, k=8,
+                        epochs=3, episode_minutes=1.0),
+}
 
 
 def _collection(out: Path, robots: int, instances: int, seed: int, policy: str, sigma: float,
