@@ -51,7 +51,7 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     sim.reset(spec.rng(0))
     chain = CameraChain(sim, spec.noise, rng=spec.rng(1))
     log = PoseLog(world.names, tracker=chain)
-    policy = spec.policy.build(spec.rng(2))
+    policy = spec.policy.build(spec.rng(2), chain)
     step = 1 / cfg.log_hz
     hooks = [chain, Every(step, policy, sim.log_phase), Every(step, log.append, sim.log_phase)]
     try:

@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow as pa
 
 from macrostate_mj.chain.motion import draw_tail_offsets
-from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.sim import ChainSim, Tracker
 from macrostate_mj.core.errors import UserError
 
 POLICIES = ("passive", "random")
@@ -31,11 +31,12 @@ class PolicyHook(Protocol):
 
 class PolicySpec(Protocol):
     """A picklable policy configuration that an episode task carries to its worker, where
-    `build` makes the hook (the SR phase's lives in `estimators.srs.policy`)."""
+    `build` makes the hook (the SR phase's lives in `estimators.srs.policy`); `tracker` is the
+    episode's camera chain, for a policy that acts on tracked poses."""
 
     name: str
 
-    def build(self, rng: np.random.Generator) -> PolicyHook: ...
+    def build(self, rng: np.random.Generator, tracker: Tracker | None = None) -> PolicyHook: ...
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class PolicyConfig:
         if self.sigma < 0:
             raise UserError(f"--sigma must be non-negative, got {self.sigma}")
 
-    def build(self, rng: np.random.Generator) -> TailPolicy:
+    def build(self, rng: np.random.Generator, tracker: Tracker | None = None) -> TailPolicy:
         return TailPolicy(self, rng)
 
 

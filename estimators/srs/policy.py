@@ -10,7 +10,8 @@ Per random-mode log step, from the last `WINDOW` steps of the team's poses (grou
    of the Tail's candidate pose) scored by the autoencoder: e, the novelty index;
 5. the pick: the order statistic of e at the policy's quantile.
 Passive mode (every other `alternate` steps) and the first steps of an episode, before a whole
-window exists, behave as the RO phase does.
+window exists (or, with `track`, while a robot has not been seen yet), behave as the RO phase
+does. The team's poses are the truth, or with `track` the overhead tracker's latest.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import pyarrow as pa
 
 from estimators.srs import PICKS
 from macrostate_mj.chain.motion import draw_tail_offsets, drive_tail
-from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.sim import ChainSim, Tracker
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.frames import frame_of
 from macrostate_mj.formats.srs_windows import WINDOW, features_to_poses, module_of, window_features
@@ -50,6 +51,7 @@ class SRSConfig:
     k: int = 30
     sigma: float = 0.75        # fraction of the robot size, as in the RO phase
     alternate: int = 6
+    track: bool = False        # act on the tracker's poses rather than the truth
     name: str = field(default="srs", init=False)
 
     def __post_init__(self) -> None:
@@ -60,30 +62,34 @@ class SRSConfig:
         if self.sigma < 0:
             raise UserError(f"--sigma must be non-negative, got {self.sigma}")
 
-    def build(self, rng: np.random.Generator) -> SRSPolicy:
+    def build(self, rng: np.random.Generator, tracker: Tracker | None = None) -> SRSPolicy:
         from estimators.srs.novelty import load_novelty  # torch, only where the hook runs
 
-        return SRSPolicy(self, load_novelty(self.model), rng)
+        if self.track and tracker is None:
+            raise UserError("an SRS Tail with track=True needs the episode's tracker")
+        return SRSPolicy(self, load_novelty(self.model), rng, tracker if self.track else None)
 
 
 class SRSPolicy:
     """A periodic hook, one call per log step, setting the simulation's Tail offset; keeps per
     scored step the candidates' e and the pick (`records`)."""
 
-    def __init__(self, cfg: SRSConfig, model: NoveltyModel, rng: np.random.Generator):
-        self.cfg, self.model, self.rng = cfg, model, rng
+    def __init__(self, cfg: SRSConfig, model: NoveltyModel, rng: np.random.Generator,
+                 tracker: Tracker | None = None):
+        self.cfg, self.model, self.rng, self.tracker = cfg, model, rng, tracker
         self.step = 0
         self._history: list[np.ndarray] = []
         self._rows: dict[str, list] = {"t": [], "e": [], "offsets": [], "pick": []}
 
     def __call__(self, sim: ChainSim) -> None:
-        self._history = [*self._history[-(WINDOW - 1):], sim.poses]
+        seen = sim.poses if self.tracker is None else self.tracker.latest.copy()
+        self._history = [*self._history[-(WINDOW - 1):], seen]
         random_mode = (self.step // self.cfg.alternate) % 2 == 0
         self.step += 1
         if not random_mode:
             sim.tail_offset = np.zeros(2)
             return
-        if len(self._history) < WINDOW:
+        if len(self._history) < WINDOW or not np.isfinite(self._history).all():
             sim.tail_offset = draw_tail_offsets(self.rng, self.cfg.sigma)
             return
         offsets = draw_tail_offsets(self.rng, self.cfg.sigma, (self.cfg.k,))

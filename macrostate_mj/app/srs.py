@@ -2,7 +2,8 @@
 
 1. RO (Rand-Only): `ro_instances` instances with the Tail's destination perturbed at random
    (`OUT/ro/`, an ordinary collection);
-2. the novelty models (φ, ψ, ζ) trained on the RO phase's ground-truth tracks (`OUT/novelty.pt`);
+2. the novelty models (φ, ψ, ζ) trained on the RO phase's ground-truth tracks, or its tracked
+   ones with `track` (`OUT/novelty.pt`);
 3. SR (Selective-Random): `instances - ro_instances` more with the SRS Tail (`OUT/sr/`, with
    `decisions.parquet`: per scored step the k candidates' offsets, e and the pick);
 4. the dataset in `OUT/`: the RO instances then the SR ones, in the ThymioLoc layout.
@@ -45,6 +46,7 @@ class SRSRequest:
     instances: int
     ro_instances: int
     k: int = 30
+    track: bool = False         # the Tail acts on, and its models learn from, tracked poses
     novelty: object = field(default=None)     # a NoveltyConfig; None: its defaults
 
 
@@ -107,7 +109,7 @@ def collect_srs(req: SRSRequest, progress: Callable[[str, int, int], None] | Non
 
     t0 = time.perf_counter()
     cfg = req.novelty or NoveltyConfig(seed=req.base.seed)
-    data = ro_req.out / "instances_truth.csv"
+    data = ro_req.out / ("instances.csv" if req.track else "instances_truth.csv")
     key = hashlib.sha256(data.read_bytes() + repr((cfg, req.ro_instances)).encode()).hexdigest()
     if cached is None or cached.info.get("data_key") != key:     # else: the cached stage
         tracks = _tracks(data, ro_req, req.ro_instances)
@@ -117,7 +119,8 @@ def collect_srs(req: SRSRequest, progress: Callable[[str, int, int], None] | Non
 
     t0 = time.perf_counter()
     sha = hashlib.sha256(model_path.read_bytes()).hexdigest()
-    srs = SRSConfig(str(model_path.resolve()), sha, req.pick, req.k, req.base.sigma)
+    srs = SRSConfig(str(model_path.resolve()), sha, req.pick, req.k, req.base.sigma,
+                    track=req.track)
     sr_req = _phase(req, "sr", req.instances - req.ro_instances, n_ro, srs)
     if req.base.overwrite or not finished(sr_req):
         collect(sr_req, _reporter(progress, f"SR phase (SRS-{req.pick})", len(plan(sr_req))))

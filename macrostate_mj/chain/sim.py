@@ -97,6 +97,14 @@ class _Ticks:
             self.next_step = int(round((self.origin + self.count * self.hook.period) / self.dt))
 
 
+class Tracker(Protocol):
+    """What the chain's hooks may read of a camera tracker (`vision.camera_chain.CameraChain`):
+    each robot's latest tracked pose (n, 3), NaN before its first detection."""
+
+    @property
+    def latest(self) -> np.ndarray: ...
+
+
 @dataclass
 class PoseLog:
     """Poses at log ticks: times (T,), poses (T, n, 3), Head waypoint (T, 2) or NaN, and, with

@@ -134,6 +134,23 @@ def test_the_srs_tail_drives_to_its_pick_on_a_fixed_model(tmp_path, pick):
     assert rec2.equals(rec)
 
 
+def test_a_tracking_srs_tail_scores_the_tracked_poses(tmp_path):
+    """With `track`, the Tail's windows come from the overhead tracker: the first scored step's
+    novelty differs from the ground truth's, by as little as the tracker's mm-level error."""
+    from collectors.episodes import EpisodeSpec, run_episode
+
+    torch.manual_seed(0)
+    model = NoveltyModel(NoveltyNet(NoveltyConfig()), NoveltyConfig(), 3, "webots")
+    path = str(save_novelty(tmp_path / "m.pt", model, {}))
+    first = []
+    for track in (False, True):
+        policy = SRSConfig(path, "", "max", k=9, track=track)
+        _, table, stats = run_episode(EpisodeSpec("webots", 3, 12.0, 0.0, 7, 0, policy))
+        first.append(np.array(stats["decisions"]["e"].to_pylist()[0]))
+    assert not np.array_equal(first[0], first[1])
+    assert np.allclose(first[0], first[1], rtol=0.05)
+
+
 def test_novelty_models_refuse_another_team_or_format(tmp_path, trained):
     model, info, _ = trained
     path = save_novelty(tmp_path / "n.pt", model, info)

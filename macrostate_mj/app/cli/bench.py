@@ -20,6 +20,7 @@ SUITES: dict[str, str] = {
     "retlo": "macrostate_mj.app.bench.retlo:bench_retlo",
     "flow": "macrostate_mj.app.bench.flow:bench_flow",
     "iogen": "macrostate_mj.app.bench.iogen:bench_iogen",
+    "srs": "macrostate_mj.app.bench.srs:bench_srs",
 }
 
 

@@ -41,6 +41,9 @@ def collect(
     instances: int = Count(None, "srs: instances in all (Rand-Only phase included)."),
     ro_instances: int = Count(100, "srs: instances of the Rand-Only phase.", min=2),
     k: int = Count(30, "srs: candidate destinations per step.", min=2),
+    track: bool = Switch(False, "srs: the Tail scores its candidates from the overhead "
+                         "tracker's poses (its models learn from tracked data) rather than the "
+                         "ground truth."),
     seed: int = Seed(0, "Collection seed; each episode derives its own."),
     workers: int = Count(1, "Local worker processes.", max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run episodes on Ray: local, auto or ADDRESS."),
@@ -66,8 +69,10 @@ def collect(
         req = CollectRequest(scenario, robots, 0.0, seed, out, "random", sigma, workers, ray,
                              split, overwrite, episode_minutes, px_per_cm=px_per_cm,
                              head_speed=head_speed)
-        _collect_srs(req, srs, instances, ro_instances, k)
+        _collect_srs(req, srs, instances, ro_instances, k, track)
         return
+    if instances is not None:
+        raise UserError(f"--instances is for --policy srs; --policy {policy} takes --minutes")
     if minutes is None:
         raise UserError(f"--policy {policy} needs --minutes (the simulated driving time)")
     req = CollectRequest(scenario, robots, minutes, seed, out, policy, sigma, workers, ray,
@@ -80,7 +85,8 @@ def collect(
         typer.echo(f"{kind:<16} {path}")
 
 
-def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int) -> None:
+def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
+                 track: bool) -> None:
     from macrostate_mj.app.srs import SRSRequest, collect_srs
     from macrostate_mj.core.progress import LoggedProgress
 
@@ -90,6 +96,7 @@ def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int) -> N
         def progress(stage: str, done: int, total: int) -> None:
             bar.update(task, completed=done, total=total, description=stage)
 
-        written = collect_srs(SRSRequest(req, pick, instances, ro_instances, k), progress)
+        written = collect_srs(SRSRequest(req, pick, instances, ro_instances, k, track),
+                              progress)
     for kind, path in written.items():
         typer.echo(f"{kind:<16} {path}")
