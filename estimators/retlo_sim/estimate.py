@@ -60,6 +60,51 @@ def estimate_chain(predict: Predict, sensed: np.ndarray, synced: np.ndarray,
     return pos
 
 
+class OnlineChain:
+    """`estimate_chain` one step at a time, as a Tail runs it live: `start` with every true
+    pose (Tail first) at τ, then `observe` its own and Follower 1's position each step. After the
+    observation of step s, module k runs at step s - 1 - k: its inputs are all there (robot k+1
+    at s - k came from module k-1 just before), so the estimates equal `estimate_chain`'s on the
+    same observations. `head` is the latest estimate of the Head: it lags n - 2 steps."""
+
+    def __init__(self, predict: Predict, n: int, capacity: int):
+        self.predict, self.n = predict, n
+        self.pos = np.full((capacity, n, 2), np.nan)
+        self.theta = np.full((capacity, n), np.nan)
+        self.step = -1
+
+    def start(self, poses: np.ndarray) -> None:
+        """Every robot's true pose (n, 3), Tail first, at τ: step 0."""
+        self.pos[:] = np.nan
+        self.theta[:] = np.nan
+        self.pos[0], self.theta[0] = poses[:, :2], poses[:, 2]
+        self.step = 0
+
+    def observe(self, sensed: np.ndarray) -> None:
+        """The Tail's and Follower 1's positions (2, 2) at the next step."""
+        s = self.step = self.step + 1
+        if s >= len(self.pos):
+            raise ValueError(f"OnlineChain holds {len(self.pos)} steps; give a larger capacity")
+        pos, theta = self.pos, self.theta
+        pos[s, :2] = sensed
+        for k in range(self.n - 2):
+            t = s - 1 - k
+            if t < 0:
+                break
+            fol = np.append(pos[t, k + 1], theta[t, k + 1])[None]
+            base, origin, alpha = module_base(pos[t, k][None], fol, pos[t + 1, k + 1][None])
+            head_xy, fol_theta = decode(self.predict(base), origin, alpha)
+            if t > 0:
+                pos[t, k + 2] = head_xy[0]
+            theta[t + 1, k + 1] = fol_theta[0]
+
+    @property
+    def head(self) -> tuple[int, np.ndarray]:
+        """(step, position) of the latest Head estimate (step 0: the truth at τ)."""
+        t = max(0, self.step - (self.n - 2))
+        return t, self.pos[t, -1]
+
+
 def estimate_heuristic(sensed: np.ndarray, synced: np.ndarray, sync: np.ndarray) -> np.ndarray:
     """The 2X heuristic applied modularly (robot k+2 ≈ robot k + 2 (robot k+1 − robot k)),
     with the knowledge of `estimate_chain` (memoryless between syncs): a reference for how much

@@ -97,6 +97,15 @@ class _Ticks:
             self.next_step = int(round((self.origin + self.count * self.hook.period) / self.dt))
 
 
+class Mission(Protocol):
+    """Rewrites the chain's reference velocities (n, 2) in place each command tick."""
+
+    def reset(self) -> None: ...
+
+    def adjust(self, t: float, poses: np.ndarray, vel: np.ndarray, d: float, k_f: float,
+               head_speed: float) -> None: ...
+
+
 class Tracker(Protocol):
     """What the chain's hooks may read of a camera tracker (`vision.camera_chain.CameraChain`):
     each robot's latest tracked pose (n, 3), NaN before its first detection."""
@@ -153,7 +162,7 @@ class ChainSim:
     """Runs one chain world; owns its MjData, planner and the controller's state."""
 
     def __init__(self, world: World, k_t: float | None = None, planner: Planner | None = None,
-                 data: mujoco.MjData | None = None):
+                 data: mujoco.MjData | None = None, mission: Mission | None = None):
         self.world = world
         self.cfg = world.scenario
         self.model = world.model
@@ -166,6 +175,9 @@ class ChainSim:
         self.log_phase = 0.0
         # Displacement of the Tail's destination (m), set by a data-collection policy (SRS).
         self.tail_offset = np.zeros(2)
+        # A mission (e.g. `chain.caging.CagingMission`) that rewrites the reference velocities;
+        # with one, the Head is driven by its velocity, not by the planner's (v, omega).
+        self.mission = mission
         self.n = len(world.names)
         self._body = world.body
         dt = self.model.opt.timestep
@@ -184,6 +196,8 @@ class ChainSim:
         mujoco.mj_resetData(self.model, self.data)
         self.monitor.reset()
         self.tail_offset = np.zeros(2)
+        if self.mission is not None:
+            self.mission.reset()
         start = place_chain(self.cfg, self.n, rng) if start is None else np.asarray(start)
         for adr, (x, y, th) in zip(self.world.qpos_adr, start, strict=True):
             self.data.qpos[adr:adr + 3] = [x, y, self.model.qpos0[adr + 2]]
@@ -218,8 +232,10 @@ class ChainSim:
         # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
         gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])
         vel[-1] += self.k_t * gap * self.tail_offset
+        if self.mission is not None:
+            self.mission.adjust(self.time, poses, vel, cfg.spacing, cfg.k_f, cfg.head_speed)
         for i in range(self.n):
-            if i == 0 and self.planner.twist is not None:
+            if i == 0 and self.planner.twist is not None and self.mission is None:
                 v, omega = self.planner.twist
                 if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):
                     v = 0.0     # a Head driven in (v, omega) waits rather than ram a robot

@@ -155,3 +155,27 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, bad):
                           "--train-steps", "20", "--test-steps", "40", *bad)
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert not (tmp_path / "manifest.json").exists()
+
+
+def test_the_online_chain_estimates_what_the_offline_one_does():
+    """The Tail's live estimator (one observation a step) equals `estimate_chain` on the same
+    observations, for any module function, and its Head lags n - 2 steps."""
+    from estimators.retlo_sim.estimate import OnlineChain, estimate_chain, sync_steps
+
+    rng = np.random.default_rng(3)
+    steps, n = 40, 6
+    truth = np.cumsum(rng.normal(0, 0.01, (steps, n, 3)), axis=0)
+
+    def predict(base: np.ndarray) -> np.ndarray:      # any deterministic module will do
+        return np.column_stack([np.tanh(base.sum(1)), 0.3 * base[:, 0], np.sin(base[:, 1])])
+
+    sync = sync_steps(steps, None)
+    offline = estimate_chain(predict, truth[:, :2, :2], truth[sync], sync)
+    live = OnlineChain(predict, n, steps)
+    live.start(truth[0])
+    for s in range(1, steps):
+        live.observe(truth[s, :2, :2])
+        t, head = live.head
+        assert t == max(0, s - (n - 2))
+        assert np.array_equal(head, offline[t, -1], equal_nan=True)
+    assert np.array_equal(live.pos, offline, equal_nan=True)
