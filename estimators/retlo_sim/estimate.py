@@ -62,23 +62,33 @@ def estimate_chain(predict: Predict, sensed: np.ndarray, synced: np.ndarray,
 
 class OnlineChain:
     """`estimate_chain` one step at a time, as a Tail runs it live: `start` with every true
-    pose (Tail first) at τ, then `observe` its own and Follower 1's position each step. After the
-    observation of step s, module k runs at step s - 1 - k: its inputs are all there (robot k+1
-    at s - k came from module k-1 just before), so the estimates equal `estimate_chain`'s on the
-    same observations. `head` is the latest estimate of the Head: it lags n - 2 steps."""
+    pose (Tail first) at τ, then `observe` its own and Follower 1's position each step, and
+    `share` every pose when the team communicates (§2.5.3.2). After the observation of step s,
+    module k runs at step s - 1 - k: its inputs are all there (robot k+1 at s - k came from
+    module k-1 just before), so the estimates equal `estimate_chain`'s on the same observations
+    and sync steps. `head` is the latest estimate of the Head: it lags n - 2 steps."""
 
     def __init__(self, predict: Predict, n: int, capacity: int):
         self.predict, self.n = predict, n
         self.pos = np.full((capacity, n, 2), np.nan)
         self.theta = np.full((capacity, n), np.nan)
+        self.synced = np.zeros(capacity + 1, bool)
         self.step = -1
 
     def start(self, poses: np.ndarray) -> None:
         """Every robot's true pose (n, 3), Tail first, at τ: step 0."""
         self.pos[:] = np.nan
         self.theta[:] = np.nan
-        self.pos[0], self.theta[0] = poses[:, :2], poses[:, 2]
+        self.synced[:] = False
         self.step = 0
+        self.pos[0, :2] = poses[:2, :2]
+        self.share(poses)
+
+    def share(self, poses: np.ndarray) -> None:
+        """Every robot's true pose (n, 3), Tail first, at the latest step (a sync step)."""
+        s = self.step
+        self.pos[s, 2:], self.theta[s] = poses[2:, :2], poses[:, 2]
+        self.synced[s] = True
 
     def observe(self, sensed: np.ndarray) -> None:
         """The Tail's and Follower 1's positions (2, 2) at the next step."""
@@ -94,9 +104,10 @@ class OnlineChain:
             fol = np.append(pos[t, k + 1], theta[t, k + 1])[None]
             base, origin, alpha = module_base(pos[t, k][None], fol, pos[t + 1, k + 1][None])
             head_xy, fol_theta = decode(self.predict(base), origin, alpha)
-            if t > 0:
+            if not self.synced[t]:
                 pos[t, k + 2] = head_xy[0]
-            theta[t + 1, k + 1] = fol_theta[0]
+            if not self.synced[t + 1]:
+                theta[t + 1, k + 1] = fol_theta[0]
 
     @property
     def head(self) -> tuple[int, np.ndarray]:

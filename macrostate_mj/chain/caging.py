@@ -40,6 +40,8 @@ class CagingConfig:
     radial_tolerance: float = 0.025    # judge: every robot this near the boundary
     max_gap_deg: float = 100.0         # judge: the largest angular gap between neighbours
     start_corner: tuple[float, float] = (-0.52, -0.26)   # the Tail starts bottom-left
+    share_every_s: float | None = 5.0  # the team shares every pose this often (§2.5.3.2: 150
+    #                                    steps at 30 Hz); None: only at the start (τ)
 
     def validate(self, arena: tuple[float, float]) -> None:
         from macrostate_mj.core.errors import UserError

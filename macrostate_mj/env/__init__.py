@@ -8,3 +8,6 @@ import gymnasium
 
 gymnasium.register(id="macrostate_mj/ExploreTail-v0", entry_point="macrostate_mj.env.gym:TailEnv",
                    kwargs={"task": "explore"})
+gymnasium.register(id="macrostate_mj/CagingTail-v0", entry_point="macrostate_mj.env.gym:TailEnv",
+                   kwargs={"task": "caging", "scenario": "robotarium", "robots": 6,
+                           "time_limit": 90.0})

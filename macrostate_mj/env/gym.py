@@ -49,7 +49,9 @@ class TailEnv(gymnasium.Env):
         super().reset(seed=seed)
         self._task._random = np.random.RandomState(int(self.np_random.integers(2**31)))
         step = self._env.reset()
-        return self._obs(step.observation), {}
+        start = getattr(self._task, "team_at_start", None)       # caging: the poses at τ
+        return self._obs(step.observation), ({} if start is None else
+                                             {"team_at_start": start.copy()})
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
         action = np.asarray(action, np.float64)
@@ -60,6 +62,10 @@ class TailEnv(gymnasium.Env):
         terminated = step.last() and step.discount == 0.0
         truncated = step.last() and not terminated
         info = {"fault": None if self._task.fault is None else str(self._task.fault)}
+        if hasattr(self._task, "caged_at"):
+            info["caged_at"] = self._task.caged_at
+            if self._task.shared is not None:          # the team shares its poses (Head first)
+                info["team"] = self._task.shared.copy()
         return self._obs(step.observation), float(step.reward), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:

@@ -25,12 +25,13 @@ from dm_control.rl import control
 from dm_control.suite import base
 from dm_env import specs
 
+from macrostate_mj.chain.caging import CagingConfig, CagingMission
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import build_world, validate_chain
 from macrostate_mj.core.errors import UserError
 
-TASKS = ("explore",)
+TASKS = ("explore", "caging")
 OBSERVE = ("truth", "camera")
 BREAK_SPACINGS = 2.5
 
@@ -57,8 +58,11 @@ class TailTask(base.Task):
 
     # -- dm_control lifecycle ----------------------------------------------------------------
     def initialize_episode(self, physics: dm_mujoco.Physics) -> None:
-        rng = np.random.default_rng(self.random.randint(2**31))
-        self.sim.reset(rng)
+        self._start_episode(np.random.default_rng(self.random.randint(2**31)))
+
+    def _start_episode(self, rng: np.random.Generator, start: np.ndarray | None = None) -> None:
+        """Reset the team (at `start`, or placed by the scenario) and the Tail's history."""
+        self.sim.reset(rng, start)
         self.fault = None
         if self.observe == "camera":
             from macrostate_mj.vision.camera_chain import CameraChain
@@ -133,14 +137,26 @@ class TailTask(base.Task):
 def make_environment(scenario: str = "lab", robots: int = 3, task: str = "explore",
                      history: int = 10, observe: str = "truth", time_limit: float = 60.0,
                      random: np.random.RandomState | int | None = None,
+                     caging: CagingConfig | None = None,
                      ) -> tuple[control.Environment, TailTask]:
-    """A dm_control `Environment` of the Tail's task (and the task, for its simulation)."""
+    """A dm_control `Environment` of the Tail's task (and the task, for its simulation);
+    `caging` configures the caging task's object (default `CagingConfig()`)."""
+    if task not in TASKS:
+        raise UserError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
     cfg = scenario_for(scenario)
     validate_chain(cfg, robots, time_limit)
     world = build_world(cfg, robots)
     physics = dm_mujoco.Physics.from_model(wrapper.MjModel(world.model))
-    sim = ChainSim(world, data=physics.data.ptr)
-    tail = TailTask(sim, task, history, observe, random)
+    if task == "caging":
+        from macrostate_mj.env.caging import CagingTask
+
+        caging = caging or CagingConfig()
+        caging.validate(cfg.arena)
+        sim = ChainSim(world, data=physics.data.ptr, mission=CagingMission(caging))
+        tail: TailTask = CagingTask(sim, caging, history, observe, random)
+    else:
+        sim = ChainSim(world, data=physics.data.ptr)
+        tail = TailTask(sim, task, history, observe, random)
     env = control.Environment(physics, tail, time_limit=time_limit,
                               control_timestep=1 / cfg.command_hz)
     return env, tail

@@ -157,9 +157,11 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, bad):
     assert not (tmp_path / "manifest.json").exists()
 
 
-def test_the_online_chain_estimates_what_the_offline_one_does():
-    """The Tail's live estimator (one observation a step) equals `estimate_chain` on the same
-    observations, for any module function, and its Head lags n - 2 steps."""
+@pytest.mark.parametrize("comm_every", [None, 7])
+def test_the_online_chain_estimates_what_the_offline_one_does(comm_every):
+    """The Tail's live estimator (one observation a step, the team's poses shared at the sync
+    steps) equals `estimate_chain` on the same observations, for any module function, and its
+    Head lags n - 2 steps."""
     from estimators.retlo_sim.estimate import OnlineChain, estimate_chain, sync_steps
 
     rng = np.random.default_rng(3)
@@ -169,12 +171,14 @@ def test_the_online_chain_estimates_what_the_offline_one_does():
     def predict(base: np.ndarray) -> np.ndarray:      # any deterministic module will do
         return np.column_stack([np.tanh(base.sum(1)), 0.3 * base[:, 0], np.sin(base[:, 1])])
 
-    sync = sync_steps(steps, None)
+    sync = sync_steps(steps, comm_every)
     offline = estimate_chain(predict, truth[:, :2, :2], truth[sync], sync)
     live = OnlineChain(predict, n, steps)
     live.start(truth[0])
     for s in range(1, steps):
         live.observe(truth[s, :2, :2])
+        if s in sync:
+            live.share(truth[s])
         t, head = live.head
         assert t == max(0, s - (n - 2))
         assert np.array_equal(head, offline[t, -1], equal_nan=True)

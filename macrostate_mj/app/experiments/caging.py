@@ -1,0 +1,247 @@
+"""`experiment caging`: four Tails on `macrostate_mj/CagingTail-v0` (seed §2.5.4), through the
+Gymnasium API only.
+
+- passive: follows its neighbour (offset 0); the text says this team cannot cage;
+- retlo: runs the §2.5 three-MLP ReTLo estimator live (`OnlineChain`, trained here on the
+  robotarium training runs of `experiment retlo-sim`, cached) from its own and its neighbour's
+  observed positions and the team's poses at τ; when its estimate of the Head's track fits a
+  circle of about the boundary's size over at least 120° (`chain.caging.circling_centre`), it
+  takes that circle's centre as the object's and encircles it clockwise, against the Head;
+- oracle: the same rule on the Head's true track (privileged): the upper bound;
+- random: a new uniform offset within the action bounds every second.
+Per policy over the seeds: success rate (caged before the time limit), time to cage, the final
+spacing's coefficient of variation (mean ± std), and Fig 2.3-style snapshots of the first seed.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
+
+POLICIES = ("passive", "retlo", "oracle", "random")
+PRODUCTS = ["results.json", "snapshots.png", "manifest.json"]
+TRACK_S = 6.0          # how much of the Head's track the Tail fits a circle to
+
+
+@dataclass(frozen=True)
+class CagingExperiment:
+    seeds: int = 20
+    time_limit: float = 90.0
+    epochs: int = 200          # the three MLPs (retlo-sim trains 500; 200 converge here)
+    train_steps: int = 800
+    rehearsals: int = 8        # passive-Tail caging runs the estimator also learns from
+    stride: int = 10           # the estimator's step in command ticks (see `_retlo_source`)
+    seed: int = 0
+
+
+class _Tail:
+    """A scripted Tail: watch a Head track, detect circling, then encircle clockwise."""
+
+    def __init__(self, env, head_source: Callable[[dict, dict], np.ndarray | None]):
+        from macrostate_mj.chain.caging import CagingConfig
+
+        task = env.unwrapped._task
+        self.sim_cfg, self.k_t = task.sim.cfg, task.sim.k_t
+        self.caging: CagingConfig = task.caging
+        self.bound = float(env.action_space.high[0])
+        self.head_source = head_source
+        self.track: list[np.ndarray] = []
+        self.keep = int(round(TRACK_S * self.sim_cfg.command_hz))
+        self.centre: np.ndarray | None = None
+        self.detected_at: float | None = None
+
+    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
+        from macrostate_mj.chain.caging import (
+            circle_velocity,
+            circling_centre,
+            offset_for_velocity,
+        )
+
+        head = self.head_source(obs, info)
+        if head is not None:
+            self.track = [*self.track[-(self.keep - 1):], head]
+            if self.centre is None:
+                self.centre = circling_centre(np.array(self.track), self.caging)
+                self.detected_at = t if self.centre is not None else None
+        if self.centre is None:
+            return np.zeros(2, np.float32)
+        tail, fol = obs["tail"][-1], obs["neighbour"][-1]
+        u = circle_velocity(tail[:2], self.centre, self.caging.ring_radius,
+                            self.sim_cfg.chain_speed, -1.0, self.caging.circle_gain)
+        w = offset_for_velocity(u, tail, fol, self.sim_cfg.spacing, self.k_t, self.bound)
+        return w.astype(np.float32)
+
+
+def _retlo_source(model, env, info: dict, seconds: float, stride: int
+                  ) -> Callable[[dict, dict], np.ndarray | None]:
+    """The Head's position as the Tail's live ReTLo estimator has it (lagging n - 2 steps),
+    from its observations and the poses the team shares (at τ and every `share_every_s`)."""
+    from estimators.retlo_sim.estimate import OnlineChain
+
+    sim = env.unwrapped._task.sim
+    chain = OnlineChain(model.predict, sim.n, int(seconds * sim.cfg.command_hz / stride) + 2)
+    chain.start(info["team_at_start"][::-1])            # Tail first
+    ticks = [0]
+
+    def source(obs: dict, step_info: dict) -> np.ndarray | None:
+        ticks[0] += 1
+        if ticks[0] % stride == 0:
+            chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
+            if "team" in step_info:
+                chain.share(step_info["team"][::-1])
+        t, head = chain.head
+        return head.copy() if t > 0 else None
+    return source
+
+
+def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
+                frames_every: float | None = None) -> dict:
+    """One seeded episode of one Tail; its outcome (and snapshots when asked)."""
+    import gymnasium
+
+    import macrostate_mj.env  # noqa: F401  (registers the ids)
+    from macrostate_mj.chain.caging import cage_report
+
+    env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=cfg.time_limit)
+    obs, info = env.reset(seed=seed)
+    sim = env.unwrapped._task.sim
+    tail = None
+    if policy == "retlo":
+        tail = _Tail(env, _retlo_source(model, env, info, cfg.time_limit, cfg.stride))
+    elif policy == "oracle":
+        tail = _Tail(env, lambda _obs, _info: sim.poses[0, :2].copy())
+    rng = np.random.default_rng([cfg.seed, seed, 7])
+    action = np.zeros(2, np.float32)
+    frames, next_frame, done = [], 0.0, False
+    estimate = None
+    per_second = int(round(sim.cfg.command_hz))
+    for tick in range(10**9):
+        if done:
+            break
+        t = sim.time
+        if frames_every is not None and t >= next_frame - 1e-9:
+            frames.append({"t": t, "poses": sim.poses.copy(), "head_estimate":
+                           None if estimate is None else estimate.copy()})
+            next_frame += frames_every
+        if tail is not None:
+            action = tail.act(obs, info, t)
+            estimate = tail.track[-1] if tail.track else None
+        elif policy == "random" and tick % per_second == 0:       # a new offset each second
+            action = rng.uniform(-1, 1, 2).astype(np.float32) * env.action_space.high
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+    report = cage_report(sim.poses, env.unwrapped._task.caging)
+    out = {"policy": policy, "seed": seed, "caged": info["caged_at"] is not None,
+           "time_to_cage_s": info["caged_at"], "spacing_cv": report["spacing_cv"],
+           "detected_at_s": None if tail is None else tail.detected_at,
+           "fault": info["fault"]}
+    if frames_every is not None:
+        frames.append({"t": sim.time, "poses": sim.poses.copy(), "head_estimate": estimate})
+        out["frames"] = frames
+    env.close()
+    return out
+
+
+def rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
+    """Caging episodes with a passive Tail (seeds 10000.., never an evaluation seed), every
+    consecutive three robots as a 3-robot module run: (runs * (n - 2), steps, 3, 3), H first."""
+    from macrostate_mj.chain.caging import CagingConfig, CagingMission, start_poses
+    from macrostate_mj.chain.scenarios import get_scenario
+    from macrostate_mj.chain.sim import ChainSim, Every
+    from macrostate_mj.chain.world import build_world
+
+    caging = CagingConfig()
+    world = build_world(get_scenario("robotarium"), 6)
+    sim = ChainSim(world, mission=CagingMission(caging))
+    out = []
+    for i in range(runs):
+        rng = np.random.default_rng(10_000 + i)
+        sim.reset(rng, start=start_poses(caging, sim.n, sim.cfg.spacing, rng))
+        log: list[np.ndarray] = []
+        sim.run(seconds, [Every(1 / sim.cfg.log_hz, lambda s, log=log: log.append(s.poses))])
+        poses = np.array(log)
+        out += [poses[:, k:k + 3] for k in range(sim.n - 2)]
+    return np.array(out)
+
+
+def _train_model(cfg: CagingExperiment, path: Path):
+    """The three MLPs of §2.5 on the robotarium training runs of `experiment retlo-sim` and on
+    rehearsal caging runs with a passive Tail (cached as .npz)."""
+    from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs
+    from estimators.retlo_sim.frames import training_pairs
+    from estimators.retlo_sim.mlp import ChainedMLP, train_mlp
+    from macrostate_mj.chain.scenarios import get_scenario
+
+    if path.exists():
+        with np.load(path) as z:
+            return ChainedMLP(**{k: z[k] for k in z.files})
+    rng = np.random.default_rng(cfg.seed)
+    runs = training_runs(get_scenario("robotarium"), cfg.train_steps, K_T_FACTORS)
+    rehearsed = rehearsal_runs(cfg.rehearsals, cfg.time_limit)
+    parts = [training_pairs(noisy_replicas(r[:, k::cfg.stride], 5, 0.001, rng))
+             for r in (runs, rehearsed) for k in range(cfg.stride)]
+    base, targets = (np.concatenate(a) for a in zip(*parts, strict=True))
+    model, _ = train_mlp(base, targets, rng, cfg.epochs, 0.05, 0.2, 128)
+    np.savez(path, **asdict(model))
+    return model
+
+
+def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
+    """Every policy on every seed; results.json, snapshots.png, manifest; summary lines."""
+    from macrostate_mj.chain.caging import CagingConfig
+    from macrostate_mj.core.progress import LoggedProgress
+    from viz.caging_figures import plot_snapshots
+
+    t0 = time.perf_counter()
+    models = check_writable_dir(out / "models")
+    model = _train_model(cfg, models / "retlo_mlp.npz")
+    timings = {"train_retlo": time.perf_counter() - t0}
+    episodes, snapshots = [], {}
+    with LoggedProgress(transient=True) as bar:
+        task = bar.add_task("experiment caging", total=len(POLICIES) * cfg.seeds)
+        for policy in POLICIES:
+            t1 = time.perf_counter()
+            for seed in range(cfg.seeds):
+                ep = run_episode(policy, seed, cfg, model, 15.0 if seed == 0 else None)
+                if "frames" in ep:
+                    snapshots[policy] = ep.pop("frames")
+                episodes.append(ep)
+                bar.advance(task)
+            timings[f"episodes_{policy}"] = time.perf_counter() - t1
+    table = {p: _summary([e for e in episodes if e["policy"] == p]) for p in POLICIES}
+    oracle = table["oracle"]["success_rate"]
+    results = {"config": asdict(cfg), "caging": asdict(CagingConfig()), "table": table,
+               "retlo_over_oracle": table["retlo"]["success_rate"] / oracle if oracle else None,
+               "episodes": episodes}
+    write_json_atomic(out / "results.json", results)
+    picked = [dict(f, label=p) for p in ("passive", "retlo") for f in snapshots[p][1:5]]
+    plot_snapshots(picked, CagingConfig(), (1.2, 0.7), out / "snapshots.png",
+                   "seed 0: passive Tail (top), ReTLo Tail (bottom); circles: the Tail's "
+                   "estimate of the Head", zoom=0.25)
+    write_manifest(out, "experiment caging", asdict(cfg), cfg.seed, timings,
+                   products=PRODUCTS)
+    return [f"{p:<8} caged {t['success_rate'] * 100:.0f} % of {t['seeds']} seeds, time "
+            f"{_fmt(t['time_to_cage_s'])} s, spacing CV {_fmt(t['spacing_cv'], 3)}"
+            for p, t in table.items()]
+
+
+def _summary(eps: list[dict]) -> dict:
+    caged = [e for e in eps if e["caged"]]
+
+    def stat(values: list[float]) -> dict:
+        return ({"mean": float(np.mean(values)), "std": float(np.std(values))} if values
+                else {"mean": None, "std": None})
+    return {"seeds": len(eps), "success_rate": len(caged) / len(eps),
+            "time_to_cage_s": stat([e["time_to_cage_s"] for e in caged]),
+            "spacing_cv": stat([e["spacing_cv"] for e in caged]),
+            "faults": sum(e["fault"] is not None for e in eps)}
+
+
+def _fmt(s: dict, digits: int = 1) -> str:
+    return "-" if s["mean"] is None else f"{s['mean']:.{digits}f} ± {s['std']:.{digits}f}"

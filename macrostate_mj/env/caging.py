@@ -1,0 +1,64 @@
+"""The caging task (seed §2.5.4): the Tail as the agent of a 6-robot robotarium team whose Head
+finds an object and circles it (`chain.caging`). The Tail must help close a ring around it.
+
+Action: the Tail's destination offset, bounded to ±2d here (to leave the chain and encircle,
+the Tail moves its destination further than in `explore`). Reward 1 on every tick the team is
+caged (the judge `chain.caging.cage_report`), 0 otherwise; the episode ends `SETTLE_S` after
+the team was first caged (the net settles), or (discount 0) when the physics faults, and is
+truncated at the time limit. Every robot's pose at
+the start (`team_at_start`, Head first) is what the Tail knows at τ (§2.4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+
+from macrostate_mj.chain.caging import CagingConfig, cage_report, start_poses
+from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.env.task import TailTask
+
+SETTLE_S = 5.0
+
+
+class CagingTask(TailTask):
+    """See the module docstring."""
+
+    def __init__(self, sim: ChainSim, caging: CagingConfig, history: int = 10,
+                 observe: str = "truth", random: np.random.RandomState | int | None = None):
+        super().__init__(sim, "explore", history, observe, random)
+        self.task = "caging"
+        self.caging = caging
+        self.max_offset = 2 * sim.cfg.spacing
+        self.team_at_start = np.zeros((sim.n, 3))
+        self.caged_at: float | None = None
+        self.caged = False
+        self.shared: np.ndarray | None = None
+        self._ticks = 0
+
+    def initialize_episode(self, physics: dm_mujoco.Physics) -> None:
+        rng = np.random.default_rng(self.random.randint(2**31))
+        start = start_poses(self.caging, self.sim.n, self.sim.cfg.spacing, rng)
+        self.team_at_start = start.copy()
+        self.caged_at, self.caged = None, False
+        self.shared, self._ticks = None, 0
+        self._start_episode(rng, start)
+
+    def after_step(self, physics: dm_mujoco.Physics) -> None:
+        super().after_step(physics)
+        self._ticks += 1
+        every = self.caging.share_every_s
+        period = None if every is None else int(round(every * self.sim.cfg.command_hz))
+        self.shared = self.sim.poses.copy() if period and self._ticks % period == 0 else None
+        self.caged = cage_report(self.sim.poses, self.caging)["caged"]
+        if self.caged_at is None and self.caged:
+            self.caged_at = self.sim.time
+
+    def get_reward(self, physics: dm_mujoco.Physics) -> float:
+        return 1.0 if self.caged else 0.0
+
+    def get_termination(self, physics: dm_mujoco.Physics) -> float | None:
+        settled = self.caged_at is not None and self.sim.time >= self.caged_at + SETTLE_S - 1e-9
+        if self.fault is not None or settled:
+            return 0.0
+        return None
