@@ -26,7 +26,8 @@ def experiment_caging(
     from macrostate_mj.core.io import prepare_out_dir
 
     prepare_out_dir(out, PRODUCTS, overwrite)
-    cfg = (CagingExperiment(seeds=2, time_limit=60.0, epochs=20, train_steps=300, seed=seed)
+    cfg = (CagingExperiment(seeds=2, time_limit=60.0, epochs=20, train_steps=300, rehearsals=2,
+                            seed=seed)
            if quick else CagingExperiment(seeds, time_limit, epochs, seed=seed))
     for line in run_caging(cfg, out):
         typer.echo(line)

@@ -97,6 +97,7 @@ def _retlo_source(model, env, info: dict, seconds: float, stride: int
                 chain.share(step_info["team"][::-1])
         t, head = chain.head
         return head.copy() if t > 0 else None
+    source.estimate = lambda: (chain.head[0] * stride, chain.head[1])   # (tick, Head)
     return source
 
 
@@ -111,9 +112,10 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
     env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=cfg.time_limit)
     obs, info = env.reset(seed=seed)
     sim = env.unwrapped._task.sim
-    tail = None
+    tail, source = None, None
     if policy == "retlo":
-        tail = _Tail(env, _retlo_source(model, env, info, cfg.time_limit, cfg.stride))
+        source = _retlo_source(model, env, info, cfg.time_limit, cfg.stride)
+        tail = _Tail(env, source)
     elif policy == "oracle":
         tail = _Tail(env, lambda _obs, _info: sim.poses[0, :2].copy())
     rng = np.random.default_rng([cfg.seed, seed, 7])
@@ -121,6 +123,7 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
     frames, next_frame, done = [], 0.0, False
     estimate = None
     per_second = int(round(sim.cfg.command_hz))
+    heads, errors = [], []            # the Head's true track, the ReTLo estimate's errors
     for tick in range(10**9):
         if done:
             break
@@ -129,9 +132,13 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
             frames.append({"t": t, "poses": sim.poses.copy(), "head_estimate":
                            None if estimate is None else estimate.copy()})
             next_frame += frames_every
+        heads.append(sim.poses[0, :2].copy())
         if tail is not None:
             action = tail.act(obs, info, t)
             estimate = tail.track[-1] if tail.track else None
+        if source is not None and estimate is not None:
+            at, head = source.estimate()
+            errors.append(float(np.linalg.norm(head - heads[at])))
         elif policy == "random" and tick % per_second == 0:       # a new offset each second
             action = rng.uniform(-1, 1, 2).astype(np.float32) * env.action_space.high
         obs, _, terminated, truncated, info = env.step(action)
@@ -140,6 +147,7 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
     out = {"policy": policy, "seed": seed, "caged": info["caged_at"] is not None,
            "time_to_cage_s": info["caged_at"], "spacing_cv": report["spacing_cv"],
            "detected_at_s": None if tail is None else tail.detected_at,
+           "head_estimate_error_m": float(np.mean(errors)) if errors else None,
            "fault": info["fault"]}
     if frames_every is not None:
         frames.append({"t": sim.time, "poses": sim.poses.copy(), "head_estimate": estimate})
@@ -208,7 +216,7 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
         for policy in POLICIES:
             t1 = time.perf_counter()
             for seed in range(cfg.seeds):
-                ep = run_episode(policy, seed, cfg, model, 15.0 if seed == 0 else None)
+                ep = run_episode(policy, seed, cfg, model, 5.0 if seed == 0 else None)
                 if "frames" in ep:
                     snapshots[policy] = ep.pop("frames")
                 episodes.append(ep)
@@ -220,10 +228,11 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
                "retlo_over_oracle": table["retlo"]["success_rate"] / oracle if oracle else None,
                "episodes": episodes}
     write_json_atomic(out / "results.json", results)
-    picked = [dict(f, label=p) for p in ("passive", "retlo") for f in snapshots[p][1:5]]
+    picked = [dict(f, label=p) for p in ("oracle", "retlo", "passive")
+              for f in snapshots[p][1:5]]
     plot_snapshots(picked, CagingConfig(), (1.2, 0.7), out / "snapshots.png",
-                   "seed 0: passive Tail (top), ReTLo Tail (bottom); circles: the Tail's "
-                   "estimate of the Head", zoom=0.25)
+                   "seed 0, every 5 s: oracle Tail (top), ReTLo Tail (middle; circle: its "
+                   "estimate of the Head), passive Tail (bottom)", zoom=0.25)
     write_manifest(out, "experiment caging", asdict(cfg), cfg.seed, timings,
                    products=PRODUCTS)
     return [f"{p:<8} caged {t['success_rate'] * 100:.0f} % of {t['seeds']} seeds, time "
@@ -240,7 +249,9 @@ def _summary(eps: list[dict]) -> dict:
     return {"seeds": len(eps), "success_rate": len(caged) / len(eps),
             "time_to_cage_s": stat([e["time_to_cage_s"] for e in caged]),
             "spacing_cv": stat([e["spacing_cv"] for e in caged]),
-            "faults": sum(e["fault"] is not None for e in eps)}
+            "faults": sum(e["fault"] is not None for e in eps),
+            "head_estimate_error_m": stat([e["head_estimate_error_m"] for e in eps
+                                           if e["head_estimate_error_m"] is not None])}
 
 
 def _fmt(s: dict, digits: int = 1) -> str:

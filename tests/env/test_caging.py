@@ -1,0 +1,104 @@
+"""The caging mission (§2.5.4): its geometry and judge, the environment, and what must hold over
+seeds (a passive Tail never cages; the oracle Tail does)."""
+
+import gymnasium
+import numpy as np
+import pytest
+from clitools import cli
+
+import macrostate_mj.env  # noqa: F401  (registers the ids)
+from macrostate_mj.chain.caging import (
+    CagingConfig,
+    cage_report,
+    circling_centre,
+    fit_circle,
+    offset_for_velocity,
+    winding_number,
+)
+from macrostate_mj.chain.motion import pull
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.env.task import make_environment
+
+CFG = CagingConfig()
+
+
+def _ring(n: int, radius: float, shift=(0.0, 0.0), phase: float = 0.3) -> np.ndarray:
+    a = phase + 2 * np.pi * np.arange(n) / n
+    return np.column_stack([radius * np.cos(a) + shift[0], radius * np.sin(a) + shift[1],
+                            np.zeros(n)])
+
+
+def test_the_judge_cages_an_even_ring_and_nothing_else():
+    even = cage_report(_ring(6, CFG.ring_radius), CFG)
+    assert even["caged"] and even["enclosed"]
+    assert even["max_gap_deg"] == pytest.approx(60) and even["spacing_cv"] < 1e-9
+    assert not cage_report(_ring(6, CFG.ring_radius, shift=(0.2, 0.0)), CFG)["enclosed"]
+    bunched = _ring(6, CFG.ring_radius)[[0, 1, 2, 3, 2, 1]]       # folded back on itself
+    assert not cage_report(bunched, CFG)["caged"]
+    assert winding_number(_ring(6, 1.0)[:, :2], np.zeros(2)) == 1
+    assert winding_number(_ring(6, 1.0)[::-1, :2], np.zeros(2)) == -1
+
+
+def test_circling_is_found_only_over_enough_of_a_circle():
+    centre = np.array([0.03, -0.02])
+    arc = lambda deg: centre + CFG.ring_radius * np.column_stack(   # noqa: E731
+        [np.cos(np.radians(np.linspace(0, deg, 60))), np.sin(np.radians(np.linspace(0, deg, 60)))])
+    c, r, rms = fit_circle(arc(90))
+    assert np.allclose(c, centre) and r == pytest.approx(CFG.ring_radius) and rms < 1e-9
+    assert circling_centre(arc(90), CFG) is None
+    assert np.allclose(circling_centre(arc(180), CFG), centre)
+    line = np.column_stack([np.linspace(0, 0.2, 60), np.zeros(60)])
+    assert circling_centre(line, CFG) is None
+
+
+def test_the_action_inverts_the_tail_rule():
+    tail, fol = np.array([0.0, 0.0, 0.0]), np.array([0.09, 0.02])
+    u = np.array([-0.03, 0.05])
+    w = offset_for_velocity(u, tail, fol, 0.08, 40.0, 1.0)
+    rule = 40.0 * pull(tail[:2], fol, 0.08) + 40.0 * np.linalg.norm(fol - tail[:2]) * w
+    assert np.allclose(rule, u)
+    assert np.all(np.abs(offset_for_velocity(100 * u, tail, fol, 0.08, 40.0, 0.16)) <= 0.16)
+
+
+def test_caging_env_passes_the_checker_and_repeats_with_its_seed():
+    from gymnasium.utils.env_checker import check_env
+
+    env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=5.0)
+    check_env(env.unwrapped)
+    runs = []
+    for _ in range(2):
+        obs, info = env.reset(seed=5)
+        assert info["team_at_start"].shape == (6, 3)
+        for _ in range(40):
+            obs, reward, terminated, truncated, info = env.step(
+                np.array([0.05, -0.02], np.float32))
+        runs.append(obs["tail"])
+    assert np.array_equal(*runs)
+    env.close()
+    with pytest.raises(UserError, match="does not fit"):
+        make_environment("robotarium", 6, "caging", caging=CagingConfig(ring_radius=0.4))
+
+
+def test_a_passive_tail_never_cages_and_the_oracle_does():
+    """Over 3 seeds: the dissertation's claim that Head and Followers alone cannot cage, and
+    that a Tail which encircles against the Head, once it knows the Head circles, can."""
+    from macrostate_mj.app.experiments.caging import CagingExperiment, run_episode
+
+    cfg = CagingExperiment(time_limit=45.0)
+    passive = [run_episode("passive", s, cfg)["caged"] for s in range(3)]
+    oracle = [run_episode("oracle", s, cfg) for s in range(3)]
+    assert not any(passive)
+    assert sum(e["caged"] for e in oracle) >= 2
+    assert all(e["spacing_cv"] < 0.1 for e in oracle if e["caged"])
+
+
+def test_experiment_caging_quick(tmp_path):
+    import json
+
+    out = tmp_path / "cage"
+    res = cli("experiment", "caging", "--quick", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["table"]) == {"passive", "retlo", "oracle", "random"}
+    assert results["table"]["oracle"]["success_rate"] > results["table"]["passive"]["success_rate"]
+    assert (out / "snapshots.png").stat().st_size > 1000
