@@ -135,6 +135,14 @@ class RerunRecorder(Recorder):
         self._log_metrics(sim, poses)
         self.calls += 1
 
+    def log_points(self, name: str, xy: np.ndarray, radius: float, colour: tuple[int, ...],
+                   label: str | None = None, static: bool = False) -> None:
+        """Extra points in the 2-D world view (an estimate, a virtual object's centre)."""
+        xy = np.atleast_2d(xy)
+        self.rec.log(f"world/{name}", rr.Points2D(xy, radii=radius, colors=[colour],
+                                                  labels=None if label is None else [label]),
+                     static=static)
+
     def _log_metrics(self, sim: ChainSim, poses: np.ndarray) -> None:
         rec = self.rec
         gaps = np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)

@@ -4,6 +4,7 @@ clock, the arena walls, a scale bar and (with a tracker) its detections beside t
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -61,8 +62,13 @@ class VideoRecorder(Recorder):
 
     def __init__(self, path: str | Path, sim: ChainSim, fps: float = 10.0,
                  overlays: tuple[str, ...] = OVERLAYS, trail_seconds: float = 8.0,
-                 tracker: object | None = None):
+                 tracker: object | None = None,
+                 decorate: Callable[[np.ndarray, Callable[[np.ndarray], np.ndarray]], None]
+                 | None = None):
         self.path = Path(path)
+        # decorate(bgr, px): draws what the scene cannot show (a virtual object, an estimate);
+        # px maps world points (k, 2) on the marker plane to pixels (k, 2)
+        self.decorate = decorate
         self.sim = sim
         self.fps = fps
         self.overlays = overlays
@@ -82,6 +88,10 @@ class VideoRecorder(Recorder):
         if self.tracker is not None and "detections" in self.overlays:
             tracked = np.where(self.tracker.detected[:, None], self.tracker.latest, np.nan)
         draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays, tracked)
+        if self.decorate is not None:
+            z = sim.world.marker_height
+            self.decorate(bgr, lambda xy: self.camera.world_to_pixel(
+                np.column_stack([np.atleast_2d(xy), np.full(len(np.atleast_2d(xy)), z)])))
         self._writer.write_bgr(bgr)
 
     @property

@@ -101,4 +101,5 @@ def test_experiment_caging_quick(tmp_path):
     results = json.loads((out / "results.json").read_text())
     assert set(results["table"]) == {"passive", "retlo", "oracle", "random"}
     assert results["table"]["oracle"]["success_rate"] > results["table"]["passive"]["success_rate"]
-    assert (out / "snapshots.png").stat().st_size > 1000
+    for name in ("snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp4", "retlo_seed0.rrd"):
+        assert (out / name).stat().st_size > 1000

@@ -25,7 +25,8 @@ import numpy as np
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
 
 POLICIES = ("passive", "retlo", "oracle", "random")
-PRODUCTS = ["results.json", "snapshots.png", "manifest.json"]
+PRODUCTS = ["results.json", "snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp4",
+            "retlo_seed0.rrd", "manifest.json"]
 TRACK_S = 6.0          # how much of the Head's track the Tail fits a circle to
 
 
@@ -102,8 +103,10 @@ def _retlo_source(model, env, info: dict, seconds: float, stride: int
 
 
 def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
-                frames_every: float | None = None) -> dict:
-    """One seeded episode of one Tail; its outcome (and snapshots when asked)."""
+                frames_every: float | None = None, video: Path | None = None,
+                rerun: Path | None = None) -> dict:
+    """One seeded episode of one Tail; its outcome (and snapshots, a video with the object and
+    the Tail's estimate of the Head drawn in, a rerun recording, when asked)."""
     import gymnasium
 
     import macrostate_mj.env  # noqa: F401  (registers the ids)
@@ -118,6 +121,8 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
         tail = _Tail(env, source)
     elif policy == "oracle":
         tail = _Tail(env, lambda _obs, _info: sim.poses[0, :2].copy())
+    recorders = _recorders(sim, env.unwrapped._task.caging, video, rerun,
+                           lambda: None if tail is None or not tail.track else tail.track[-1])
     rng = np.random.default_rng([cfg.seed, seed, 7])
     action = np.zeros(2, np.float32)
     frames, next_frame, done = [], 0.0, False
@@ -141,6 +146,12 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
             errors.append(float(np.linalg.norm(head - heads[at])))
         elif policy == "random" and tick % per_second == 0:       # a new offset each second
             action = rng.uniform(-1, 1, 2).astype(np.float32) * env.action_space.high
+        for every, recorder in recorders:
+            if tick % every == 0:
+                recorder.capture(sim)
+                if hasattr(recorder, "log_points") and estimate is not None:
+                    recorder.log_points("head_estimate", estimate, 0.012, (230, 60, 60),
+                                        "Tail's estimate of H")
         obs, _, terminated, truncated, info = env.step(action)
         done = terminated or truncated
     report = cage_report(sim.poses, env.unwrapped._task.caging)
@@ -152,7 +163,44 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
     if frames_every is not None:
         frames.append({"t": sim.time, "poses": sim.poses.copy(), "head_estimate": estimate})
         out["frames"] = frames
+    for _, recorder in recorders:
+        recorder.finish()
     env.close()
+    return out
+
+
+def _recorders(sim, caging, video: Path | None, rerun: Path | None,
+               estimate: Callable[[], np.ndarray | None]) -> list[tuple[int, object]]:
+    """(every how many ticks, recorder): a 10 fps video with the object, the boundary and the
+    Tail's estimate of the Head drawn in, and a 10 Hz rerun recording with the estimate."""
+    import cv2
+
+    out: list[tuple[int, object]] = []
+    every = max(1, int(round(sim.cfg.command_hz / 10)))
+    if video is not None:
+        from viz.video import VideoRecorder
+
+        def decorate(bgr: np.ndarray, px) -> None:
+            c = px(np.array(caging.centre))[0]
+            scale = np.linalg.norm(px(np.array(caging.centre) + [1.0, 0.0])[0] - c)
+            centre = tuple(int(v) for v in np.round(c))
+            cv2.circle(bgr, centre, int(caging.object_radius * scale), (150, 150, 150), -1)
+            cv2.circle(bgr, centre, int(caging.ring_radius * scale), (60, 60, 60), 1,
+                       cv2.LINE_AA)
+            head = estimate()
+            if head is not None:
+                u, v = np.round(px(head)[0]).astype(int)
+                cv2.circle(bgr, (int(u), int(v)), 9, (60, 60, 230), 2, cv2.LINE_AA)
+                cv2.putText(bgr, "Tail's estimate of H", (int(u) + 11, int(v) - 6),
+                            cv2.FONT_HERSHEY_SIMPLEX, 0.4, (60, 60, 230), 1, cv2.LINE_AA)
+        out.append((every, VideoRecorder(video, sim, fps=10.0, decorate=decorate)))
+    if rerun is not None:
+        from viz.rerun_log import RerunRecorder
+
+        recorder = RerunRecorder(rerun, sim, rate_hz=10.0)
+        recorder.log_points("object", np.array(caging.centre), caging.object_radius,
+                            (150, 150, 150), "object", static=True)
+        out.append((every, recorder))
     return out
 
 
@@ -216,7 +264,11 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
         for policy in POLICIES:
             t1 = time.perf_counter()
             for seed in range(cfg.seeds):
-                ep = run_episode(policy, seed, cfg, model, 5.0 if seed == 0 else None)
+                first = seed == 0 and policy in ("oracle", "retlo")
+                ep = run_episode(policy, seed, cfg, model, 5.0 if seed == 0 else None,
+                                 out / f"{policy}_seed0.mp4" if first else None,
+                                 out / "retlo_seed0.rrd" if first and policy == "retlo"
+                                 else None)
                 if "frames" in ep:
                     snapshots[policy] = ep.pop("frames")
                 episodes.append(ep)
