@@ -129,9 +129,8 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
     estimate = None
     per_second = int(round(sim.cfg.command_hz))
     heads, errors = [], []            # the Head's true track, the ReTLo estimate's errors
-    for tick in range(10**9):
-        if done:
-            break
+    tick = 0
+    while not done:
         t = sim.time
         if frames_every is not None and t >= next_frame - 1e-9:
             frames.append({"t": t, "poses": sim.poses.copy(), "head_estimate":
@@ -144,7 +143,7 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
         if source is not None and estimate is not None:
             at, head = source.estimate()
             errors.append(float(np.linalg.norm(head - heads[at])))
-        elif policy == "random" and tick % per_second == 0:       # a new offset each second
+        if policy == "random" and tick % per_second == 0:       # a new offset each second
             action = rng.uniform(-1, 1, 2).astype(np.float32) * env.action_space.high
         for every, recorder in recorders:
             if tick % every == 0:
@@ -154,6 +153,7 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
                                         "Tail's estimate of H")
         obs, _, terminated, truncated, info = env.step(action)
         done = terminated or truncated
+        tick += 1
     report = cage_report(sim.poses, env.unwrapped._task.caging)
     out = {"policy": policy, "seed": seed, "caged": info["caged_at"] is not None,
            "time_to_cage_s": info["caged_at"], "spacing_cv": report["spacing_cv"],
