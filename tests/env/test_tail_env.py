@@ -97,9 +97,10 @@ def test_bad_input():
         make_environment(scenario="robotarium", robots=400)
 
 
-def test_a_short_ppo_run_trains_without_error():
+@pytest.mark.parametrize("env_id", [ID, "macrostate_mj/CagingTail-v0"])
+def test_a_short_ppo_run_trains_without_error(env_id):
     sb3 = pytest.importorskip("stable_baselines3")   # an optional extra
-    env = gymnasium.wrappers.FlattenObservation(gymnasium.make(ID))
+    env = gymnasium.wrappers.FlattenObservation(gymnasium.make(env_id))
     model = sb3.PPO("MlpPolicy", env, n_steps=256, batch_size=64, seed=0, device="cpu")
     model.learn(total_timesteps=1024)
     obs, _ = env.reset(seed=1)
