@@ -13,6 +13,7 @@ import numpy as np
 import pyarrow as pa
 
 from collectors.policies import PolicyConfig, PolicySpec
+from collectors.randomize import Randomization
 from macrostate_mj.formats.poses import poses_table
 from macrostate_mj.vision.imaging import NoiseConfig
 
@@ -28,9 +29,10 @@ class EpisodeSpec:
     policy: PolicySpec = field(default_factory=PolicyConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     head_speed: float | None = None
+    randomize: Randomization | None = None
 
     def rng(self, stream: int) -> np.random.Generator:
-        """Stream 0: physics and planner; 1: imaging; 2: policy."""
+        """Stream 0: physics and planner; 1: imaging; 2: policy; 3: domain randomization."""
         return np.random.default_rng([self.seed, self.index, stream])
 
 
@@ -38,6 +40,7 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     """Simulate, film and track one episode; return its long-format log with an `episode`
     column and timing figures, or no table and `{"failure": ...}` when its physics failed.
     Runs anywhere: a local process or a Ray worker."""
+    from collectors.randomize import randomize_model, randomized_noise, randomized_scenario
     from macrostate_mj.chain.health import PhysicsError
     from macrostate_mj.chain.scenarios import scenario_for
     from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
@@ -45,11 +48,15 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     from macrostate_mj.vision.camera_chain import CameraChain
 
     t0 = time.perf_counter()
-    cfg = scenario_for(spec.scenario, spec.head_speed)
+    cfg, noise, factors = scenario_for(spec.scenario, spec.head_speed), spec.noise, {}
+    if spec.randomize is not None:
+        factors = spec.randomize.draw(spec.rng(3))
+        cfg, noise = randomized_scenario(cfg, factors), randomized_noise(noise, factors)
     world = build_world(cfg, spec.robots)
+    randomize_model(world, factors)
     sim = ChainSim(world)
     sim.reset(spec.rng(0))
-    chain = CameraChain(sim, spec.noise, rng=spec.rng(1))
+    chain = CameraChain(sim, noise, rng=spec.rng(1))
     log = PoseLog(world.names, tracker=chain)
     policy = spec.policy.build(spec.rng(2), chain)
     step = 1 / cfg.log_hz
@@ -65,5 +72,5 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
              "dropped": chain.dropped, "windowed": chain.windowed,
              "rendered": chain.rendered,
              "steps": int(round(sim.time / sim.model.opt.timestep)),
-             "decisions": policy.records()}
+             "decisions": policy.records(), "randomized": factors}
     return spec.index, table, stats

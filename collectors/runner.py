@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig, PolicySpec
+from collectors.randomize import Randomization
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
@@ -62,6 +63,7 @@ class CollectRequest:
     head_speed: float | None = None
     first_episode: int = 0      # index of the first episode (a later phase of one collection)
     policy_spec: PolicySpec | None = None   # overrides policy/sigma (the SR phase's Tail)
+    randomize: str | None = None    # a domain-randomization profile (`collectors.randomize`)
 
 
 def parse_split(text: str | None) -> tuple[float, float, float] | None:
@@ -96,8 +98,9 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
         raise UserError(f"{flag} {value:g} is too short for one {INSTANCE_STEPS}-step instance; "
                         f"give at least {math.ceil(shortest * 100) / 100:g} minutes")
     policy = req.policy_spec or PolicyConfig(req.policy, req.sigma)
+    randomize = None if req.randomize is None else Randomization.parse(req.randomize)
     return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
-                        head_speed=req.head_speed)
+                        head_speed=req.head_speed, randomize=randomize)
             for i in range(req.first_episode, req.first_episode + n)]
 
 
@@ -159,6 +162,7 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
                          "episodes": len(specs), "episode_seconds": specs[0].seconds},
         req.seed, {"episodes": t_run, "assemble": time.perf_counter() - t0 - t_run},
         px_per_cm=req.px_per_cm, resumed_episodes=len(specs) - len(todo),
+        randomization=None if specs[0].randomize is None else asdict(specs[0].randomize),
         damaged_shards_rerun=damaged,
         episode_stats={str(k): v for k, v in sorted(episode_stats.items())},
         outputs={k: str(v) for k, v in written.items()})

@@ -21,8 +21,8 @@ from macrostate_mj.app.cli import main
 from macrostate_mj.app.cli.app import app
 
 # Options of free text that their commands parse (and test) themselves.
-TEXT_OPTIONS = {"--overlays", "--ray", "--split", "--days", "--crop", "--splits", "--ms",
-                "--model"}
+TEXT_OPTIONS = {"--overlays", "--ray", "--split", "--randomize", "--days", "--crop", "--splits",
+                "--ms", "--model"}
 
 
 def _commands() -> dict[str, object]:

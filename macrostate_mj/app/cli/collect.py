@@ -54,6 +54,9 @@ def collect(
     px_per_cm: float = Positive(DEFAULT_PX_PER_CM, "Pixel scale of the ThymioLoc CSVs."),
     head_speed: float = Positive(None, "Override the scenario's Head speed (m/s), up to the "
                                  "robot's top speed."),
+    randomize: str = typer.Option(None, "--randomize", help="Domain randomization per episode: "
+                                  "a profile (wide) or a JSON file of parameter: [low, high] "
+                                  "factors (collectors/randomize.py lists the parameters)."),
     overwrite: bool = Switch(False, "Start over, replacing existing outputs."),
 ) -> None:
     """Collect tracked pose datasets in the ThymioLoc layout; resumes after an interruption."""
@@ -77,7 +80,7 @@ def collect(
         raise UserError(f"--policy {policy} needs --minutes (the simulated driving time)")
     req = CollectRequest(scenario, robots, minutes, seed, out, policy, sigma, workers, ray,
                          split, overwrite, episode_minutes, px_per_cm=px_per_cm,
-                         head_speed=head_speed)
+                         head_speed=head_speed, randomize=randomize)
     episodes = len(plan(req))
     with sim_progress(minutes, f"collecting {episodes} episodes", unit="sim min") as bar:
         written = run_collect(req, lambda done, sim_minutes: bar(sim_minutes))

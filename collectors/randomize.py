@@ -1,0 +1,108 @@
+"""Domain randomization (MuJoCo Playground keeps it in `randomize.py`): per episode, physics,
+controller and imaging parameters drawn from ranges around the scenario's values.
+
+A profile maps parameter names to (low, high) factors applied to the scenario's own value, so one
+profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by a uniform draw in
+[0.8, 1.2]. Draws come from the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized
+collection is still bit-identical for any worker count. A profile is a built-in name or a JSON
+file `{"k_f": [0.8, 1.2], ...}`; the collection's manifest records it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.world import World
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.vision.imaging import NoiseConfig
+
+# Where each parameter lives: the scenario's rules, the compiled model, or the imaging chain.
+SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed")
+MODEL = ("wheel_friction", "motor_torque")
+IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
+PARAMETERS = (*SCENARIO, *MODEL, *IMAGING)
+
+PROFILES: dict[str, dict[str, tuple[float, float]]] = {
+    # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging
+    # noise from half to twice its default: wide enough to cover the lab-vs-real gaps measured
+    # by `stats --compare` (speed, turn rate and jitter distributions; README).
+    "wide": {"k_f": (0.8, 1.2), "k_t": (0.8, 1.2), "k_omega": (0.8, 1.2),
+             "head_speed": (0.8, 1.2), "chain_speed": (0.8, 1.2),
+             "wheel_friction": (0.7, 1.3), "motor_torque": (0.7, 1.3),
+             "sensor_sigma": (0.5, 2.0), "blur_px": (0.5, 2.0), "psf_sigma_px": (0.5, 2.0)},
+}
+
+
+@dataclass(frozen=True)
+class Randomization:
+    """A named profile: parameter -> (low, high) factor."""
+
+    name: str
+    ranges: tuple[tuple[str, float, float], ...]
+
+    @classmethod
+    def parse(cls, profile: str) -> Randomization:
+        """A built-in profile's name or a JSON file's path; one-line errors for anything else."""
+        if profile in PROFILES:
+            ranges = PROFILES[profile]
+        else:
+            path = Path(profile)
+            if not path.is_file():
+                raise UserError(f"--randomize {profile!r} is neither a profile "
+                                f"({', '.join(PROFILES)}) nor a JSON file of ranges")
+            try:
+                ranges = json.loads(path.read_text())
+            except ValueError as err:                # bad JSON, or not text at all
+                raise UserError(f"--randomize {path}: not a JSON object of ranges ({err}); "
+                                "write {\"k_f\": [0.8, 1.2], ...}") from None
+            if not isinstance(ranges, dict) or not ranges:
+                raise UserError(f"--randomize {path}: want a non-empty object of parameter: "
+                                "[low, high] factors")
+        out = []
+        for name, bounds in ranges.items():
+            if name not in PARAMETERS:
+                raise UserError(f"--randomize: unknown parameter {name!r}; choose from "
+                                f"{', '.join(PARAMETERS)}")
+            try:
+                low, high = (float(b) for b in bounds)
+            except (TypeError, ValueError):
+                raise UserError(f"--randomize: {name} wants [low, high] factors, got "
+                                f"{bounds!r}") from None
+            if not (math.isfinite(low) and math.isfinite(high)) or low <= 0 or low >= high:
+                raise UserError(f"--randomize: {name} range [{low:g}, {high:g}] is empty or not "
+                                "positive; give factors with 0 < low < high")
+            out.append((name, low, high))
+        return cls(profile if profile in PROFILES else str(Path(profile).resolve()),
+                   tuple(sorted(out)))
+
+    def draw(self, rng: np.random.Generator) -> dict[str, float]:
+        """One episode's factors, in the profile's (sorted) order."""
+        return {name: float(rng.uniform(low, high)) for name, low, high in self.ranges}
+
+
+def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
+    return replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
+
+
+def randomized_noise(noise: NoiseConfig, factors: dict[str, float]) -> NoiseConfig:
+    names = {f.name for f in fields(NoiseConfig)}
+    return replace(noise, **{k: getattr(noise, k) * f for k, f in factors.items()
+                             if k in IMAGING and k in names})
+
+
+def randomize_model(world: World, factors: dict[str, float]) -> None:
+    """Scale the compiled model's wheel friction and motor torque limits in place."""
+    model = world.model
+    if "wheel_friction" in factors:
+        wheels = [model.geom(f"{n}/wheel_{side}").id for n in world.names
+                  for side in ("left", "right")]
+        model.geom_friction[wheels, 0] *= factors["wheel_friction"]
+    if "motor_torque" in factors:
+        motors = [*world.ctrl_left, *world.ctrl_right]
+        model.actuator_forcerange[motors] *= factors["motor_torque"]

@@ -1,0 +1,67 @@
+"""Domain randomization: profiles, draws, where they land, and bad profiles refused."""
+
+import json
+
+import numpy as np
+import pytest
+from clitools import assert_clean_error, cli
+
+from collectors.randomize import (
+    PROFILES,
+    Randomization,
+    randomize_model,
+    randomized_noise,
+    randomized_scenario,
+)
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.world import build_world
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.vision.imaging import NoiseConfig
+
+
+def test_draws_are_seeded_within_their_ranges_and_land_where_they_belong():
+    r = Randomization.parse("wide")
+    draws = [r.draw(np.random.default_rng(s)) for s in range(200)]
+    for name, (low, high) in PROFILES["wide"].items():
+        values = [d[name] for d in draws]
+        assert low <= min(values) and max(values) <= high and np.std(values) > 0
+    assert r.draw(np.random.default_rng(5)) == r.draw(np.random.default_rng(5))
+    f = {"k_f": 1.1, "sensor_sigma": 2.0, "wheel_friction": 0.5, "motor_torque": 1.25}
+    cfg = get_scenario("lab")
+    assert randomized_scenario(cfg, f).k_f == pytest.approx(1.1 * cfg.k_f)
+    assert randomized_noise(NoiseConfig(), f).sensor_sigma == pytest.approx(6.0)
+    world = build_world(cfg, 3)
+    grip = world.model.geom("H/wheel_left").friction[0]
+    torque = world.model.actuator_forcerange[world.ctrl_left[0]].copy()
+    randomize_model(world, f)
+    assert world.model.geom("H/wheel_left").friction[0] == pytest.approx(0.5 * grip)
+    assert np.allclose(world.model.actuator_forcerange[world.ctrl_left[0]], 1.25 * torque)
+
+
+@pytest.mark.parametrize(("ranges", "words"), [
+    ({"k_x": [0.8, 1.2]}, "unknown parameter 'k_x'"),
+    ({"k_f": [1.2, 1.2]}, "empty"),
+    ({"k_f": [0.0, 1.2]}, "positive"),
+    ({"k_f": "wide"}, "[low, high]"),
+])
+def test_bad_profiles_are_refused(tmp_path, ranges, words):
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(ranges))
+    with pytest.raises(UserError, match=words.replace("[", r"\[").replace("]", r"\]")):
+        Randomization.parse(str(path))
+
+
+def test_collect_randomize_records_its_draws_and_refuses_bad_input(tmp_path):
+    args = ["collect", "--robots", "3", "--minutes", "0.5", "--episode-minutes", "0.25",
+            "--seed", "4", "--randomize", "wide"]
+    res = cli(*args, "--out", str(tmp_path / "a"))
+    assert res.returncode == 0, res.stderr
+    manifest = json.loads((tmp_path / "a" / "manifest.json").read_text())
+    assert manifest["randomization"]["name"] == "wide"
+    drawn = [s["randomized"] for s in manifest["episode_stats"].values()]
+    assert len(drawn) == 2 and drawn[0] != drawn[1] and set(drawn[0]) == set(PROFILES["wide"])
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"gravity": [0.9, 1.1]}')
+    res = cli(*args[:-1], str(bad), "--out", str(tmp_path / "b"))
+    assert_clean_error(res, "unknown parameter 'gravity'")
+    assert not (tmp_path / "b").exists()
