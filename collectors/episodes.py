@@ -13,7 +13,12 @@ import numpy as np
 import pyarrow as pa
 
 from collectors.policies import PolicyConfig, PolicySpec
-from collectors.randomize import Randomization
+from collectors.randomize import (
+    Randomization,
+    randomize_model,
+    randomized_noise,
+    randomized_scenario,
+)
 from macrostate_mj.formats.poses import poses_table
 from macrostate_mj.vision.imaging import NoiseConfig
 
@@ -40,7 +45,6 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     """Simulate, film and track one episode; return its long-format log with an `episode`
     column and timing figures, or no table and `{"failure": ...}` when its physics failed.
     Runs anywhere: a local process or a Ray worker."""
-    from collectors.randomize import randomize_model, randomized_noise, randomized_scenario
     from macrostate_mj.chain.health import PhysicsError
     from macrostate_mj.chain.scenarios import scenario_for
     from macrostate_mj.chain.sim import ChainSim, Every, PoseLog

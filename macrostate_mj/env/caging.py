@@ -5,8 +5,9 @@ Action: the Tail's destination offset, bounded to ±2d here (to leave the chain 
 the Tail moves its destination further than in `explore`). Reward 1 on every tick the team is
 caged (the judge `chain.caging.cage_report`), 0 otherwise; the episode ends `SETTLE_S` after
 the team was first caged (the net settles), or (discount 0) when the physics faults, and is
-truncated at the time limit. Every robot's pose at
-the start (`team_at_start`, Head first) is what the Tail knows at τ (§2.4).
+truncated at the time limit. Every robot's pose at the start (`team_at_start`, Head first) is
+what the Tail knows at τ (§2.4); every `CagingConfig.share_every_s` the team shares its poses
+again (`shared`, the intermittent communication of §2.5.3.2).
 """
 
 from __future__ import annotations
@@ -26,8 +27,7 @@ class CagingTask(TailTask):
 
     def __init__(self, sim: ChainSim, caging: CagingConfig, history: int = 10,
                  observe: str = "truth", random: np.random.RandomState | int | None = None):
-        super().__init__(sim, "explore", history, observe, random)
-        self.task = "caging"
+        super().__init__(sim, "caging", history, observe, random)
         self.caging = caging
         self.max_offset = 2 * sim.cfg.spacing
         self.team_at_start = np.zeros((sim.n, 3))
