@@ -170,7 +170,13 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
 
 
 def _plan_json(specs: list[EpisodeSpec]) -> str:
-    return json.dumps([asdict(s) for s in specs], sort_keys=True, default=str)
+    """The plan as cached beside the shards. `randomize` is left out when off, so collections
+    made before it existed still resume and count as finished."""
+    rows = [asdict(s) for s in specs]
+    for row in rows:
+        if row["randomize"] is None:
+            del row["randomize"]
+    return json.dumps(rows, sort_keys=True, default=str)
 
 
 def finished(req: CollectRequest) -> bool:
