@@ -191,16 +191,17 @@ def fit_circle(xy: np.ndarray) -> tuple[np.ndarray, float, float]:
 
 
 def circling_centre(track: np.ndarray, cfg: CagingConfig, min_arc_deg: float = 120.0,
-                    max_rms: float = 0.01) -> np.ndarray | None:
+                    max_rms: float = 0.01, radius_factor: float = 2.0) -> np.ndarray | None:
     """The Tail's detection rule: where the Head (its track (k, 2), true or estimated) is
     circling something of about the boundary's size: the fitted circle's radius within a factor
-    2 of `ring_radius`, its residual under `max_rms`, and the arc covered at least
-    `min_arc_deg`; its centre, or None."""
+    `radius_factor` of `ring_radius`, its residual under `max_rms`, and the arc covered at least
+    `min_arc_deg`; its centre, or None. A noisy (estimated) track needs looser bounds."""
     track = np.asarray(track, float)
     if len(track) < 5 or not np.all(np.isfinite(track)):
         return None
     centre, radius, rms = fit_circle(track)
-    if not (0.5 * cfg.ring_radius <= radius <= 2 * cfg.ring_radius) or rms > max_rms:
+    if not (cfg.ring_radius / radius_factor <= radius <= radius_factor * cfg.ring_radius) \
+            or rms > max_rms:
         return None
     ang = np.unwrap(np.arctan2(track[:, 1] - centre[1], track[:, 0] - centre[0]))
     return centre if np.degrees(abs(ang[-1] - ang[0])) >= min_arc_deg else None

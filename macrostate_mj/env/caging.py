@@ -7,13 +7,20 @@ caged (the judge `chain.caging.cage_report`), 0 otherwise; the episode ends `SET
 the team was first caged (the net settles), or (discount 0) when the physics faults, and is
 truncated at the time limit. Every robot's pose at the start (`team_at_start`, Head first) is
 what the Tail knows at τ (§2.4); every `CagingConfig.share_every_s` the team shares its poses
-again (`shared`, the intermittent communication of §2.5.3.2).
+again (`shared`, the intermittent communication of §2.5.3.2). Besides its own and its
+neighbour's poses, the Tail observes `object`: the object's centre relative to its own position
+(world axes, m) and 1, when the object's surface is within its sensor radius, else zeros: the
+local sensing the text grants Head and Tail ("follow along with the surface of an object that
+they locally encounter").
 """
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 from dm_control import mujoco as dm_mujoco
+from dm_env import specs
 
 from macrostate_mj.chain.caging import CagingConfig, cage_report, start_poses
 from macrostate_mj.chain.sim import ChainSim
@@ -53,6 +60,24 @@ class CagingTask(TailTask):
         self.caged = cage_report(self.sim.poses, self.caging)["caged"]
         if self.caged_at is None and self.caged:
             self.caged_at = self.sim.time
+
+    def observation_spec(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
+        spec = super().observation_spec(physics)
+        spec["object"] = specs.Array((3,), np.float64, name="object")
+        return spec
+
+    def get_observation(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
+        obs = super().get_observation(physics)
+        obs["object"] = self.sense_object(self.sim.poses[-1, :2])
+        return obs
+
+    def sense_object(self, position: np.ndarray) -> np.ndarray:
+        """(dx, dy, 1): the object's centre relative to `position` when its surface lies within
+        the sensor radius; zeros otherwise."""
+        rel = np.asarray(self.caging.centre, float) - position
+        if np.linalg.norm(rel) - self.caging.object_radius > self.caging.sensor_radius:
+            return np.zeros(3)
+        return np.append(rel, 1.0)
 
     def get_reward(self, physics: dm_mujoco.Physics) -> float:
         return 1.0 if self.caged else 0.0

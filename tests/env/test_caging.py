@@ -79,6 +79,41 @@ def test_caging_env_passes_the_checker_and_repeats_with_its_seed():
         make_environment("robotarium", 6, "caging", caging=CagingConfig(ring_radius=0.4))
 
 
+def test_the_tail_senses_the_object_only_within_its_sensor_radius():
+    env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=5.0)
+    obs, _ = env.reset(seed=1)
+    assert np.array_equal(obs["object"], np.zeros(3))          # starts in the far corner
+    task = env.unwrapped._task
+    reach = CFG.object_radius + CFG.sensor_radius
+    near = task.sense_object(np.array([reach - 0.01, 0.0]))
+    assert np.allclose(near, [-(reach - 0.01), 0.0, 1.0])
+    assert np.array_equal(task.sense_object(np.array([0.0, reach + 0.01])), np.zeros(3))
+    env.close()
+
+
+def test_the_retlo_tail_receives_the_shared_poses():
+    """The team's poses shared at a tick reach the Tail's estimator at that very step: with a
+    module that knows nothing (it predicts zeros), the Head estimate of a sync step is the truth."""
+    from types import SimpleNamespace
+
+    from macrostate_mj.app.experiments.caging import _retlo_source
+
+    env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=20.0)
+    obs, info = env.reset(seed=2)
+    sim, stride = env.unwrapped._task.sim, 30
+    blind = SimpleNamespace(predict=lambda base: np.zeros((len(base), 3)))
+    source = _retlo_source(blind, env, info, 20.0, stride)
+    share = int(round(CFG.share_every_s * sim.cfg.command_hz))
+    heads = []
+    for _ in range(share + (sim.n - 2) * stride + 1):
+        heads.append(sim.poses[0, :2].copy())
+        source(obs, info)
+        obs, *_, info = env.step(np.zeros(2, np.float32))
+    tick, head = source.estimate()
+    assert tick == share and np.allclose(head, heads[share])
+    env.close()
+
+
 def test_a_passive_tail_never_cages_and_the_oracle_does():
     """Over 3 seeds: the dissertation's claim that Head and Followers alone cannot cage, and
     that a Tail which encircles against the Head, once it knows the Head circles, can."""

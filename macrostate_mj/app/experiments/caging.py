@@ -27,7 +27,8 @@ from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_m
 POLICIES = ("passive", "retlo", "oracle", "random")
 PRODUCTS = ["results.json", "snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp4",
             "retlo_seed0.rrd", "manifest.json"]
-TRACK_S = 6.0          # how much of the Head's track the Tail fits a circle to
+TRACK_STEPS = 5        # how many of the Head's latest positions the Tail fits a circle to
+DETECTION = {"min_arc_deg": 90.0, "max_rms": 0.06, "radius_factor": 2.0}   # loose: estimates
 
 
 @dataclass(frozen=True)
@@ -36,13 +37,16 @@ class CagingExperiment:
     time_limit: float = 90.0
     epochs: int = 200          # the three MLPs (retlo-sim trains 500; 200 converge here)
     train_steps: int = 800
-    rehearsals: int = 8        # passive-Tail caging runs the estimator also learns from
-    stride: int = 10           # the estimator's step in command ticks (see `_retlo_source`)
+    rehearsals: int = 40       # passive-Tail caging runs the estimator also learns from
+    stride: int = 30           # the estimator's step in command ticks: 1 Hz (see the README)
     seed: int = 0
 
 
 class _Tail:
-    """A scripted Tail: watch a Head track, detect circling, then encircle clockwise."""
+    """A scripted Tail: watch the Head's track (one position per estimator step); once it
+    circles, encircle clockwise: around the mean centre of every circle found so far (an estimated
+    track gives a new, noisy fit at most steps) until its own sensor finds the object, then
+    around the object it senses (and remembers)."""
 
     def __init__(self, env, head_source: Callable[[dict, dict], np.ndarray | None]):
         from macrostate_mj.chain.caging import CagingConfig
@@ -53,9 +57,16 @@ class _Tail:
         self.bound = float(env.action_space.high[0])
         self.head_source = head_source
         self.track: list[np.ndarray] = []
-        self.keep = int(round(TRACK_S * self.sim_cfg.command_hz))
-        self.centre: np.ndarray | None = None
+        self.found: list[np.ndarray] = []          # the centres of the circles found
+        self.sensed: np.ndarray | None = None      # the object's centre, once sensed
         self.detected_at: float | None = None
+
+    @property
+    def centre(self) -> np.ndarray | None:
+        """Where the Tail encircles: the sensed object, else the circles' mean centre."""
+        if self.sensed is not None or not self.found:
+            return self.sensed
+        return np.mean(self.found, axis=0)
 
     def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
         from macrostate_mj.chain.caging import (
@@ -66,36 +77,52 @@ class _Tail:
 
         head = self.head_source(obs, info)
         if head is not None:
-            self.track = [*self.track[-(self.keep - 1):], head]
-            if self.centre is None:
-                self.centre = circling_centre(np.array(self.track), self.caging)
-                self.detected_at = t if self.centre is not None else None
+            self.track = [*self.track[-(TRACK_STEPS - 1):], head]
+            found = (circling_centre(np.array(self.track), self.caging, **DETECTION)
+                     if len(self.track) == TRACK_STEPS and self.sensed is None else None)
+            if found is not None:
+                self.found.append(found)
+                self.detected_at = self.detected_at or t
+        tail, fol = obs["tail"][-1], obs["neighbour"][-1]
+        if self.found and obs["object"][2] > 0:
+            self.sensed = tail[:2] + obs["object"][:2]
         if self.centre is None:
             return np.zeros(2, np.float32)
-        tail, fol = obs["tail"][-1], obs["neighbour"][-1]
         u = circle_velocity(tail[:2], self.centre, self.caging.ring_radius,
                             self.sim_cfg.chain_speed, -1.0, self.caging.circle_gain)
         w = offset_for_velocity(u, tail, fol, self.sim_cfg.spacing, self.k_t, self.bound)
         return w.astype(np.float32)
 
 
+def _oracle_source(sim, stride: int) -> Callable[[dict, dict], np.ndarray | None]:
+    """The Head's true position every `stride` ticks (privileged, no lag)."""
+    ticks = [-1]
+
+    def source(_obs: dict, _info: dict) -> np.ndarray | None:
+        ticks[0] += 1
+        return sim.poses[0, :2].copy() if ticks[0] % stride == 0 else None
+    return source
+
+
 def _retlo_source(model, env, info: dict, seconds: float, stride: int
                   ) -> Callable[[dict, dict], np.ndarray | None]:
-    """The Head's position as the Tail's live ReTLo estimator has it (lagging n - 2 steps),
-    from its observations and the poses the team shares (at τ and every `share_every_s`)."""
+    """The Head's position as the Tail's live ReTLo estimator has it after each of its steps
+    (lagging n - 2 steps), from its observations and the poses the team shares (at τ and every
+    `share_every_s`); None between steps."""
     from estimators.retlo_sim.estimate import OnlineChain
 
     sim = env.unwrapped._task.sim
     chain = OnlineChain(model.predict, sim.n, int(seconds * sim.cfg.command_hz / stride) + 2)
     chain.start(info["team_at_start"][::-1])            # Tail first
-    ticks = [0]
+    ticks = [-1]          # the observation of tick k comes with the info of tick k
 
     def source(obs: dict, step_info: dict) -> np.ndarray | None:
         ticks[0] += 1
-        if ticks[0] % stride == 0:
-            chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
-            if "team" in step_info:
-                chain.share(step_info["team"][::-1])
+        if ticks[0] == 0 or ticks[0] % stride:
+            return None
+        chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
+        if "team" in step_info:
+            chain.share(step_info["team"][::-1])
         t, head = chain.head
         return head.copy() if t > 0 else None
     source.estimate = lambda: (chain.head[0] * stride, chain.head[1])   # (tick, Head)
@@ -120,7 +147,7 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
         source = _retlo_source(model, env, info, cfg.time_limit, cfg.stride)
         tail = _Tail(env, source)
     elif policy == "oracle":
-        tail = _Tail(env, lambda _obs, _info: sim.poses[0, :2].copy())
+        tail = _Tail(env, _oracle_source(sim, cfg.stride))
     recorders = _recorders(sim, env.unwrapped._task.caging, video, rerun,
                            lambda: None if tail is None or not tail.track else tail.track[-1])
     rng = np.random.default_rng([cfg.seed, seed, 7])
@@ -256,7 +283,7 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
 
     t0 = time.perf_counter()
     models = check_writable_dir(out / "models")
-    model = _train_model(cfg, models / "retlo_mlp.npz")
+    model = _train_model(cfg, models / f"retlo_mlp_stride{cfg.stride}.npz")
     timings = {"train_retlo": time.perf_counter() - t0}
     episodes, snapshots = [], {}
     with LoggedProgress(transient=True) as bar:
