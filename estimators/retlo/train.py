@@ -150,8 +150,11 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
 
 def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
           progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
-          ) -> tuple[RetloNet, dict]:
+          init: RetloNet | None = None) -> tuple[RetloNet, dict]:
     """Train with Adam, keep the best closed-loop validation checkpoint, stop early.
+
+    `init`: fine-tune a copy of this network (its sizes and spacing scale) instead of a fresh
+    one; `cfg.model` must describe it.
 
     `progress` shows a bar of its own; a caller with its own bar passes `on_epoch(epoch, val_cm)`.
     Ctrl-C after the first validated epoch stops training and returns the best checkpoint so
@@ -165,7 +168,8 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     rng = np.random.default_rng(cfg.seed)
     base = make_samples(train_worlds, cfg.model)
     signs = {k: torch.from_numpy(v).float() for k, v in mirror_signs(cfg.model).items()}
-    net = RetloNet(cfg.model, mean_spacing(train_worlds))
+    net = (RetloNet(cfg.model, mean_spacing(train_worlds)) if init is None
+           else copy.deepcopy(init).train())
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
     best = (float("inf"), -1, copy.deepcopy(net.state_dict()))

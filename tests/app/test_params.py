@@ -70,6 +70,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "experiment oc": ["--data", d, "--out", str(out)],
         "experiment srs": ["--out", str(out)],
         "experiment caging": ["--out", str(out)],
+        "experiment sim2real": ["--real", d, "--out", str(out)],
         "ants simulate": ["--out", str(out)],
         "flow": ["--frames", d, "--out", str(out)],
         "oc train": ["--method", "dsvdd", "--data", d, "--out", str(out)],

@@ -1,0 +1,36 @@
+"""`experiment sim2real`: lab-trained ReTLo models on real data, and the data-efficiency curve."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from macrostate_mj.app.cli.app import experiment_app
+from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, InputDir, OutputDir, Switch
+
+
+@experiment_app.command("sim2real")
+def experiment_sim2real(
+    real: Path = InputDir(..., "Folder of the real ThymioLoc 3-robot Train.csv and Val.csv."),
+    sim: Path = InputDir(None, "A lab collection folder (Train.csv, Val.csv) to use instead of "
+                         "collecting one (`collect --scenario lab --robots 3 --split 80/20/0`)."),
+    profile: str = Choice("full", "full: 5 seeds, 10/25/50/100 % of the real pool; quick: a "
+                          "smoke run.", ("full", "quick")),
+    quick: bool = Switch(False, "Shorthand for --profile quick."),
+    workers: int = Count(1, "Local worker processes (collection and trainings).",
+                         max=MAX_WORKERS),
+    ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
+    out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
+    overwrite: bool = Switch(False, "Replace the figure and results (cached models are kept; "
+                             "delete the folder to start over)."),
+) -> None:
+    """Sim only, real only and sim pre-trained then fine-tuned, on 10-100 % of the real data:
+    Head error on held-out real folds (one per seed), the curve and the real data saved."""
+    from macrostate_mj.app.experiments.sim2real import PRODUCTS, PROFILES, run_sim2real
+    from macrostate_mj.core.io import prepare_out_dir
+
+    prepare_out_dir(out, PRODUCTS, overwrite)
+    chosen = PROFILES["quick" if quick else profile]
+    for line in run_sim2real(chosen, real, out, sim, workers, ray):
+        typer.echo(line)

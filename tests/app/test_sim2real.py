@@ -1,0 +1,69 @@
+"""`experiment sim2real`: cross-validated folds that never leak, the data-saving arithmetic, bad
+input, and a quick end-to-end run (a small lab collection stands in for the real files, so the
+test needs no reference data)."""
+
+import json
+
+import numpy as np
+import pytest
+from clitools import cli
+
+from macrostate_mj.app.experiments.sim2real import cv_blocks, equivalent_fraction
+from macrostate_mj.core.errors import UserError
+
+
+@pytest.mark.parametrize("fold", range(5))
+def test_folds_are_contiguous_and_disjoint(fold):
+    pool, val, test = cv_blocks(325, 5, fold, 0.15)
+    assert np.array_equal(test, np.arange(test[0], test[-1] + 1))
+    assert not set(test) & set(pool) and not set(test) & set(val) and not set(pool) & set(val)
+    assert len(pool) + len(val) + len(test) == 325 and len(test) == 65
+    assert val.min() > pool.max() or fold == 4 and val.min() > pool.max()
+    with pytest.raises(UserError):
+        cv_blocks(3, 5, 0, 0.15)
+
+
+def test_equivalent_fraction_interpolates_in_log_share():
+    fractions, errors = (0.1, 0.25, 0.5, 1.0), [8.0, 6.0, 5.0, 4.0]
+    assert equivalent_fraction(6.0, fractions, errors) == pytest.approx(0.25)
+    assert equivalent_fraction(4.5, fractions, errors) == pytest.approx(np.sqrt(0.5))
+    assert equivalent_fraction(3.0, fractions, errors) is None       # better than all real data
+    assert equivalent_fraction(9.0, fractions, errors) is None       # worse than the least
+    assert equivalent_fraction(5.5, fractions, [8.0, 5.0, 6.0, 4.0]) == pytest.approx(
+        np.exp(np.log(0.1) + 5 / 6 * (np.log(0.25) - np.log(0.1))))  # a noisy bump is ignored
+
+
+def test_experiment_sim2real_quick(tmp_path):
+    stand_in = tmp_path / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
+              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
+              "--out", str(stand_in))
+    assert res.returncode == 0, res.stderr
+    out = tmp_path / "s2r"
+    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["arms"]) == {"sim", "real", "finetune"}
+    for arm in ("real", "finetune"):
+        assert set(results["arms"][arm]) == {"0.5", "1"}
+        assert all(c["head_cm"]["n"] == 2 and c["head_cm"]["mean"] > 0
+                   for c in results["arms"][arm].values())
+    assert results["sim_over_real"] > 0
+    assert (out / "sim2real.png").stat().st_size > 1000
+    assert json.loads((out / "manifest.json").read_text())["models_trained"] == 2 + 2 * 2 * 2
+    # a rerun resumes from the cached models and writes the same results
+    before = (out / "results.json").read_bytes()
+    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),
+              "--overwrite")
+    assert res.returncode == 0, res.stderr
+    assert (out / "results.json").read_bytes() == before
+
+
+def test_sim2real_refuses_a_folder_without_real_files(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = cli("experiment", "sim2real", "--quick", "--real", str(empty), "--out",
+              str(tmp_path / "out"))
+    assert res.returncode == 2
+    assert res.stderr.count("\n") == 1 and "Train.csv" in res.stderr
+    assert not (tmp_path / "out").exists()
