@@ -5,7 +5,8 @@ A profile maps parameter names to (low, high) factors applied to the scenario's 
 profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by a uniform draw in
 [0.8, 1.2]. Draws come from the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized
 collection is still bit-identical for any worker count. A profile is a built-in name or a JSON
-file `{"k_f": [0.8, 1.2], ...}`; the collection's manifest records it.
+file `{"k_f": [0.8, 1.2], ...}`; a bare number fixes a factor (`{"k_f": 1.1}`: what
+`sysid` writes). The collection's manifest records it.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from macrostate_mj.chain.motion import WaitForBehind
 from macrostate_mj.chain.scenarios import ScenarioConfig
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
@@ -24,9 +26,10 @@ from macrostate_mj.vision.imaging import NoiseConfig
 
 # Where each parameter lives: the scenario's rules, the compiled model, or the imaging chain.
 SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed")
+RULES = ("wait_slack",)          # the lab Followers' wait rule (`WaitForBehind.slack`)
 MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
-PARAMETERS = (*SCENARIO, *MODEL, *IMAGING)
+PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING)
 
 PROFILES: dict[str, dict[str, tuple[float, float]]] = {
     # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging
@@ -69,12 +72,14 @@ class Randomization:
             if name not in PARAMETERS:
                 raise UserError(f"--randomize: unknown parameter {name!r}; choose from "
                                 f"{', '.join(PARAMETERS)}")
+            fixed = isinstance(bounds, int | float) and not isinstance(bounds, bool)
             try:
-                low, high = (float(b) for b in bounds)
+                low, high = (float(bounds),) * 2 if fixed else (float(b) for b in bounds)
             except (TypeError, ValueError):
-                raise UserError(f"--randomize: {name} wants [low, high] factors, got "
-                                f"{bounds!r}") from None
-            if not (math.isfinite(low) and math.isfinite(high)) or low <= 0 or low >= high:
+                raise UserError(f"--randomize: {name} wants [low, high] factors or one fixed "
+                                f"factor, got {bounds!r}") from None
+            if not (math.isfinite(low) and math.isfinite(high)) or low <= 0 or \
+                    (low >= high and not fixed):
                 raise UserError(f"--randomize: {name} range [{low:g}, {high:g}] is empty or not "
                                 "positive; give factors with 0 < low < high")
             out.append((name, low, high))
@@ -83,11 +88,15 @@ class Randomization:
 
     def draw(self, rng: np.random.Generator) -> dict[str, float]:
         """One episode's factors, in the profile's (sorted) order."""
-        return {name: float(rng.uniform(low, high)) for name, low, high in self.ranges}
+        return {name: low if low == high else float(rng.uniform(low, high))
+                for name, low, high in self.ranges}
 
 
 def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
-    return replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
+    cfg = replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
+    if "wait_slack" in factors and isinstance(cfg.followers, WaitForBehind):
+        cfg = replace(cfg, followers=WaitForBehind(cfg.followers.slack * factors["wait_slack"]))
+    return cfg
 
 
 def randomized_noise(noise: NoiseConfig, factors: dict[str, float]) -> NoiseConfig:

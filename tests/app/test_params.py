@@ -71,6 +71,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "experiment srs": ["--out", str(out)],
         "experiment caging": ["--out", str(out)],
         "experiment sim2real": ["--real", d, "--out", str(out)],
+        "sysid": ["--train", c, "--val", c, "--out", str(out)],
         "ants simulate": ["--out", str(out)],
         "flow": ["--frames", d, "--out", str(out)],
         "oc train": ["--method", "dsvdd", "--data", d, "--out", str(out)],

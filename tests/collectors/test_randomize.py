@@ -65,3 +65,20 @@ def test_collect_randomize_records_its_draws_and_refuses_bad_input(tmp_path):
     res = cli(*args[:-1], str(bad), "--out", str(tmp_path / "b"))
     assert_clean_error(res, "unknown parameter 'gravity'")
     assert not (tmp_path / "b").exists()
+
+
+def test_a_bare_number_fixes_a_factor(tmp_path):
+    from collectors.randomize import randomized_scenario
+    from macrostate_mj.chain.scenarios import get_scenario
+
+    path = tmp_path / "fixed.json"
+    path.write_text(json.dumps({"k_f": 1.25, "wait_slack": 2.0}))
+    r = Randomization.parse(str(path))
+    rng = np.random.default_rng(0)
+    assert r.draw(rng) == r.draw(rng) == {"k_f": 1.25, "wait_slack": 2.0}
+    lab = get_scenario("lab")
+    fitted = randomized_scenario(lab, r.draw(rng))
+    assert fitted.k_f == lab.k_f * 1.25 and fitted.followers.slack == lab.followers.slack * 2
+    path.write_text(json.dumps({"k_f": 0}))
+    with pytest.raises(UserError, match="positive"):
+        Randomization.parse(str(path))

@@ -1,0 +1,141 @@
+"""System identification of a scenario against real ThymioLoc data (issue 13, item 2).
+
+What is fitted: factors on the scenario's own values (`collectors.randomize` names, so a fit is
+a fixed-factor profile that `collect --randomize fitted.json` reads): the Follower and Tail
+gains, the heading gain, the Head's and the chain's speed caps, and the lab wait rule's slack.
+What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
+collection and the real Train file, over every per-robot (or per-pair) row of every feature;
+the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
+outweigh the rest twentyfold.
+How: every candidate is a collection with the same seed (common random numbers: the same starts
+and Head routes, so the scores differ by the parameters, not by luck). Stage 1 draws scrambled
+Sobol points over log-factors in [0.6, 1.6], with the scenario's own values (all factors 1) as
+point 0; stage 2 draws Sobol points in a box a quarter as wide around stage 1's best. The best
+of both is checked on the real Val file against the unfitted scenario. Each candidate is cached
+(its collection and its score), so an interrupted fit resumes.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from collectors.runner import CollectRequest, collect, finished
+from macrostate_mj.core.io import write_json_atomic, write_text_atomic
+from macrostate_mj.formats import motion_stats
+from macrostate_mj.formats.instances import INSTANCE_STEPS
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
+
+FITTED = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "wait_slack")
+LOW, HIGH = 0.6, 1.6
+
+
+@dataclass(frozen=True)
+class SysidConfig:
+    scenario: str = "lab"
+    robots: int = 3
+    minutes: float = 30.0      # simulated driving per candidate
+    seed: int = 1
+    first: int = 16            # stage-1 candidates (the scenario's own values among them)
+    refine: int = 8            # stage-2 candidates
+    shrink: float = 0.25       # stage 2's box, as a share of stage 1's
+    episode_minutes: float = 5.0
+    workers: int = 1
+
+
+def score(rows: list[dict]) -> float:
+    """Summed KS over per-robot rows; the lags of one autocorrelation family averaged."""
+    plain, lags = 0.0, {}
+    for r in rows:
+        if r["robot"] == "pooled":
+            continue
+        if "_acf_lag" in r["feature"]:
+            lags.setdefault((r["feature"].split("_lag")[0], r["robot"]), []).append(r["ks"])
+        else:
+            plain += r["ks"]
+    return plain + sum(float(np.mean(v)) for v in lags.values())
+
+
+def _sobol(n: int, seed: int) -> np.ndarray:
+    """The first n of a scrambled Sobol sequence of power-of-two length, in [0, 1)."""
+    from scipy.stats import qmc
+
+    m = max(0, int(np.ceil(np.log2(max(n, 1)))))
+    return qmc.Sobol(len(FITTED), scramble=True, seed=seed).random_base2(m)[:n]
+
+
+def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray:
+    """Log-factor points (k, len(FITTED)): stage 1 over the whole box (point 0 = no change),
+    or stage 2 around `centre`."""
+    lo, hi = np.log(LOW), np.log(HIGH)
+    if centre is None:
+        pts = _sobol(cfg.first - 1, cfg.seed)
+        return np.vstack([np.zeros(len(FITTED)), lo + pts * (hi - lo)])
+    half = cfg.shrink * (hi - lo) / 2
+    pts = _sobol(cfg.refine, cfg.seed + 1)
+    return np.clip(centre - half + pts * 2 * half, lo, hi)
+
+
+def evaluate(factors: dict[str, float], folder: Path, cfg: SysidConfig, real: dict
+             ) -> dict:
+    """Collect with these fixed factors (cached) and score against the real features."""
+    done = folder / "score.json"
+    if done.exists():
+        return json.loads(done.read_text())
+    folder.mkdir(parents=True, exist_ok=True)
+    profile = folder / "factors.json"
+    write_text_atomic(profile, json.dumps(factors, sort_keys=True))
+    req = CollectRequest(cfg.scenario, cfg.robots, cfg.minutes, cfg.seed, folder, "passive",
+                         workers=cfg.workers, episode_minutes=cfg.episode_minutes,
+                         randomize=str(profile))
+    if not finished(req):
+        collect(req)
+    sim = motion_stats.features(read_csv(folder / "instances.csv").poses, DEFAULT_PX_PER_CM)
+    rows = motion_stats.compare(sim, real)
+    out = {"factors": factors, "score": score(rows), "folder": str(folder)}
+    write_json_atomic(done, out)
+    return out
+
+
+def real_features(path: Path, robots: int) -> dict:
+    poses = read_csv(path).poses
+    motion_stats.check_comparable((0, INSTANCE_STEPS, robots), poses.shape,
+                                  (f"a {robots}-robot collection", path.name))
+    return motion_stats.features(poses, DEFAULT_PX_PER_CM)
+
+
+def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
+        progress: Callable[[int, int], None] | None = None) -> dict:
+    """Both stages, then the check on Val; writes fit.json and fitted.json; returns the fit."""
+    real = real_features(train_csv, cfg.robots)
+    val = real_features(val_csv, cfg.robots)
+    total, tried = cfg.first + cfg.refine, []
+
+    def run(points: np.ndarray) -> None:
+        for x in points:
+            factors = {k: float(round(np.exp(v), 4)) for k, v in zip(FITTED, x, strict=True)}
+            tried.append(evaluate(factors, out / "candidates" / f"{len(tried):03d}", cfg, real))
+            if progress is not None:
+                progress(len(tried), total)
+
+    run(candidates(cfg))
+    best = min(tried, key=lambda c: c["score"])
+    run(candidates(cfg, np.log([best["factors"][k] for k in FITTED])))
+    best = min(tried, key=lambda c: c["score"])
+    before = tried[0]
+    report = {"config": asdict(cfg), "fitted": best["factors"], "candidates": tried,
+              "train": {"before": before["score"], "after": best["score"]}, "val": {},
+              "rows": {}}
+    for name, cand in (("before", before), ("after", best)):
+        sim = motion_stats.features(read_csv(Path(cand["folder"]) / "instances.csv").poses,
+                                    DEFAULT_PX_PER_CM)
+        val_rows = motion_stats.compare(sim, val)
+        report["val"][name] = score(val_rows)
+        report["rows"][name] = {"train": motion_stats.compare(sim, real), "val": val_rows}
+    write_json_atomic(out / "fit.json", report)
+    write_text_atomic(out / "fitted.json", json.dumps(best["factors"], indent=1, sort_keys=True))
+    return report

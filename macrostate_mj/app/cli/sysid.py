@@ -1,0 +1,59 @@
+"""`sysid`: fit a scenario's motion parameters to real ThymioLoc data (summed KS distance)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.cli.params import (
+    MAX_WORKERS,
+    Count,
+    InputFile,
+    OutputDir,
+    Positive,
+    Seed,
+    Switch,
+)
+
+
+@app.command("sysid")
+def sysid(
+    train: Path = InputFile(..., "The real ThymioLoc file the fit minimises the KS sum on.",
+                            suffixes=(".csv",)),
+    val: Path = InputFile(..., "The real file the fit is checked on.", suffixes=(".csv",)),
+    robots: int = Count(3, "Team size (the real files' own).", min=2, max=12),
+    minutes: float = Positive(30.0, "Simulated driving per candidate.", max=10_000.0),
+    first: int = Count(16, "Stage-1 candidates over the whole box (the unfitted lab is one).",
+                       min=2),
+    refine: int = Count(8, "Stage-2 candidates around stage 1's best.", min=1),
+    seed: int = Seed(1, "Collection seed of every candidate, and of the Sobol points."),
+    workers: int = Count(1, "Local worker processes per collection.", max=MAX_WORKERS),
+    out: Path = OutputDir(..., "Output folder (candidates are cached in it)."),
+    overwrite: bool = Switch(False, "Replace fit.json and fitted.json (cached candidates are "
+                             "kept; delete the folder to start over)."),
+) -> None:
+    """System identification of `lab`: gains, speed caps and the wait rule's slack that make
+    the motion distributions match the real Train file (checked on Val)."""
+    from collectors.sysid import SysidConfig, fit
+    from macrostate_mj.core.io import prepare_out_dir, write_manifest
+    from macrostate_mj.core.progress import LoggedProgress
+
+    prepare_out_dir(out, ["fit.json", "fitted.json", "manifest.json"], overwrite)
+    cfg = SysidConfig(robots=robots, minutes=minutes, seed=seed, first=first, refine=refine,
+                      workers=workers)
+    t0 = time.perf_counter()
+    with LoggedProgress(transient=True) as bar:
+        task = bar.add_task("sysid", total=first + refine)
+        report = fit(cfg, train, val, out, lambda done, total: bar.update(task, completed=done))
+    write_manifest(out, "sysid", {**report["config"], "train": str(train), "val": str(val)},
+                   seed, {"total": time.perf_counter() - t0},
+                   products=["fit.json", "fitted.json"])
+    typer.echo(f"summed KS on {train.name}: {report['train']['before']:.3f} -> "
+               f"{report['train']['after']:.3f}; on {val.name}: {report['val']['before']:.3f} "
+               f"-> {report['val']['after']:.3f}")
+    typer.echo("fitted factors: " + ", ".join(f"{k} {v:g}" for k, v in report["fitted"].items()))
+    typer.echo(f"fit       {out / 'fit.json'}\nprofile   {out / 'fitted.json'} "
+               "(collect --randomize)")
