@@ -1,0 +1,54 @@
+"""`sysid`: the objective, the candidates, and a tiny fit end to end (a lab collection stands in
+for the real files, so no reference data is needed)."""
+
+import json
+
+import numpy as np
+import pytest
+from clitools import cli
+
+from collectors.sysid import FITTED, HIGH, LOW, SysidConfig, candidates, score
+
+
+def test_score_sums_per_robot_rows_and_averages_each_lag_family():
+    rows = [{"feature": "speed_cm_s", "robot": "H", "ks": 0.5},
+            {"feature": "speed_cm_s", "robot": "pooled", "ks": 0.9},
+            {"feature": "speed_acf_lag1", "robot": "H", "ks": 0.2},
+            {"feature": "speed_acf_lag2", "robot": "H", "ks": 0.4},
+            {"feature": "turn_acf_lag1", "robot": "T", "ks": 0.1}]
+    assert score(rows) == pytest.approx(0.5 + 0.3 + 0.1)
+
+
+def test_candidates_start_from_the_scenario_and_stay_in_the_box():
+    cfg = SysidConfig(first=8, refine=4)
+    first = candidates(cfg)
+    assert first.shape == (8, len(FITTED)) and np.array_equal(first[0], np.zeros(len(FITTED)))
+    assert np.all((first >= np.log(LOW)) & (first <= np.log(HIGH)))
+    assert np.array_equal(first, candidates(cfg))                       # seeded
+    centre = first[3]
+    second = candidates(cfg, centre)
+    half = cfg.shrink * (np.log(HIGH) - np.log(LOW)) / 2
+    assert second.shape == (4, len(FITTED)) and np.all(np.abs(second - centre) <= half + 1e-12)
+
+
+def test_a_tiny_fit_end_to_end(tmp_path):
+    stand_in = tmp_path / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "2", "--seed", "9",
+              "--split", "50/50/0", "--out", str(stand_in))
+    assert res.returncode == 0, res.stderr
+    out = tmp_path / "fit"
+    args = ["sysid", "--train", str(stand_in / "Train.csv"), "--val", str(stand_in / "Val.csv"),
+            "--minutes", "1", "--first", "2", "--refine", "1"]
+    res = cli(*args, "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    fit = json.loads((out / "fit.json").read_text())
+    assert len(fit["candidates"]) == 3
+    assert fit["train"]["after"] == min(c["score"] for c in fit["candidates"])
+    assert fit["train"]["after"] <= fit["train"]["before"]
+    assert set(fit["val"]) == {"before", "after"}
+    res = cli("collect", "--minutes", "0.5", "--randomize", str(out / "fitted.json"),
+              "--out", str(tmp_path / "fitted_lab"))
+    assert res.returncode == 0, res.stderr
+    res = cli(*args, "--robots", "5", "--out", str(tmp_path / "bad"))
+    assert res.returncode == 2 and "robots" in res.stderr and res.stderr.count("\n") == 1
+    assert not (tmp_path / "bad").exists()
