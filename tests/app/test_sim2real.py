@@ -57,6 +57,11 @@ def test_experiment_sim2real_quick(tmp_path):
               "--overwrite")
     assert res.returncode == 0, res.stderr
     assert (out / "results.json").read_bytes() == before
+    # other inputs into the same cache are refused, before any work
+    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),
+              "--overwrite", "--randomize", "wide")
+    assert res.returncode == 2 and "other inputs" in res.stderr
+    assert (out / "results.json").read_bytes() == before
 
 
 def test_sim2real_refuses_a_folder_without_real_files(tmp_path):

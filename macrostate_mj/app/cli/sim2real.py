@@ -15,6 +15,9 @@ def experiment_sim2real(
     real: Path = InputDir(..., "Folder of the real ThymioLoc 3-robot Train.csv and Val.csv."),
     sim: Path = InputDir(None, "A lab collection folder (Train.csv, Val.csv) to use instead of "
                          "collecting one (`collect --scenario lab --robots 3 --split 80/20/0`)."),
+    randomize: str = typer.Option(None, "--randomize", help="A domain-randomization profile or "
+                                  "JSON of factors for the lab collection (e.g. sysid's "
+                                  "fitted.json)."),
     profile: str = Choice("full", "full: 5 seeds, 10/25/50/100 % of the real pool; quick: a "
                           "smoke run.", ("full", "quick")),
     quick: bool = Switch(False, "Shorthand for --profile quick."),
@@ -32,5 +35,5 @@ def experiment_sim2real(
 
     prepare_out_dir(out, PRODUCTS, overwrite)
     chosen = PROFILES["quick" if quick else profile]
-    for line in run_sim2real(chosen, real, out, sim, workers, ray):
+    for line in run_sim2real(chosen, real, out, sim, randomize, workers, ray):
         typer.echo(line)

@@ -7,11 +7,13 @@ Model seed s is tested on block s mod `folds`, never used by any model of that s
 other blocks, the last `val_share` selects the real-trained checkpoints and the rest is the real
 training pool, of which the first 10 / 25 / 50 / 100 % are used. Three arms per seed:
 - sim: trained and selected on a lab collection only (`collect --scenario lab --robots 3
-  --split 80/20/0`, cached in `data/sim`, or `--sim DIR` with Train.csv and Val.csv);
+  --split 80/20/0 [--randomize PROFILE]`, cached in `data/sim`, or `--sim DIR` with Train.csv
+  and Val.csv);
 - real: trained on a fraction of the pool, selected on the real validation block;
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`).
 Every model is the LSTM of `train retlo --model lstm`; each is a task cached as JSON (and the
-sim models as checkpoints), so a rerun after a kill resumes.
+sim models as checkpoints), so a rerun after a kill resumes; `run.json` records what the cache
+was made from, and a rerun with other inputs into the same folder is refused.
 """
 
 from __future__ import annotations
@@ -81,8 +83,8 @@ def read_real(folder: Path) -> np.ndarray:
     return to_world(np.concatenate(parts), DEFAULT_PX_PER_CM)
 
 
-def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, workers: int,
-              ray: str | None) -> Path:
+def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, randomize: str | None,
+              workers: int, ray: str | None) -> Path:
     """The folder of the lab Train.csv / Val.csv: `--sim`, or a cached lab collection."""
     if sim is not None:
         missing = [f for f in REAL_FILES if not (sim / f).is_file()]
@@ -91,7 +93,7 @@ def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, workers: in
         return sim
     req = CollectRequest("lab", 3, profile.sim_minutes, profile.sim_seed, out, "passive",
                          workers=workers, ray=ray, split="80/20/0",
-                         episode_minutes=profile.episode_minutes)
+                         episode_minutes=profile.episode_minutes, randomize=randomize)
     if not finished(req):
         collect(req)
     return out
@@ -130,9 +132,20 @@ def _train_task(task: dict) -> dict:
     return report
 
 
+def _claim(out: Path, inputs: dict) -> None:
+    """Record what the cache in `out` is made from; refuse other inputs in the same folder."""
+    path, inputs = out / "run.json", json.loads(json.dumps(inputs))    # tuples as lists
+    if path.exists() and json.loads(path.read_text()) != inputs:
+        raise UserError(f"{out} holds a sim2real run with other inputs ({path}); choose another "
+                        "--out or delete it")
+    write_json_atomic(path, inputs)
+
+
 def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path | None = None,
-                 workers: int = 1, ray: str | None = None) -> list[str]:
+                 randomize: str | None = None, workers: int = 1, ray: str | None = None
+                 ) -> list[str]:
     """Collect (or take) the lab data, train every arm and fraction, plot; summary lines."""
+    from collectors.randomize import Randomization
     from viz.sim2real_figures import plot_curve
 
     t0 = time.perf_counter()
@@ -140,7 +153,16 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
     if profile.folds > len(pooled):
         raise UserError(f"--real {real_dir} holds {len(pooled)} instances, fewer than "
                         f"{profile.folds} folds")
-    sim_dir = _sim_data(check_writable_dir(out / "data" / "sim"), sim, profile, workers, ray)
+    if randomize is not None:
+        if sim is not None:
+            raise UserError("--randomize applies to the lab collection this command makes; "
+                            "drop it or --sim")
+        Randomization.parse(randomize)
+    check_writable_dir(out)
+    _claim(out, {"profile": asdict(profile), "real": str(real_dir.resolve()),
+                 "sim": None if sim is None else str(sim.resolve()), "randomize": randomize})
+    sim_dir = _sim_data(check_writable_dir(out / "data" / "sim"), sim, profile, randomize,
+                        workers, ray)
     models = check_writable_dir(out / "models")
     t_data = time.perf_counter() - t0
     first, second = [], []
@@ -170,7 +192,8 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
     plot_curve(results, out / "sim2real.png")
     timings = {"data": t_data, "models": t_models, "total": time.perf_counter() - t0}
     write_manifest(out, "experiment sim2real", {"profile": asdict(profile),
-                                                "real": str(real_dir), "sim": str(sim_dir)},
+                                                "real": str(real_dir), "sim": str(sim_dir),
+                                                "randomize": randomize},
                    None, timings, products=PRODUCTS, workers=workers, models_trained=len(reports))
     return summary_lines(results)
 
