@@ -2,12 +2,14 @@
 Gymnasium API only.
 
 - passive: follows its neighbour (offset 0); the text says this team cannot cage;
-- retlo: runs the §2.5 three-MLP ReTLo estimator live (`OnlineChain`, trained here on the
-  robotarium training runs of `experiment retlo-sim`, cached) from its own and its neighbour's
-  observed positions and the team's poses at τ; when its estimate of the Head's track fits a
-  circle of about the boundary's size over at least 120° (`chain.caging.circling_centre`), it
-  takes that circle's centre as the object's and encircles it clockwise, against the Head;
-- oracle: the same rule on the Head's true track (privileged): the upper bound;
+- retlo: runs the §2.5 three-MLP ReTLo estimator live at 1 Hz (`OnlineChain`, trained here on
+  the robotarium training runs of `experiment retlo-sim` and on rehearsal caging runs, cached)
+  from its own and its neighbour's observed positions and the poses the team shares (at τ and
+  every 5 s); when its last `TRACK_STEPS` estimates of the Head fit a circle of about the
+  boundary's size (`chain.caging.circling_centre`, loose `DETECTION` bounds), it encircles
+  clockwise, against the Head: around the mean centre of the circles found, then, once its own
+  sensor has the object (the `object` observation), around the object;
+- oracle: the same Tail fed the Head's true position each second (privileged): the upper bound;
 - random: a new uniform offset within the action bounds every second.
 Per policy over the seeds: success rate (caged before the time limit), time to cage, the final
 spacing's coefficient of variation (mean ± std), and Fig 2.3-style snapshots of the first seed.
