@@ -27,6 +27,9 @@ def plot_curve(results: dict, path: str | os.PathLike) -> None:
     sim = results["arms"]["sim"]["0"]["head_cm"]
     ax.axhline(sim["mean"], color="grey", ls="--", label=f"sim only ({sim['mean']:.1f} cm)")
     ax.set_xscale("log")
+    shares = [float(f) * 100 for f in results["arms"]["real"]]
+    ax.set_xticks(shares, [f"{v:g}" for v in shares])
+    ax.minorticks_off()
     ax.set_xlabel("real training data used (% of the pool, log scale)")
     ax.set_ylabel("Head error on held-out real instances (cm)")
     n = results["arms"]["sim"]["0"]["head_cm"]["n"]
