@@ -94,25 +94,26 @@ def evaluate(factors: dict[str, float], folder: Path, cfg: SysidConfig, real: di
                          randomize=str(profile))
     if not finished(req):
         collect(req)
-    sim = motion_stats.features(read_csv(folder / "instances.csv").poses, DEFAULT_PX_PER_CM)
-    rows = motion_stats.compare(sim, real)
+    rows = motion_stats.compare(_features(folder / "instances.csv"), real)
     out = {"factors": factors, "score": score(rows), "folder": str(folder)}
     write_json_atomic(done, out)
     return out
 
 
-def real_features(path: Path, robots: int) -> dict:
+def _features(path: Path, robots: int | None = None) -> dict:
+    """Motion features of a ThymioLoc file; with `robots`, refuse another team size or layout."""
     poses = read_csv(path).poses
-    motion_stats.check_comparable((0, INSTANCE_STEPS, robots), poses.shape,
-                                  (f"a {robots}-robot collection", path.name))
+    if robots is not None:
+        motion_stats.check_comparable((0, INSTANCE_STEPS, robots), poses.shape,
+                                      (f"a {robots}-robot collection", path.name))
     return motion_stats.features(poses, DEFAULT_PX_PER_CM)
 
 
 def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
         progress: Callable[[int, int], None] | None = None) -> dict:
     """Both stages, then the check on Val; writes fit.json and fitted.json; returns the fit."""
-    real = real_features(train_csv, cfg.robots)
-    val = real_features(val_csv, cfg.robots)
+    real = _features(train_csv, cfg.robots)
+    val = _features(val_csv, cfg.robots)
     total, tried = cfg.first + cfg.refine, []
 
     def run(points: np.ndarray) -> None:
@@ -131,8 +132,7 @@ def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
               "train": {"before": before["score"], "after": best["score"]}, "val": {},
               "rows": {}}
     for name, cand in (("before", before), ("after", best)):
-        sim = motion_stats.features(read_csv(Path(cand["folder"]) / "instances.csv").poses,
-                                    DEFAULT_PX_PER_CM)
+        sim = _features(Path(cand["folder"]) / "instances.csv")
         val_rows = motion_stats.compare(sim, val)
         report["val"][name] = score(val_rows)
         report["rows"][name] = {"train": motion_stats.compare(sim, real), "val": val_rows}

@@ -70,12 +70,16 @@ def cv_blocks(n: int, folds: int, fold: int, val_share: float
     return rest[:-n_val], rest[-n_val:], test
 
 
-def read_real(folder: Path) -> np.ndarray:
-    """The pooled real instances (world units), Train then Val; one-line errors otherwise."""
+def _require_splits(folder: Path, flag: str, hint: str) -> None:
+    """One-line error unless `folder` holds Train.csv and Val.csv."""
     missing = [f for f in REAL_FILES if not (folder / f).is_file()]
     if missing:
-        raise UserError(f"--real {folder} has no {missing[0]}; pass the folder of the real "
-                        "ThymioLoc Train.csv and Val.csv")
+        raise UserError(f"{flag} {folder} has no {missing[0]}; pass {hint}")
+
+
+def read_real(folder: Path) -> np.ndarray:
+    """The pooled real instances (world units), Train then Val; one-line errors otherwise."""
+    _require_splits(folder, "--real", "the folder of the real ThymioLoc Train.csv and Val.csv")
     parts = [read_csv(folder / f).poses for f in REAL_FILES]
     if len({p.shape[1:] for p in parts}) != 1 or parts[0].shape[2] != 3:
         raise UserError(f"--real {folder}: Train.csv and Val.csv must both hold 3-robot "
@@ -87,9 +91,7 @@ def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, randomize: 
               workers: int, ray: str | None) -> Path:
     """The folder of the lab Train.csv / Val.csv: `--sim`, or a cached lab collection."""
     if sim is not None:
-        missing = [f for f in REAL_FILES if not (sim / f).is_file()]
-        if missing:
-            raise UserError(f"--sim {sim} has no {missing[0]}; pass a `collect --split` folder")
+        _require_splits(sim, "--sim", "a `collect --split` folder")
         return sim
     req = CollectRequest("lab", 3, profile.sim_minutes, profile.sim_seed, out, "passive",
                          workers=workers, ray=ray, split="80/20/0",
