@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
+from macrostate_mj.app.experiments import mean_std
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
 from macrostate_mj.core.parallel import runner_for
@@ -200,10 +201,6 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
     return summary_lines(results)
 
 
-def _stats(values: list[float]) -> dict:
-    return {"mean": float(np.mean(values)), "std": float(np.std(values)), "n": len(values)}
-
-
 def summarize(reports: list[dict], profile: Sim2RealProfile, n_real: int) -> dict:
     """Head and mean error (cm) per arm and fraction over seeds; the sim-only / real-only
     ratio; and, per fraction, the real-only data the fine-tuned model's error is worth."""
@@ -211,9 +208,9 @@ def summarize(reports: list[dict], profile: Sim2RealProfile, n_real: int) -> dic
     for arm in ARMS:
         fracs = (0.0,) if arm == "sim" else profile.fractions
         out["arms"][arm] = {f"{f:g}": {
-            "head_cm": _stats([r["head_cm"] for r in reports
+            "head_cm": mean_std([r["head_cm"] for r in reports
                                if r["arm"] == arm and r["fraction"] == f]),
-            "mean_cm": _stats([r["mean_cm"] for r in reports
+            "mean_cm": mean_std([r["mean_cm"] for r in reports
                                if r["arm"] == arm and r["fraction"] == f]),
             "count": max([r["count"] for r in reports if r["arm"] == arm and r["fraction"] == f])}
             for f in fracs}

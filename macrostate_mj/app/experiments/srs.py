@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
+from macrostate_mj.app.experiments import mean_std
 from macrostate_mj.app.srs import SRSRequest, collect_srs, episodes_for
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
 from macrostate_mj.core.parallel import runner_for
@@ -163,10 +164,6 @@ def _budgeted(profile: SRSProfile) -> set[str]:
     return {"passive", f"ro_{RO_SIGMA:g}", *(f"srs_{p}" for p in profile.picks)}
 
 
-def _mean_std(values: list[float]) -> dict:
-    return {"mean": float(np.mean(values)), "std": float(np.std(values)), "n": len(values)}
-
-
 def _results(profile: SRSProfile, tasks: list[dict], reports: dict[str, dict]) -> dict:
     """Per configuration and budget: Head and mean error (cm) mean ± std over datasets and
     models, and the step-wise Head and F2 errors."""
@@ -186,8 +183,8 @@ def _results(profile: SRSProfile, tasks: list[dict], reports: dict[str, dict]) -
                     steps[robot] = [float(np.mean(v)) if v else None for v in vals]
             out["configs"][config][budget] = {
                 "instances": int(round(float(budget) * profile.train)),
-                "head_cm": _mean_std([r["per_robot_cm"]["H"] for r in reps]),
-                "mean_cm": _mean_std([r["mean_error_cm"] for r in reps]),
+                "head_cm": mean_std([r["per_robot_cm"]["H"] for r in reps]),
+                "mean_cm": mean_std([r["mean_error_cm"] for r in reps]),
                 "per_step_cm": steps,
                 "first_step": reps[0]["first_step"], "step_s": reps[0]["step_s"]}
     return out
