@@ -170,13 +170,12 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
 
 
 def _plan_json(specs: list[EpisodeSpec]) -> str:
-    """The plan as cached beside the shards. `randomize` is left out when off, so collections
-    made before it existed still resume and count as finished."""
-    rows = [asdict(s) for s in specs]
-    for row in rows:
-        if row["randomize"] is None:
-            del row["randomize"]
-    return json.dumps(rows, sort_keys=True, default=str)
+    """The plan as cached beside the shards: every episode's spec and the scenario's constants,
+    so a collection made before a scenario's values changed (a new fit of `lab`) is not taken
+    for a finished one."""
+    first = specs[0]
+    return json.dumps({"scenario": asdict(scenario_for(first.scenario, first.head_speed)),
+                       "episodes": [asdict(s) for s in specs]}, sort_keys=True, default=str)
 
 
 def finished(req: CollectRequest) -> bool:

@@ -2,7 +2,8 @@
 
 What is fitted: factors on the scenario's own values (`collectors.randomize` names, so a fit is
 a fixed-factor profile that `collect --randomize fitted.json` reads): the Follower and Tail
-gains, the heading gain, the Head's and the chain's speed caps, and the lab wait rule's slack.
+gains, the heading gain, the Head's and the chain's speed caps, the lab wait rule's slack and
+the tracker's position noise (`marker_jitter`).
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
@@ -30,7 +31,7 @@ from macrostate_mj.formats import motion_stats
 from macrostate_mj.formats.instances import INSTANCE_STEPS
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
-FITTED = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "wait_slack")
+FITTED = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "wait_slack", "marker_jitter")
 LOW, HIGH = 0.6, 1.6
 
 

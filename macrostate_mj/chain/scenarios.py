@@ -34,6 +34,8 @@ class ScenarioConfig:
     reach_radius: float = 0.06      # Head has reached its waypoint within this distance (m)
     avoid_radius: float = 0.2       # robots repel each other within this distance (m)
     avoid_gain: float = 0.15        # repulsion speed at contact (m/s)
+    marker_jitter: float = 0.0      # tracker position noise per frame, beyond what the
+    #                                 imaging chain makes (sigma, m): see `CameraChain`
 
     def with_overrides(self, **kw: object) -> ScenarioConfig:
         return replace(self, **kw)
@@ -45,7 +47,7 @@ SCENARIOS: dict[str, ScenarioConfig] = {
         name="lab", scene="scene_lab.xml", robot="thymio", arena=(2.5, 1.9), spacing=0.30,
         k_f=8.0, k_t=12.0, k_omega=1.2, head_speed=0.075, chain_speed=0.2, command_hz=4.0,
         log_hz=2.0, planner=PsiGrid((12, 8)), followers=WaitForBehind(0.05), allow_reverse=False,
-        wall_margin=0.15,
+        wall_margin=0.15, marker_jitter=0.0025,
     ),
     # Webots study, seed §3.4: 3 x 3 m, 10 x 10 grid, new waypoint on entering a new cell.
     "webots": ScenarioConfig(

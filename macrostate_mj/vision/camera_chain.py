@@ -17,6 +17,13 @@ Where every robot was seen in the last processed frame, imaging and tracking run
 window around each (`regions`): the window holds the marker wherever the robot can have driven
 since, and `imaging.regions` makes its pixels exactly as the whole frame's chain would. After a
 miss or a dropped frame, or with `windows=False`, the whole frame is processed.
+
+The scenario's `marker_jitter` adds white Gaussian noise to every tracked position, drawn per
+frame from the imaging stream (only when it is above zero, so a scenario without it keeps its
+outputs bit for bit). It stands for what our rendered markers lack and the real ThymioLoc
+tracker shows (about 0.25 cm of jitter around a smooth track, a Head speed whose lag-1
+autocorrelation is negative): paper markers that flex and rock with the body, uneven light,
+a detector on real edges. The windows are placed from the positions before it.
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ class _Frame:
     time: float
     truth: np.ndarray
     draw: FrameDraw
+    jitter: np.ndarray | None
 
 
 class CameraChain:
@@ -62,6 +70,7 @@ class CameraChain:
         self.conditions = SceneConditions(sim.model)
         n = len(sim.world.names)
         self._latest = np.full((n, 3), np.nan)
+        self._placed = np.full((n, 2), np.nan)     # where the windows go: before the jitter
         self._latest_time = np.full(n, np.nan)     # when each robot was last seen (s)
         self._latest_truth = np.full((n, 3), np.nan)   # its true pose at that moment
         self._detected = np.zeros(n, bool)
@@ -84,6 +93,7 @@ class CameraChain:
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
         self._latest[:] = np.nan
+        self._placed[:] = np.nan
         self._latest_time[:] = np.nan
         self._latest_truth[:] = np.nan
         self._detected[:] = False
@@ -111,22 +121,24 @@ class CameraChain:
             self.dropped += 1
             self._detected[:] = False
             return
+        sigma = sim.cfg.marker_jitter
+        jitter = self.rng.normal(0.0, sigma, (len(self._latest), 2)) if sigma > 0 else None
         if self._waiting is None and self.lazy:
             spare = self._spare
             mujoco.mj_copyData(spare, sim.model, sim.data)
-            self._waiting = _Frame(spare, sim.time, sim.poses, draw)
+            self._waiting = _Frame(spare, sim.time, sim.poses, draw, jitter)
             return
         det = self._detect(sim.data, sim.time, draw)
         if not det.detected.all():       # the waiting frame's detections show through
             self.sync()
         self._waiting = None
-        self._apply(det, sim.time, sim.poses)
+        self._apply(det, sim.time, sim.poses, jitter)
 
     def sync(self) -> None:
         """Process the waiting frame, if any (every read of the tracker does this first)."""
         if self._waiting is not None:
             f, self._waiting = self._waiting, None
-            self._apply(self._detect(f.data, f.time, f.draw), f.time, f.truth)
+            self._apply(self._detect(f.data, f.time, f.draw), f.time, f.truth, f.jitter)
 
     @property
     def latest(self) -> np.ndarray:
@@ -172,7 +184,7 @@ class CameraChain:
         tracker, sim = self.tracker, self.sim
         z = sim.world.marker_height
         uv = tracker.camera.world_to_pixel(np.column_stack(
-            [self._latest[:, :2], np.full(len(self._latest), z)]))
+            [self._placed, np.full(len(self._placed), z)]))
         elapsed = max(t - self._seen_at, self.period)
         reach = sim.world.top_speed * elapsed * tracker.camera.px_per_m
         half = tracker.marker_radius_px + reach + 2
@@ -190,8 +202,13 @@ class CameraChain:
         self._windowed += 1
         return self.tracker.track_regions(imaging.regions(rgb, self.episode, draw, rects))
 
-    def _apply(self, det: Detections, t: float, truth: np.ndarray) -> None:
-        self._latest[det.detected] = det.poses[det.detected]
+    def _apply(self, det: Detections, t: float, truth: np.ndarray,
+               jitter: np.ndarray | None) -> None:
+        seen = det.detected
+        self._placed[seen] = det.poses[seen, :2]
+        self._latest[seen] = det.poses[seen]
+        if jitter is not None:
+            self._latest[seen, :2] += jitter[seen]
         self._latest_time[det.detected] = t
         self._latest_truth[det.detected] = truth[det.detected]
         self._detected[:] = det.detected

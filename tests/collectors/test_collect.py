@@ -145,3 +145,15 @@ def test_a_plan_without_finished_episodes_does_not_block_another_collection(tmp_
     res = cli("collect", "--robots", "3", "--minutes", "0.25", "--seed", "1", "--out",
               str(tmp_path))
     assert res.returncode == 0, res.stderr
+
+
+def test_a_collection_made_with_other_scenario_values_is_not_finished(reference, monkeypatch):
+    """A new fit of `lab` changes its constants: collections cached before it are not reused."""
+    from collectors.runner import CollectRequest, finished
+    from macrostate_mj.chain import scenarios
+
+    req = CollectRequest("lab", 3, 0.75, 5, reference, "passive", episode_minutes=0.25)
+    assert finished(req)
+    refit = scenarios.SCENARIOS["lab"].with_overrides(k_f=9.0)
+    monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
+    assert not finished(req)

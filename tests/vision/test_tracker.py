@@ -14,8 +14,10 @@ from macrostate_mj.vision.imaging import NoiseConfig, degrade, draw_episode
 from macrostate_mj.vision.tracker import Tracker, marker_area
 
 
-def errors_over_run(seconds: float, seed: int, noise: NoiseConfig):
-    world = build_world(get_scenario("lab"), 5)
+def errors_over_run(seconds: float, seed: int, noise: NoiseConfig, jitter: float = 0.0):
+    """The tracker's own errors (mm, degrees) and detections, by default without the lab's
+    marker jitter: the image pipeline alone."""
+    world = build_world(get_scenario("lab").with_overrides(marker_jitter=jitter), 5)
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(seed))
     chain = CameraChain(sim, noise)
@@ -51,6 +53,19 @@ def test_clean_frames_give_sub_pixel_accuracy():
     pos_mm, head_deg, seen = errors_over_run(10.0, seed=4, noise=NoiseConfig.none())
     assert np.max(pos_mm) < 3.3                         # below one pixel (3.3 mm)
     assert np.median(head_deg) < 1.5 and seen.all()
+
+
+def test_marker_jitter_adds_its_noise_to_every_tracked_position():
+    """With marker jitter sigma, each axis of the tracked position errs by about
+    sqrt(sigma^2 + the image pipeline's own error^2), and the heading is left alone."""
+    noise = NoiseConfig(drop_prob=0.0)
+    base_mm, base_deg, _ = errors_over_run(20.0, seed=6, noise=noise)
+    pos_mm, head_deg, _ = errors_over_run(20.0, seed=6, noise=noise, jitter=0.005)
+    # the norm of a 2-D error with per-axis sigma s has RMS s * sqrt(2)
+    base_axis = np.sqrt(np.mean(base_mm**2) / 2)
+    axis = np.sqrt(np.mean(pos_mm**2) / 2)
+    assert axis == pytest.approx(np.hypot(5.0, base_axis), rel=0.1)
+    assert np.median(head_deg) == pytest.approx(np.median(base_deg), abs=0.5)
 
 
 def frame_and_tracker(start: np.ndarray):
