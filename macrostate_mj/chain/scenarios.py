@@ -47,7 +47,7 @@ SCENARIOS: dict[str, ScenarioConfig] = {
         name="lab", scene="scene_lab.xml", robot="thymio", arena=(2.5, 1.9), spacing=0.30,
         k_f=8.0, k_t=12.0, k_omega=1.2, head_speed=0.075, chain_speed=0.2, command_hz=4.0,
         log_hz=2.0, planner=PsiGrid((12, 8)), followers=WaitForBehind(0.05), allow_reverse=False,
-        wall_margin=0.15, marker_jitter=0.0025,
+        wall_margin=0.15, marker_jitter=0.00275,
     ),
     # Webots study, seed §3.4: 3 x 3 m, 10 x 10 grid, new waypoint on entering a new cell.
     "webots": ScenarioConfig(

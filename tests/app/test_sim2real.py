@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 from clitools import cli
 
-from macrostate_mj.app.experiments.sim2real import cv_blocks, equivalent_fraction
+from macrostate_mj.app.experiments.sim2real import (
+    PROFILES,
+    cv_blocks,
+    equivalent_fraction,
+    run_sim2real,
+)
+from macrostate_mj.chain import scenarios
 from macrostate_mj.core.errors import UserError
 
 
@@ -33,7 +39,7 @@ def test_equivalent_fraction_interpolates_in_log_share():
         np.exp(np.log(0.1) + 5 / 6 * (np.log(0.25) - np.log(0.1))))  # a noisy bump is ignored
 
 
-def test_experiment_sim2real_quick(tmp_path):
+def test_experiment_sim2real_quick(tmp_path, monkeypatch):
     stand_in = tmp_path / "stand_in"
     res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
               "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
@@ -61,6 +67,13 @@ def test_experiment_sim2real_quick(tmp_path):
     res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),
               "--overwrite", "--randomize", "wide")
     assert res.returncode == 2 and "other inputs" in res.stderr
+    assert (out / "results.json").read_bytes() == before
+    # so is the same command once the lab's values have changed (a new fit): its sim models
+    # were trained on the old lab
+    refit = scenarios.SCENARIOS["lab"].with_overrides(marker_jitter=0.004)
+    monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
+    with pytest.raises(UserError, match="other inputs"):
+        run_sim2real(PROFILES["quick"], stand_in, out)
     assert (out / "results.json").read_bytes() == before
 
 

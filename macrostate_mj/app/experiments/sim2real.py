@@ -13,7 +13,8 @@ training pool, of which the first 10 / 25 / 50 / 100 % are used. Three arms per 
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`).
 Every model is the LSTM of `train retlo --model lstm`; each is a task cached as JSON (and the
 sim models as checkpoints), so a rerun after a kill resumes; `run.json` records what the cache
-was made from, and a rerun with other inputs into the same folder is refused.
+was made from (the lab scenario's constants among it), and a rerun with other inputs into the
+same folder is refused.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import mean_std
+from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
 from macrostate_mj.core.parallel import runner_for
@@ -163,7 +165,8 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
         Randomization.parse(randomize)
     check_writable_dir(out)
     _claim(out, {"profile": asdict(profile), "real": str(real_dir.resolve()),
-                 "sim": None if sim is None else str(sim.resolve()), "randomize": randomize})
+                 "sim": None if sim is None else str(sim.resolve()), "randomize": randomize,
+                 "lab": None if sim is not None else asdict(get_scenario("lab"))})
     sim_dir = _sim_data(check_writable_dir(out / "data" / "sim"), sim, profile, randomize,
                         workers, ray)
     models = check_writable_dir(out / "models")
