@@ -169,7 +169,9 @@ def test_tracked_log_carries_the_truth_at_tracking_time_and_units(tmp_path):
     own = np.hypot(col["x_trk"] - col["x_truth_trk"], col["y_trk"] - col["y_truth_trk"])[seen]
     lagged = np.hypot(col["x_trk"] - col["x"], col["y_trk"] - col["y"])[seen]
     assert seen.mean() > 0.9
-    assert np.median(own) < 0.0015 and np.median(own) < np.median(lagged)
+    # the image pipeline's own error, plus the lab's marker jitter (a Rayleigh median 1.18 σ)
+    jitter = get_scenario("lab").marker_jitter
+    assert np.median(own) < 0.0015 + 1.2 * jitter and np.median(own) < np.median(lagged)
     assert (col["t_trk"][seen] <= col["t"][seen] + 1e-9).all()
 
 
