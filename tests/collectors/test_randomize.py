@@ -20,12 +20,13 @@ from macrostate_mj.vision.imaging import NoiseConfig
 
 
 def test_draws_are_seeded_within_their_ranges_and_land_where_they_belong():
-    r = Randomization.parse("wide")
-    draws = [r.draw(np.random.default_rng(s)) for s in range(200)]
-    for name, (low, high) in PROFILES["wide"].items():
-        values = [d[name] for d in draws]
-        assert low <= min(values) and max(values) <= high and np.std(values) > 0
-    assert r.draw(np.random.default_rng(5)) == r.draw(np.random.default_rng(5))
+    for profile, ranges in PROFILES.items():
+        r = Randomization.parse(profile)
+        draws = [r.draw(np.random.default_rng(s)) for s in range(200)]
+        for name, (low, high) in ranges.items():
+            values = [d[name] for d in draws]
+            assert low <= min(values) and max(values) <= high and np.std(values) > 0
+        assert r.draw(np.random.default_rng(5)) == r.draw(np.random.default_rng(5))
     f = {"k_f": 1.1, "sensor_sigma": 2.0, "wheel_friction": 0.5, "motor_torque": 1.25,
          "marker_jitter": 1.3}
     cfg = get_scenario("lab")

@@ -55,8 +55,9 @@ def collect(
     head_speed: float = Positive(None, "Override the scenario's Head speed (m/s), up to the "
                                  "robot's top speed."),
     randomize: str = typer.Option(None, "--randomize", help="Domain randomization per episode: "
-                                  "a profile (wide) or a JSON file of parameter: [low, high] "
-                                  "factors (collectors/randomize.py lists the parameters)."),
+                                  "a profile (wide, wider) or a JSON file of parameter: "
+                                  "[low, high] factors (collectors/randomize.py lists the "
+                                  "parameters)."),
     overwrite: bool = Switch(False, "Start over, replacing existing outputs."),
 ) -> None:
     """Collect tracked pose datasets in the ThymioLoc layout; resumes after an interruption."""
