@@ -209,8 +209,8 @@ class CameraChain:
         self._latest[seen] = det.poses[seen]
         if jitter is not None:
             self._latest[seen, :2] += jitter[seen]
-        self._latest_time[det.detected] = t
-        self._latest_truth[det.detected] = truth[det.detected]
+        self._latest_time[seen] = t
+        self._latest_truth[seen] = truth[seen]
         self._detected[:] = det.detected
         self._seen_at = t
 
