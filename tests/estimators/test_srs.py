@@ -231,8 +231,10 @@ def test_collect_srs_refuses_a_novelty_model_of_another_team(tmp_path, trained):
 def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
     """The chapter's task graph on the quick profile: every figure, and what must hold on any
     machine: Rand-Only with σ = 0 is Passive, and an SRS dataset begins with its RO phase, the
-    same instances as the Rand-Only dataset of the same seed."""
+    same instances as the Rand-Only dataset of the same seed. A rerun resumes from the task
+    reports alone, without the datasets."""
     import json
+    import shutil
 
     out = tmp_path / "chapter3"
     res = cli("experiment", "srs", "--quick", "--out", str(out))
@@ -251,6 +253,11 @@ def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
     res = cli("experiment", "srs", "--profile", "quick", "--out", str(out), "--overwrite")
     assert res.returncode == 0, res.stderr
     assert (out / "results.json").read_bytes() == before      # every task from its cache
+    shutil.rmtree(out / "data")       # what a fresh machine has from a copy kept in git
+    res = cli("experiment", "srs", "--profile", "quick", "--out", str(out), "--overwrite")
+    assert res.returncode == 0, res.stderr
+    assert (out / "results.json").read_bytes() == before      # the small files were enough
+    assert not list((out / "data").iterdir())                 # and nothing was collected
 
 
 def test_experiment_srs_profiles_are_the_cli_choices():

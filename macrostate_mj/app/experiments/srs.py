@@ -63,24 +63,53 @@ PROFILES = {
 }
 
 
-def _collection(out: Path, robots: int, instances: int, seed: int, policy: str, sigma: float,
-                profile: SRSProfile, workers: int, ray: str | None) -> Path:
-    """A passive or Rand-Only collection of at least `instances` instances (cached)."""
-    req = CollectRequest(SCENARIO, robots, 0.0, seed, out, policy, sigma, workers, ray,
-                         episode_minutes=profile.episode_minutes)
-    req = replace(req, minutes=episodes_for(req, instances) * profile.episode_minutes)
-    if not finished(req):
-        collect(req)
-    return out / "instances.csv"
+@dataclass(frozen=True)
+class _Dataset:
+    """One collection of the chapter; collected only when a task still needs it."""
+
+    out: Path
+    robots: int
+    instances: int
+    seed: int
+    policy: str          # passive, random or srs
+    sigma: float = 0.0
+    pick: str = ""
+
+    @property
+    def csv(self) -> Path:
+        return self.out / "instances.csv"
+
+    def ensure(self, profile: SRSProfile, workers: int, ray: str | None) -> Path:
+        """Collect unless done (each collection resumes shard by shard); the instances file."""
+        policy = "random" if self.policy == "srs" else self.policy
+        sigma = RO_SIGMA if self.policy == "srs" else self.sigma
+        req = CollectRequest(SCENARIO, self.robots, 0.0, self.seed, self.out, policy, sigma,
+                             workers, ray, episode_minutes=profile.episode_minutes)
+        if self.policy == "srs":
+            if not (self.out / "manifest.json").exists():
+                collect_srs(SRSRequest(req, self.pick, self.instances, profile.ro_instances,
+                                       profile.k))
+            return self.csv
+        req = replace(req, minutes=episodes_for(req, self.instances) * profile.episode_minutes)
+        if not finished(req):
+            collect(req)
+        return self.csv
 
 
-def _srs_collection(out: Path, instances: int, seed: int, pick: str, profile: SRSProfile,
-                    workers: int, ray: str | None) -> Path:
-    if not (out / "manifest.json").exists():
-        base = CollectRequest(SCENARIO, 3, 0.0, seed, out, "random", RO_SIGMA, workers, ray,
-                              episode_minutes=profile.episode_minutes)
-        collect_srs(SRSRequest(base, pick, instances, profile.ro_instances, profile.k))
-    return out / "instances.csv"
+def _datasets(profile: SRSProfile, data: Path, seed: int) -> dict[str, list[_Dataset]]:
+    """Every configuration's training datasets; dataset j of each uses seed*1000 + j."""
+    configs: dict[str, list[_Dataset]] = {}
+    for j in range(profile.datasets):
+        s = seed * 1000 + j
+        configs.setdefault("passive", []).append(
+            _Dataset(data / f"passive_d{j}", 3, profile.train, s, "passive"))
+        for sigma in profile.sigmas:
+            configs.setdefault(f"ro_{sigma:g}", []).append(
+                _Dataset(data / f"ro_{sigma:g}_d{j}", 3, profile.train, s, "random", sigma))
+        for pick in profile.picks:
+            configs.setdefault(f"srs_{pick}", []).append(
+                _Dataset(data / f"srs_{pick}_d{j}", 3, profile.train, s, "srs", pick=pick))
+    return configs
 
 
 def _train_task(task: dict) -> dict:
@@ -105,48 +134,49 @@ def _train_task(task: dict) -> dict:
 
 def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: int = 1,
                        ray: str | None = None) -> list[str]:
-    """Collect, train, test and plot; returns summary lines. `out` has been checked."""
+    """Collect, train, test and plot; returns summary lines. `out` has been checked.
+
+    What a task leaves is small (`models/*.json`, `distances/*.json`) and is all a rerun
+    needs: a dataset is collected (again) only while a model or a histogram still needs it, so
+    a run resumes from those files alone, e.g. on a fresh machine from a copy kept in git."""
     from viz.srs_figures import plot_budgets, plot_distances, plot_sigma, plot_stepwise
 
     t0 = time.perf_counter()
     data = check_writable_dir(out / "data")
     models = check_writable_dir(out / "models")
-    val = _collection(data / "val", 3, profile.val, seed * 1000 + 500, "passive", 0.0, profile,
-                      workers, ray)
-    test = _collection(data / "test", profile.test_robots, profile.test, seed * 1000 + 900,
-                       "passive", 0.0, profile, workers, ray)
-    configs: dict[str, list[Path]] = {}
-    for j in range(profile.datasets):
-        s = seed * 1000 + j
-        configs.setdefault("passive", []).append(_collection(
-            data / f"passive_d{j}", 3, profile.train, s, "passive", 0.0, profile, workers, ray))
-        for sigma in profile.sigmas:
-            configs.setdefault(f"ro_{sigma:g}", []).append(_collection(
-                data / f"ro_{sigma:g}_d{j}", 3, profile.train, s, "random", sigma, profile,
-                workers, ray))
-        for pick in profile.picks:
-            configs.setdefault(f"srs_{pick}", []).append(_srs_collection(
-                data / f"srs_{pick}_d{j}", profile.train, s, pick, profile, workers, ray))
-    t_data = time.perf_counter() - t0
-
+    hists = check_writable_dir(out / "distances")
+    val = _Dataset(data / "val", 3, profile.val, seed * 1000 + 500, "passive")
+    test = _Dataset(data / "test", profile.test_robots, profile.test, seed * 1000 + 900,
+                    "passive")
+    configs = _datasets(profile, data, seed)
     tasks = []
-    for name, paths in configs.items():
+    for name, sets in configs.items():
         budgets = profile.budgets if name in _budgeted(profile) else (1.0,)
         for b in budgets:
             count = int(round(b * profile.train))
-            for j, path in enumerate(paths):
+            for j, ds in enumerate(sets):
                 for m in range(profile.models):
                     tag = f"{name}_b{round(100 * b)}_d{j}_m{m}"
-                    tasks.append({"name": tag, "config": name, "budget": b, "train": str(path),
-                                  "count": count, "val": str(val), "test": str(test),
-                                  "seed": m, "epochs": profile.epochs,
+                    tasks.append({"name": tag, "config": name, "budget": b, "train": str(ds.csv),
+                                  "count": count, "val": str(val.csv), "test": str(test.csv),
+                                  "seed": m, "epochs": profile.epochs, "dataset": ds,
                                   "report": str(models / f"{tag}.json")})
+    pending = [t for t in tasks if not Path(t["report"]).exists()]
+    shown = [c for c in ("srs_max", f"ro_{RO_SIGMA:g}") if c in configs]
+    needed = ([val, test] if pending else []) + [t["dataset"] for t in pending] + [
+        ds for c in shown if not (hists / f"{c}.json").exists() for ds in configs[c]]
+    for ds in dict.fromkeys(needed):          # in order, once each
+        ds.ensure(profile, workers, ray)
+    t_data = time.perf_counter() - t0
+
     t1 = time.perf_counter()
-    reports = {r["task"]: r for r in runner_for(ray)(_train_task, tasks, workers)}
+    jobs = [{k: v for k, v in t.items() if k != "dataset"} for t in tasks]
+    reports = {r["task"]: r for r in runner_for(ray)(_train_task, jobs, workers)}
     t_models = time.perf_counter() - t1
 
     results = _results(profile, tasks, reports)
-    results["distances"] = _distances(configs, profile)
+    results["distances"] = {c: _distances(configs[c], profile, hists / f"{c}.json")
+                            for c in shown}
     write_json_atomic(out / "results.json", results)
     plot_sigma(results, out / "fig3_4.png")
     plot_budgets(results, [f"srs_{p}" for p in profile.picks], out / "fig3_5a.png")
@@ -155,7 +185,7 @@ def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: i
     plot_distances(results, out / "fig3_7.png")
     timings = {"datasets": t_data, "models": t_models, "total": time.perf_counter() - t0}
     write_manifest(out, "experiment srs", {"profile": asdict(profile), "scenario": SCENARIO},
-                   seed, timings, products=PRODUCTS, workers=workers, models_trained=len(tasks))
+                   seed, timings, products=PRODUCTS, workers=workers, models_trained=len(pending))
     return _summary(results, timings)
 
 
@@ -190,20 +220,19 @@ def _results(profile: SRSProfile, tasks: list[dict], reports: dict[str, dict]) -
     return out
 
 
-def _distances(configs: dict[str, list[Path]], profile: SRSProfile) -> dict:
-    """Fig 3.7: H–F and F–T distances (cm) in the first 66 % of the SRS-Max datasets and of the
-    Rand-Only ones (tracked instances)."""
+def _distances(sets: list[_Dataset], profile: SRSProfile, cache: Path) -> dict:
+    """Fig 3.7: H–F and F–T distances (cm) in the first 66 % of a configuration's datasets
+    (tracked instances); cached in `cache`."""
+    if cache.exists():
+        return json.loads(cache.read_text())
     count = int(round(2 / 3 * profile.train))
-    out = {}
-    for name in ("srs_max", f"ro_{RO_SIGMA:g}"):
-        if name not in configs:
-            continue
-        w = np.concatenate([to_world(read_csv(p).poses[:count], DEFAULT_PX_PER_CM)
-                            for p in configs[name]])
-        out[name] = {"H-F": np.linalg.norm(w[:, :, 0, :2] - w[:, :, 1, :2], axis=-1).ravel()
-                     .round(2).tolist(),
-                     "F-T": np.linalg.norm(w[:, :, 1, :2] - w[:, :, 2, :2], axis=-1).ravel()
-                     .round(2).tolist()}
+    w = np.concatenate([to_world(read_csv(ds.csv).poses[:count], DEFAULT_PX_PER_CM)
+                        for ds in sets])
+    out = {"H-F": np.linalg.norm(w[:, :, 0, :2] - w[:, :, 1, :2], axis=-1).ravel()
+           .round(2).tolist(),
+           "F-T": np.linalg.norm(w[:, :, 1, :2] - w[:, :, 2, :2], axis=-1).ravel()
+           .round(2).tolist()}
+    write_json_atomic(cache, out)
     return out
 
 
