@@ -138,10 +138,12 @@ def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: i
 
     What a task leaves is small (`models/*.json`, `distances/*.json`) and is all a rerun
     needs: a dataset is collected (again) only while a model or a histogram still needs it, so
-    a run resumes from those files alone, e.g. on a fresh machine from a copy kept in git."""
+    a run resumes from those files alone, e.g. on a fresh machine from a copy kept in git.
+    Configurations run one after another (datasets, then their models), Fig 3.5b's first, so
+    a run cut short leaves whole configurations done and little to collect again."""
     from viz.srs_figures import plot_budgets, plot_distances, plot_sigma, plot_stepwise
 
-    t0 = time.perf_counter()
+    t0, trained = time.perf_counter(), 0
     data = check_writable_dir(out / "data")
     models = check_writable_dir(out / "models")
     hists = check_writable_dir(out / "distances")
@@ -149,6 +151,8 @@ def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: i
     test = _Dataset(data / "test", profile.test_robots, profile.test, seed * 1000 + 900,
                     "passive")
     configs = _datasets(profile, data, seed)
+    first = ["passive", f"ro_{RO_SIGMA:g}", "srs_med"]
+    configs = {c: configs[c] for c in sorted(configs, key=lambda c: c not in first)}
     tasks = []
     for name, sets in configs.items():
         budgets = profile.budgets if name in _budgeted(profile) else (1.0,)
@@ -161,22 +165,30 @@ def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: i
                                   "count": count, "val": str(val.csv), "test": str(test.csv),
                                   "seed": m, "epochs": profile.epochs, "dataset": ds,
                                   "report": str(models / f"{tag}.json")})
-    pending = [t for t in tasks if not Path(t["report"]).exists()]
     shown = [c for c in ("srs_max", f"ro_{RO_SIGMA:g}") if c in configs]
-    needed = ([val, test] if pending else []) + [t["dataset"] for t in pending] + [
-        ds for c in shown if not (hists / f"{c}.json").exists() for ds in configs[c]]
-    for ds in dict.fromkeys(needed):          # in order, once each
-        ds.ensure(profile, workers, ray)
-    t_data = time.perf_counter() - t0
-
-    t1 = time.perf_counter()
-    jobs = [{k: v for k, v in t.items() if k != "dataset"} for t in tasks]
-    reports = {r["task"]: r for r in runner_for(ray)(_train_task, jobs, workers)}
-    t_models = time.perf_counter() - t1
+    run = runner_for(ray)
+    reports: dict[str, dict] = {}
+    distances: dict[str, dict] = {}
+    t_data = t_models = 0.0
+    for name, sets in configs.items():       # one configuration at a time: see the docstring
+        mine = [t for t in tasks if t["config"] == name]
+        pending = [t for t in mine if not Path(t["report"]).exists()]
+        hist = hists / f"{name}.json"
+        needed = ([val, test] if pending else []) + [t["dataset"] for t in pending] + (
+            sets if name in shown and not hist.exists() else [])
+        t1 = time.perf_counter()
+        for ds in dict.fromkeys(needed):      # in order, once each
+            ds.ensure(profile, workers, ray)
+        t2 = time.perf_counter()
+        jobs = [{k: v for k, v in t.items() if k != "dataset"} for t in mine]
+        reports.update((r["task"], r) for r in run(_train_task, jobs, workers))
+        if name in shown:
+            distances[name] = _distances(sets, profile, hist)
+        t_data, t_models = t_data + t2 - t1, t_models + time.perf_counter() - t2
+        trained += len(pending)
 
     results = _results(profile, tasks, reports)
-    results["distances"] = {c: _distances(configs[c], profile, hists / f"{c}.json")
-                            for c in shown}
+    results["distances"] = distances
     write_json_atomic(out / "results.json", results)
     plot_sigma(results, out / "fig3_4.png")
     plot_budgets(results, [f"srs_{p}" for p in profile.picks], out / "fig3_5a.png")
@@ -185,7 +197,7 @@ def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: i
     plot_distances(results, out / "fig3_7.png")
     timings = {"datasets": t_data, "models": t_models, "total": time.perf_counter() - t0}
     write_manifest(out, "experiment srs", {"profile": asdict(profile), "scenario": SCENARIO},
-                   seed, timings, products=PRODUCTS, workers=workers, models_trained=len(pending))
+                   seed, timings, products=PRODUCTS, workers=workers, models_trained=trained)
     return _summary(results, timings)
 
 
