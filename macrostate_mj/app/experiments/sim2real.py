@@ -107,7 +107,7 @@ def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, randomize: 
 def _train_task(task: dict) -> dict:
     """One model: train (or fine-tune the sim model), select, test on its real fold; cached."""
     path = Path(task["report"])
-    if path.exists():
+    if _cached(task):
         return json.loads(path.read_text())
     from estimators.retlo.chain import evaluate_chain
     from estimators.retlo.models import ModelConfig, TorchPredictor
@@ -135,6 +135,13 @@ def _train_task(task: dict) -> dict:
               "epochs_run": info["epochs_run"]}
     write_json_atomic(path, report)
     return report
+
+
+def _cached(task: dict) -> bool:
+    """A task is done when its report is there, and a sim model's checkpoint too (fine-tuning
+    starts from it)."""
+    return Path(task["report"]).exists() and (
+        task["arm"] != "sim" or Path(task["checkpoint"]).exists())
 
 
 def _claim(out: Path, inputs: dict) -> None:
@@ -167,10 +174,8 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
     _claim(out, {"profile": asdict(profile), "real": str(real_dir.resolve()),
                  "sim": None if sim is None else str(sim.resolve()), "randomize": randomize,
                  "lab": None if sim is not None else asdict(get_scenario("lab"))})
-    sim_dir = _sim_data(check_writable_dir(out / "data" / "sim"), sim, profile, randomize,
-                        workers, ray)
+    sim_dir = sim if sim is not None else check_writable_dir(out / "data" / "sim")
     models = check_writable_dir(out / "models")
-    t_data = time.perf_counter() - t0
     first, second = [], []
     for s in range(profile.seeds):
         pool, val, test = cv_blocks(len(pooled), profile.folds, s % profile.folds,
@@ -189,6 +194,9 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
                 second.append({**common, "name": name, "arm": arm, "fraction": f,
                                "count": count, "epochs": epochs, "lr": profile.finetune_lr,
                                "report": str(models / f"{name}.json")})
+    if not all(_cached(t) for t in first):      # the lab data only while a sim model needs it
+        _sim_data(sim_dir, sim, profile, randomize, workers, ray)
+    t_data = time.perf_counter() - t0
     run = runner_for(ray)
     t1 = time.perf_counter()
     reports = [*run(_train_task, first, workers), *run(_train_task, second, workers)]
