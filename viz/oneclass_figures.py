@@ -153,6 +153,6 @@ def write_tables(path: Path, t41: dict, t42: dict, f48: dict, n_unstable: int,
     lines += [f"| {LABELS[k]} | " + " | ".join(
         fmt(v[b]) + (f" {marks[b]}" if k == "iogen" and marks and marks.get(b) else "")
         for b in names) + " |" for k, v in f48.items()]
-    lines += ["", "IO-GEN marked + (-) where it beats (loses to) DSVDD with p < .05 on every "
-              "split (paired stratified bootstrap, 2,000 resamples)."]
+    lines += ["", "IO-GEN marked + (-) where it beats (loses to) DSVDD with p < .05 in every "
+              "run, split and seed (paired stratified bootstrap, 2,000 resamples)."]
     write_text_atomic(path, "\n".join(lines) + "\n")

@@ -279,3 +279,29 @@ def test_a_killed_training_resumes_from_its_last_stage_with_the_same_weights(tmp
     other = fit(x, ("dsvdd",), OCConfig.recipe("short", seed=3).scaled(0.02), stages_dir=stages)
     assert other.resumed == []                      # another config: nothing reused
     assert OCConfig.recipe("published").gan_steps == 20_000
+
+
+def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
+    """Tables are mean ± std over every (split, seed) run; each run's report is all a rerun
+    needs (what a fresh machine has from a copy kept in git), and gives the same results."""
+    import shutil
+
+    data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000, 3000, 9500))
+    out = tmp_path / "tables"
+    args = ("experiment", "oc", "--data", str(data), "--out", str(out), "--splits", "2",
+            "--ms", "2", "--seeds", "2", "--seed", "5", "--epoch-scale", "0.003", "--threads", "1")
+    run = _cli(*args)
+    assert run.returncode == 0, run.stderr
+    results = json.loads((out / "results.json").read_text())
+    keys = {"m2_split2_s5", "m2_split2_s6"}
+    assert set(results["runs"]) == keys
+    aucs = [results["runs"][k]["iogen"]["auc_all"] for k in sorted(keys)]
+    assert results["table4_2_auc_m2"]["iogen"]["mean"] == pytest.approx(np.mean(aucs))
+    assert results["table4_2_auc_m2"]["iogen"]["std"] == pytest.approx(np.std(aucs))
+    assert "split and seed" in (out / "tables.md").read_text()
+    before = (out / "results.json").read_bytes()
+    shutil.rmtree(out / "stages")
+    run = _cli(*args, "--overwrite")
+    assert run.returncode == 0, run.stderr
+    assert (out / "results.json").read_bytes() == before
+    assert {p.name for p in (out / "stages").iterdir()} == {"m2_split2_s5"}   # the figures' model

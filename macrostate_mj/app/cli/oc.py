@@ -223,7 +223,9 @@ def experiment_oc(
     splits: str = typer.Option("1,2,3", help="Comma-separated splits."),
     ms: str = typer.Option("1,2,4", help="Comma-separated m values (flow pairs per input, "
                            "Table 4.1)."),
-    seed: int = Seed(),
+    seed: int = Seed(0, "The first training seed."),
+    seeds: int = Count(1, "Training seeds per (m, split): seed, seed+1, ... (tables give mean ± "
+                       "std over splits and seeds)."),
     epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe.",
                                   "--epoch-scale"),
     recipe: str = Choice("short", "Epoch and step counts: short (for a 2-core CPU) or "
@@ -256,7 +258,7 @@ def experiment_oc(
     cfg = OCConfig.recipe(recipe, seed=seed, threads=threads).scaled(
         epoch_scale * (0.03 if quick else 1.0))
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
-                       unstable=unstable)
+                       unstable=unstable, seeds=seeds)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     with stage_progress() as tick:

@@ -1,16 +1,21 @@
-"""`experiment oc`: Table 4.1 (m = 1, 2, 4), Table 4.2 and Fig 4.8 (mean ± std over the splits),
-Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM overlays (Fig 4.11–4.13)."""
+"""`experiment oc`: Table 4.1 (m = 1, 2, 4), Table 4.2 and Fig 4.8 (mean ± std over the splits
+and seeds), Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM overlays (Fig
+4.11–4.13)."""
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from estimators.oneclass.metrics import auc_report, paired_report
 from estimators.oneclass.model import METHODS, OCModel, fit, flow_weight
 from estimators.oneclass.train import OCConfig, Tick
+from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
 PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",
@@ -26,6 +31,7 @@ class OCExperiment:
     max_train: int | None = None  # subsample the stable train split (quick runs only)
     gradcam_samples: int = 6
     unstable: Path | None = None   # unstable samples held apart (a dev set), else data/Unstable
+    seeds: int = 1                 # training seeds per (m, split): config.seed, config.seed + 1 ...
 
 
 def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int):
@@ -43,8 +49,9 @@ def _mean_std(values: list[float | None]) -> dict[str, float | None]:
 
 def significance_marks(tests: list[dict], names: tuple[str, ...], alpha: float = 0.05
                        ) -> dict[str, str]:
-    """Per bin (and "all"): "+" where IO-GEN beats DSVDD with p < alpha on every split, "-"
-    where it loses so on every split, "" otherwise (paired stratified bootstrap per split)."""
+    """Per bin (and "all"): "+" where IO-GEN beats DSVDD with p < alpha in every run (split and
+    seed), "-" where it loses so in every run, "" otherwise (paired stratified bootstrap per
+    run)."""
     def mark(per_split: list[dict | None]) -> str:
         if any(t is None for t in per_split):
             return ""
@@ -58,8 +65,40 @@ def significance_marks(tests: list[dict], names: tuple[str, ...], alpha: float =
             **{b: mark([t["bins"][b] for t in tests]) for b in names}}
 
 
+Kept = tuple[OCModel, np.ndarray, np.ndarray, np.ndarray]   # a model and its x, xs, xu
+
+
+def _run(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, main_m: int,
+         out: Path, tick: Tick) -> tuple[dict, Kept | None]:
+    """One (m, split, seed): its AUC reports, cached in `out/runs/` (all a rerun needs), and,
+    when it was trained here, the model with its inputs."""
+    path = out / "runs" / f"m{m}_split{split}_s{seed}.json"
+    if path.exists():
+        return json.loads(path.read_text()), None
+    return _train(d, exp, m, split, seed, main_m, out, tick)
+
+
+def _train(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, main_m: int,
+           out: Path, tick: Tick) -> tuple[dict, Kept]:
+    key = f"m{m}_split{split}_s{seed}"
+    bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
+    x, xs, xu = _inputs(d, split, m, exp.max_train, seed)
+    methods = METHODS if m == main_m else ("iogen",)
+    cfg = replace(exp.config, m=m, seed=seed)
+    model = fit(x, methods, cfg, lambda st, f: tick(f"m={m} split {split} seed {seed} {st}", f),
+                stages_dir=out / "stages" / key)     # a killed run resumes from its last stage
+    scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
+    report = {meth: auc_report(*scores[meth], bins, names) for meth in methods}
+    if m == main_m:   # Fig 4.8's marks: IO-GEN against DSVDD on the same samples
+        report["iogen_vs_dsvdd"] = paired_report(*scores["iogen"], *scores["dsvdd"], bins,
+                                                 names, seed=seed)
+    write_json_atomic(out / "runs" / f"{key}.json", report)
+    return report, (model, x, xs, xu)
+
+
 def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
-    """Train and score every (m, split); summarise; draw the figures into `out`."""
+    """Train and score every (m, split, seed); summarise over splits and seeds; draw the
+    figures into `out`. A rerun resumes from the finished runs' reports."""
     from viz import oneclass_figures as figures
 
     d = open_dataset(exp.data)
@@ -67,31 +106,29 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
         d = d.with_unstable(exp.unstable)
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
     main_m = 2 if 2 in exp.ms else exp.ms[0]
-    runs: dict[str, dict[str, dict]] = {}
-    keep: tuple[OCModel, np.ndarray, np.ndarray, np.ndarray] | None = None
+    seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
+    runs: dict[str, dict] = {}
+    first = (main_m, exp.splits[0], seeds[0])        # the run whose model the figures show
+    keep: Kept | None = None
     for m in exp.ms:
         for split in exp.splits:
-            x, xs, xu = _inputs(d, split, m, exp.max_train, exp.config.seed)
-            methods = METHODS if m == main_m else ("iogen",)
-            cfg = replace(exp.config, m=m)
-            model = fit(x, methods, cfg, lambda s, f, m=m, k=split: tick(f"m={m} split {k} {s}", f),
-                        stages_dir=out / "stages" / f"m{m}_split{split}")   # a rerun resumes
-            scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
-            runs[f"m{m}_split{split}"] = {
-                meth: auc_report(*scores[meth], bins, names) for meth in methods}
-            if m == main_m:   # Fig 4.8's marks: IO-GEN against DSVDD on the same samples
-                runs[f"m{m}_split{split}"]["iogen_vs_dsvdd"] = paired_report(
-                    *scores["iogen"], *scores["dsvdd"], bins, names, seed=exp.config.seed)
-            if m == main_m and keep is None:
-                keep = (model, x, xs, xu)
-    table41 = {m: _mean_std([runs[f"m{m}_split{k}"]["iogen"]["auc_all"] for k in exp.splits])
-               for m in exp.ms}
-    table42 = {meth: _mean_std([runs[f"m{main_m}_split{k}"][meth]["auc_all"] for k in exp.splits])
+            for seed in seeds:
+                runs[f"m{m}_split{split}_s{seed}"], trained = _run(d, exp, m, split, seed,
+                                                                   main_m, out, tick)
+                if (m, split, seed) == first:
+                    keep = trained
+    if keep is None:       # that run came from its report: its model again (from its stages)
+        _, keep = _train(d, exp, *first, main_m, out, tick)
+
+    def over(m: int, get: Callable[[dict], Any]) -> list:
+        return [get(runs[f"m{m}_split{k}_s{s}"]) for k in exp.splits for s in seeds]
+
+    table41 = {m: _mean_std(over(m, lambda r: r["iogen"]["auc_all"])) for m in exp.ms}
+    table42 = {meth: _mean_std(over(main_m, lambda r, meth=meth: r[meth]["auc_all"]))
                for meth in METHODS}
-    fig48 = {meth: {b: _mean_std([runs[f"m{main_m}_split{k}"][meth]["auc_bins"][b]
-                                  for k in exp.splits]) for b in names} for meth in METHODS}
-    marks = significance_marks([runs[f"m{main_m}_split{k}"]["iogen_vs_dsvdd"]
-                                for k in exp.splits], names)
+    fig48 = {meth: {b: _mean_std(over(main_m, lambda r, meth=meth, b=b: r[meth]["auc_bins"][b]))
+                    for b in names} for meth in METHODS}
+    marks = significance_marks(over(main_m, lambda r: r["iogen_vs_dsvdd"]), names)
     results = {"table4_1_iogen_auc_by_m": table41, "fig4_8_iogen_vs_dsvdd_marks": marks,
                f"table4_2_auc_m{main_m}": table42,
                f"fig4_8_auc_by_bin_m{main_m}": fig48, "runs": runs,
