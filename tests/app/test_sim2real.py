@@ -7,7 +7,7 @@ import shutil
 
 import numpy as np
 import pytest
-from clitools import cli
+from clitools import assert_clean_error, cli
 
 from macrostate_mj.app.experiments.sim2real import (
     PROFILES,
@@ -95,4 +95,11 @@ def test_sim2real_refuses_a_folder_without_real_files(tmp_path):
               str(tmp_path / "out"))
     assert res.returncode == 2
     assert res.stderr.count("\n") == 1 and "Train.csv" in res.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_sim_minutes_with_a_given_sim_folder_is_refused(tmp_path):
+    res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), "--sim",
+              str(tmp_path), "--sim-minutes", "5", "--out", str(tmp_path / "out"))
+    assert_clean_error(res, "--sim-minutes")
     assert not (tmp_path / "out").exists()

@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
-from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, InputDir, OutputDir, Switch
+from macrostate_mj.app.cli.params import (
+    MAX_SECONDS,
+    MAX_WORKERS,
+    Choice,
+    Count,
+    InputDir,
+    OutputDir,
+    Positive,
+    Switch,
+)
 
 
 @experiment_app.command("sim2real")
@@ -18,6 +28,9 @@ def experiment_sim2real(
     randomize: str = typer.Option(None, "--randomize", help="A domain-randomization profile or "
                                   "JSON of factors for the lab collection (e.g. sysid's "
                                   "fitted.json)."),
+    sim_minutes: float = Positive(None, "Minutes of lab data to collect (default: the "
+                                  "profile's, 100 for full).", "--sim-minutes",
+                                  max=MAX_SECONDS / 60),
     profile: str = Choice("full", "full: 5 seeds, 10/25/50/100 % of the real pool; quick: a "
                           "smoke run.", ("full", "quick")),
     quick: bool = Switch(False, "Shorthand for --profile quick."),
@@ -31,9 +44,15 @@ def experiment_sim2real(
     """Sim only, real only and sim pre-trained then fine-tuned, on 10-100 % of the real data:
     Head error on held-out real folds (one per seed), the curve and the real data saved."""
     from macrostate_mj.app.experiments.sim2real import PRODUCTS, PROFILES, run_sim2real
+    from macrostate_mj.core.errors import UserError
     from macrostate_mj.core.io import prepare_out_dir
 
-    prepare_out_dir(out, PRODUCTS, overwrite)
     chosen = PROFILES["quick" if quick else profile]
+    if sim_minutes is not None:
+        if sim is not None:
+            raise UserError("--sim-minutes sizes the lab collection this command makes; drop "
+                            "it or --sim")
+        chosen = replace(chosen, sim_minutes=sim_minutes)
+    prepare_out_dir(out, PRODUCTS, overwrite)
     for line in run_sim2real(chosen, real, out, sim, randomize, workers, ray):
         typer.echo(line)
