@@ -36,8 +36,9 @@ def flow_weight_figure(path: Path, day: np.ndarray, w: np.ndarray, unstable: np.
 
 
 def bins_figure(path: Path, fig48: dict, marks: dict[str, str] | None = None) -> None:
-    """Fig 4.8: AUC per time bin, mean ± std over the splits, one line per method; "+" ("-")
-    above a bin where IO-GEN beats (loses to) DSVDD with p < .05 on every split."""
+    """Fig 4.8: AUC per time bin, mean ± std over the runs (splits and seeds), one line per
+    method; "+" ("-") above a bin where IO-GEN beats (loses to) DSVDD with p < .05 in every
+    run."""
     fig, ax = plt.subplots(figsize=(8, 4))
     for meth in METHODS:
         names = list(fig48[meth])
