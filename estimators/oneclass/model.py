@@ -183,8 +183,25 @@ def stage_key(x: np.ndarray, cfg: T.OCConfig) -> str:
     return digest.hexdigest()
 
 
+@dataclass
+class Probe:
+    """Research only: the scores of fixed inputs `x` after every epoch of DSVDD and of each
+    classifier (`curves[method]`, one array per epoch), to measure what choosing a checkpoint
+    on them would gain, as the published code did on test data. It watches and never chooses:
+    a fit with a probe ends with the same weights as one without (tested); stages reused from
+    `stages_dir` are not watched."""
+
+    x: np.ndarray
+    curves: dict[str, list[np.ndarray]] = field(default_factory=dict)
+
+    def watch(self, method: str, inputs: torch.Tensor) -> T.Watch:
+        def log(score: T.Scorer) -> None:
+            self.curves.setdefault(method, []).append(score(inputs).cpu().numpy())
+        return log
+
+
 def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | None = None,
-        stages_dir: Path | None = None) -> OCModel:
+        stages_dir: Path | None = None, probe: Probe | None = None) -> OCModel:
     """Train every stage `methods` need on stable training inputs x (N × 2m × 64 × 64); with
     `stages_dir`, keep each finished stage there and reuse those already done (`StageCache`)."""
     unknown = [m for m in methods if m not in METHODS]
@@ -207,9 +224,15 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     if "ocsvm" in stages:
         model.ocsvm = cache.run("ocsvm", lambda: fit_ocsvm(T.encode(model.ae.encoder, xall).cpu(),
                                                            cfg.ocsvm_nu))
+    px = None if probe is None else torch.from_numpy(np.ascontiguousarray(probe.x)).to(cfg.device)
+
+    def watch(method: str, inputs: Callable[[], torch.Tensor]) -> T.Watch | None:
+        return None if probe is None else probe.watch(method, inputs())
+
     if "dsvdd" in stages:
         model.dsvdd, model.c, model.history["dsvdd_val"] = cache.run(
-            "dsvdd", lambda: T.train_dsvdd(model.ae, xtr, xval, cfg, gen, tick))
+            "dsvdd", lambda: T.train_dsvdd(model.ae, xtr, xval, cfg, gen, tick,
+                                           watch("dsvdd", lambda: px)))
     for kind in ("iogen", "gen"):
         if kind in stages:
             model.generators[kind], log = cache.run(kind, lambda kind=kind: T.train_generator(
@@ -223,8 +246,9 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
 
             def classifier(kind: str = kind) -> tuple:
                 fake, fake_val = _synthetic(model, kind, 2 * len(xtr), len(xval), gen)
-                return T.train_classifier(real, real_val, fake, fake_val, model.c, cfg, gen,
-                                          tick, f"CLS-{kind.upper()}")
+                return T.train_classifier(
+                    real, real_val, fake, fake_val, model.c, cfg, gen, tick,
+                    f"CLS-{kind.upper()}", watch(kind, lambda: T.encode(model.dsvdd, px)))
 
             model.classifiers[kind], model.history[f"cls_{kind}_val"] = cache.run(
                 f"cls_{kind}", classifier)

@@ -20,6 +20,8 @@ from estimators.oneclass.nets import DCAE, LATENT, Classifier, Discriminator, En
 from macrostate_mj.core.errors import UserError
 
 Tick = Callable[[str, float], None]  # (stage, completed fraction) -> None, for a progress bar
+Scorer = Callable[[torch.Tensor], torch.Tensor]   # inputs -> novelty scores, this epoch's weights
+Watch = Callable[[Scorer], None]   # called after every epoch (research probes, `model.Probe`)
 
 
 @dataclass(frozen=True)
@@ -107,8 +109,10 @@ def reconstruction_error(ae: DCAE, x: torch.Tensor, batch: int = 256) -> torch.T
 
 
 def _select_best(model: nn.Module, epochs: int, run_epoch: Callable[[], None],
-                 val_loss: Callable[[], float], stage: str, tick: Tick) -> list[float]:
-    """Train `epochs` epochs; restore the weights with the lowest held-out stable loss."""
+                 val_loss: Callable[[], float], stage: str, tick: Tick,
+                 watch: Callable[[], None] | None = None) -> list[float]:
+    """Train `epochs` epochs; restore the weights with the lowest held-out stable loss.
+    `watch` runs after every epoch's validation and takes no part in the choice."""
     best, state, history = float("inf"), copy.deepcopy(model.state_dict()), []
     for e in range(epochs):
         model.train()
@@ -117,6 +121,8 @@ def _select_best(model: nn.Module, epochs: int, run_epoch: Callable[[], None],
         history.append(loss)
         if loss < best:
             best, state = loss, copy.deepcopy(model.state_dict())
+        if watch is not None:
+            watch()
         tick(stage, (e + 1) / epochs)
     model.load_state_dict(state)
     return history
@@ -149,7 +155,8 @@ def center(codes: torch.Tensor) -> torch.Tensor:
 
 
 def train_dsvdd(ae: DCAE, x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig,
-                gen: torch.Generator, tick: Tick) -> tuple[Encoder, torch.Tensor, list[float]]:
+                gen: torch.Generator, tick: Tick, watch: Watch | None = None,
+                ) -> tuple[Encoder, torch.Tensor, list[float]]:
     """Fine-tune a copy of the DCAE encoder toward c; selected on held-out mean distance to c."""
     enc = copy.deepcopy(ae.encoder)
     c = center(encode(enc, x))
@@ -165,7 +172,11 @@ def train_dsvdd(ae: DCAE, x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig,
     def val() -> float:
         return float(((encode(enc, xval) - c) ** 2).sum(1).mean())
 
-    hist = _select_best(enc, cfg.dsvdd_epochs, epoch, val, "DSVDD", tick)
+    def score(xb: torch.Tensor) -> torch.Tensor:
+        return ((encode(enc, xb) - c) ** 2).sum(1)
+
+    hist = _select_best(enc, cfg.dsvdd_epochs, epoch, val, "DSVDD", tick,
+                        None if watch is None else lambda: watch(score))
     for p in enc.parameters():
         p.requires_grad_(False)
     return enc.eval(), c, hist
@@ -232,7 +243,7 @@ def generated_codes(g: Generator, dsvdd: Encoder, n: int, gen: torch.Generator,
 
 def train_classifier(real: torch.Tensor, real_val: torch.Tensor, fake: torch.Tensor,
                      fake_val: torch.Tensor, center: torch.Tensor, cfg: OCConfig,
-                     gen: torch.Generator, tick: Tick, stage: str,
+                     gen: torch.Generator, tick: Tick, stage: str, watch: Watch | None = None,
                      ) -> tuple[Classifier, list[float]]:
     """Classifier on DSVDD codes with the label switch: real stable = 1 ("unstable"), synthetic = 0.
 
@@ -261,5 +272,11 @@ def train_classifier(real: torch.Tensor, real_val: torch.Tensor, fake: torch.Ten
         labels = torch.cat([torch.ones(len(real_val)), torch.zeros(len(fake_val))]).to(data.device)
         return float(F.binary_cross_entropy_with_logits(clf(data), labels))
 
-    hist = _select_best(clf, cfg.cls_epochs, epoch, val, stage, tick)
+    @torch.no_grad()
+    def score(codes: torch.Tensor) -> torch.Tensor:
+        clf.eval()
+        return torch.cat([clf(v) for v in codes.split(512)])
+
+    hist = _select_best(clf, cfg.cls_epochs, epoch, val, stage, tick,
+                        None if watch is None else lambda: watch(score))
     return clf.eval(), hist

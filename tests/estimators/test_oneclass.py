@@ -2,6 +2,7 @@
 save/load; determinism; Grad-CAM and the pointing game; CLI train/evaluate and bad input."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -283,13 +284,15 @@ def test_a_killed_training_resumes_from_its_last_stage_with_the_same_weights(tmp
 
 def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     """Tables are mean ± std over every (split, seed) run; each run's report is all a rerun
-    needs (what a fresh machine has from a copy kept in git), and gives the same results."""
+    needs (what a fresh machine has from a copy kept in git), and gives the same results; the
+    research probe adds what a checkpoint chosen on test would score and changes nothing else."""
     import shutil
 
     data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000, 3000, 9500))
     out = tmp_path / "tables"
-    args = ("experiment", "oc", "--data", str(data), "--out", str(out), "--splits", "2",
-            "--ms", "2", "--seeds", "2", "--seed", "5", "--epoch-scale", "0.003", "--threads", "1")
+    base = ("experiment", "oc", "--data", str(data), "--out", str(out), "--splits", "2", "--ms",
+            "2", "--seed", "5", "--epoch-scale", "0.003", "--threads", "1")
+    args = (*base, "--seeds", "2")
     run = _cli(*args)
     assert run.returncode == 0, run.stderr
     results = json.loads((out / "results.json").read_text())
@@ -305,3 +308,34 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     assert run.returncode == 0, run.stderr
     assert (out / "results.json").read_bytes() == before
     assert {p.name for p in (out / "stages").iterdir()} == {"m2_split2_s5"}   # the figures' model
+    # the research probe: same honest figures, plus what choosing epochs on test would score
+    run = _cli(*base, "--seeds", "1", "--probe-test", "--overwrite")
+    assert run.returncode == 0, run.stderr
+    probed = json.loads((out / "results.json").read_text())
+    assert probed["runs"]["m2_split2_s5"]["iogen"] == results["runs"]["m2_split2_s5"]["iogen"]
+    picks = probed["selection_on_test"]["iogen"]
+    assert picks["best_auc"]["mean"] >= picks["kept_auc"]["mean"]
+    assert "chosen on test data" in (out / "tables.md").read_text()
+
+
+def test_a_probe_watches_every_epoch_and_never_chooses(fitted):
+    """Scoring test data every epoch (the research probe of `--probe-test`) leaves the weights
+    as they are, and its curve at the epoch that stable-only selection kept is the model's AUC;
+    the best epoch on test can only be as good or better."""
+    from estimators.oneclass.model import Probe
+    from macrostate_mj.app.experiments.oneclass import selection_on_test
+
+    model, x = fitted
+    cfg = replace(TINY, dsvdd_epochs=3, cls_epochs=3)
+    xs, xu = _flows(12, 0.0, 5), _flows(12, 3.0, 6)
+    plain = fit(x, ("dsvdd", "iogen"), cfg)
+    probe = Probe(np.concatenate([xs, xu]))
+    watched = fit(x, ("dsvdd", "iogen"), cfg, probe=probe)
+    for meth in ("dsvdd", "iogen"):
+        assert np.array_equal(plain.score(meth, xu), watched.score(meth, xu))
+        assert len(probe.curves[meth]) == 3
+    picks = selection_on_test(probe, watched.history, len(xs))
+    for meth in ("dsvdd", "iogen"):
+        kept = roc_auc(watched.score(meth, xs), watched.score(meth, xu))
+        assert picks[meth]["kept_auc"] == pytest.approx(kept)
+        assert picks[meth]["best_auc"] >= picks[meth]["kept_auc"]

@@ -235,6 +235,10 @@ def experiment_oc(
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
                               "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
+    probe_test: bool = Switch(False, "Research only: score the test and unstable samples after "
+                              "every DSVDD and classifier epoch and report what choosing the "
+                              "checkpoint on them would score (the published code's protocol); "
+                              "never used to select. Runs do not resume mid-run."),
     overwrite: bool = Switch(False, "Replace earlier outputs."),
 ) -> None:
     """Reproduce Table 4.1, Table 4.2, Fig 4.7–4.10 and Grad-CAM overlays (mean ± std)."""
@@ -258,7 +262,7 @@ def experiment_oc(
     cfg = OCConfig.recipe(recipe, seed=seed, threads=threads).scaled(
         epoch_scale * (0.03 if quick else 1.0))
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
-                       unstable=unstable, seeds=seeds)
+                       unstable=unstable, seeds=seeds, probe=probe_test)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     with stage_progress() as tick:

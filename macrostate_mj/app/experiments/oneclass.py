@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from estimators.oneclass.metrics import auc_report, paired_report
-from estimators.oneclass.model import METHODS, OCModel, fit, flow_weight
+from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
+from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
 from estimators.oneclass.train import OCConfig, Tick
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
@@ -32,6 +32,7 @@ class OCExperiment:
     gradcam_samples: int = 6
     unstable: Path | None = None   # unstable samples held apart (a dev set), else data/Unstable
     seeds: int = 1                 # training seeds per (m, split): config.seed, config.seed + 1 ...
+    probe: bool = False            # research: score test data every epoch (`selection_on_test`)
 
 
 def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int):
@@ -74,7 +75,9 @@ def _run(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, main_
     when it was trained here, the model with its inputs."""
     path = out / "runs" / f"m{m}_split{split}_s{seed}.json"
     if path.exists():
-        return json.loads(path.read_text()), None
+        report = json.loads(path.read_text())
+        if not exp.probe or "selection_on_test" in report:
+            return report, None
     return _train(d, exp, m, split, seed, main_m, out, tick)
 
 
@@ -85,15 +88,33 @@ def _train(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, mai
     x, xs, xu = _inputs(d, split, m, exp.max_train, seed)
     methods = METHODS if m == main_m else ("iogen",)
     cfg = replace(exp.config, m=m, seed=seed)
+    probe = Probe(np.concatenate([xs, xu])) if exp.probe else None
     model = fit(x, methods, cfg, lambda st, f: tick(f"m={m} split {split} seed {seed} {st}", f),
-                stages_dir=out / "stages" / key)     # a killed run resumes from its last stage
+                stages_dir=None if probe else out / "stages" / key,  # resumes from its last stage
+                probe=probe)                                          # (a probe watches them all)
     scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
     report = {meth: auc_report(*scores[meth], bins, names) for meth in methods}
+    if probe is not None:
+        report["selection_on_test"] = selection_on_test(probe, model.history, len(xs))
     if m == main_m:   # Fig 4.8's marks: IO-GEN against DSVDD on the same samples
         report["iogen_vs_dsvdd"] = paired_report(*scores["iogen"], *scores["dsvdd"], bins,
                                                  names, seed=seed)
     write_json_atomic(out / "runs" / f"{key}.json", report)
     return report, (model, x, xs, xu)
+
+
+def selection_on_test(probe: Probe, history: dict[str, list[float]], n_stable: int) -> dict:
+    """Per watched method: the AUC on the probe's inputs (stable test first, then unstable)
+    after every epoch; the epoch kept by stable-only selection, and the one a choice on these
+    test samples would keep (the published code's protocol), with their AUCs."""
+    out = {}
+    for meth, curve in probe.curves.items():
+        aucs = [roc_auc(s[:n_stable], s[n_stable:]) for s in curve]
+        val = history["dsvdd_val" if meth == "dsvdd" else f"cls_{meth}_val"]
+        kept, best = int(np.argmin(val)), int(np.argmax(aucs))
+        out[meth] = {"auc_by_epoch": aucs, "kept_epoch": kept, "kept_auc": aucs[kept],
+                     "best_epoch": best, "best_auc": aucs[best]}
+    return out
 
 
 def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
@@ -129,11 +150,18 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     fig48 = {meth: {b: _mean_std(over(main_m, lambda r, meth=meth, b=b: r[meth]["auc_bins"][b]))
                     for b in names} for meth in METHODS}
     marks = significance_marks(over(main_m, lambda r: r["iogen_vs_dsvdd"]), names)
+    if exp.probe:
+        results_probe = {meth: {k: _mean_std(over(main_m, lambda r, meth=meth, k=k:
+                                                  r["selection_on_test"][meth][k]))
+                                for k in ("kept_auc", "best_auc")}
+                         for meth in ("dsvdd", "gen", "ngen", "iogen")}
     results = {"table4_1_iogen_auc_by_m": table41, "fig4_8_iogen_vs_dsvdd_marks": marks,
                f"table4_2_auc_m{main_m}": table42,
                f"fig4_8_auc_by_bin_m{main_m}": fig48, "runs": runs,
                "n_unstable": len(d.unstable_ids), "n_unstable_by_bin":
                    {b: bins.count(b) for b in names}}
+    if exp.probe:
+        results["selection_on_test"] = results_probe
     weights = _flow_weights(d)
     figures.flow_weight_figure(out / PRODUCTS[2], *weights)
     figures.bins_figure(out / PRODUCTS[3], fig48, marks)
@@ -142,7 +170,8 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
                                                xu)
     results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xu,
                                                  exp.gradcam_samples, main_m)
-    figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks)
+    figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks,
+                         results.get("selection_on_test"))
     return results
 
 
