@@ -150,18 +150,17 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     fig48 = {meth: {b: _mean_std(over(main_m, lambda r, meth=meth, b=b: r[meth]["auc_bins"][b]))
                     for b in names} for meth in METHODS}
     marks = significance_marks(over(main_m, lambda r: r["iogen_vs_dsvdd"]), names)
-    if exp.probe:
-        results_probe = {meth: {k: _mean_std(over(main_m, lambda r, meth=meth, k=k:
-                                                  r["selection_on_test"][meth][k]))
-                                for k in ("kept_auc", "best_auc")}
-                         for meth in ("dsvdd", "gen", "ngen", "iogen")}
     results = {"table4_1_iogen_auc_by_m": table41, "fig4_8_iogen_vs_dsvdd_marks": marks,
                f"table4_2_auc_m{main_m}": table42,
                f"fig4_8_auc_by_bin_m{main_m}": fig48, "runs": runs,
                "n_unstable": len(d.unstable_ids), "n_unstable_by_bin":
                    {b: bins.count(b) for b in names}}
     if exp.probe:
-        results["selection_on_test"] = results_probe
+        results["selection_on_test"] = {
+            meth: {k: _mean_std(over(main_m, lambda r, meth=meth, k=k:
+                                     r["selection_on_test"][meth][k]))
+                   for k in ("kept_auc", "best_auc")}
+            for meth in ("dsvdd", "gen", "ngen", "iogen")}
     weights = _flow_weights(d)
     figures.flow_weight_figure(out / PRODUCTS[2], *weights)
     figures.bins_figure(out / PRODUCTS[3], fig48, marks)
