@@ -19,6 +19,7 @@ same folder is refused.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from dataclasses import asdict, dataclass, replace
@@ -171,7 +172,9 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
                             "drop it or --sim")
         Randomization.parse(randomize)
     check_writable_dir(out)
-    _claim(out, {"profile": asdict(profile), "real": str(real_dir.resolve()),
+    # The real data by content, not by path: the same run resumes from another checkout.
+    _claim(out, {"profile": asdict(profile),
+                 "real_sha256": hashlib.sha256(np.ascontiguousarray(pooled)).hexdigest(),
                  "sim": None if sim is None else str(sim.resolve()), "randomize": randomize,
                  "lab": None if sim is not None else asdict(get_scenario("lab"))})
     sim_dir = sim if sim is not None else check_writable_dir(out / "data" / "sim")

@@ -71,28 +71,38 @@ class _Dataset:
     robots: int
     instances: int
     seed: int
-    policy: str          # passive, random or srs
+    policy: str = "passive"     # the Tail's rule while collecting: passive or random
     sigma: float = 0.0
-    pick: str = ""
 
     @property
     def csv(self) -> Path:
         return self.out / "instances.csv"
 
+    def request(self, workers: int, ray: str | None, profile: SRSProfile) -> CollectRequest:
+        return CollectRequest(SCENARIO, self.robots, 0.0, self.seed, self.out, self.policy,
+                              self.sigma, workers, ray, episode_minutes=profile.episode_minutes)
+
     def ensure(self, profile: SRSProfile, workers: int, ray: str | None) -> Path:
         """Collect unless done (each collection resumes shard by shard); the instances file."""
-        policy = "random" if self.policy == "srs" else self.policy
-        sigma = RO_SIGMA if self.policy == "srs" else self.sigma
-        req = CollectRequest(SCENARIO, self.robots, 0.0, self.seed, self.out, policy, sigma,
-                             workers, ray, episode_minutes=profile.episode_minutes)
-        if self.policy == "srs":
-            if not (self.out / "manifest.json").exists():
-                collect_srs(SRSRequest(req, self.pick, self.instances, profile.ro_instances,
-                                       profile.k))
-            return self.csv
+        req = self.request(workers, ray, profile)
         req = replace(req, minutes=episodes_for(req, self.instances) * profile.episode_minutes)
         if not finished(req):
             collect(req)
+        return self.csv
+
+
+@dataclass(frozen=True)
+class _SRSDataset(_Dataset):
+    """An SRS collection: its RO phase at the Rand-Only σ, then the `pick` policy's choices."""
+
+    policy: str = "random"
+    sigma: float = RO_SIGMA
+    pick: str = "med"
+
+    def ensure(self, profile: SRSProfile, workers: int, ray: str | None) -> Path:
+        if not (self.out / "manifest.json").exists():
+            collect_srs(SRSRequest(self.request(workers, ray, profile), self.pick,
+                                   self.instances, profile.ro_instances, profile.k))
         return self.csv
 
 
@@ -108,7 +118,7 @@ def _datasets(profile: SRSProfile, data: Path, seed: int) -> dict[str, list[_Dat
                 _Dataset(data / f"ro_{sigma:g}_d{j}", 3, profile.train, s, "random", sigma))
         for pick in profile.picks:
             configs.setdefault(f"srs_{pick}", []).append(
-                _Dataset(data / f"srs_{pick}_d{j}", 3, profile.train, s, "srs", pick=pick))
+                _SRSDataset(data / f"srs_{pick}_d{j}", 3, profile.train, s, pick=pick))
     return configs
 
 
