@@ -8,8 +8,8 @@ number of steps. Every random draw comes from the `torch.Generator` passed in.
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import torch
@@ -71,6 +71,30 @@ class OCConfig:
                            "dsvdd_epochs": k(self.dsvdd_epochs), "gan_steps": k(self.gan_steps),
                            "cls_epochs": k(self.cls_epochs)})
 
+    def overridden(self, settings: Sequence[str]) -> OCConfig:
+        """`name=value` settings (the CLI's --set) on top of the recipe, for research runs;
+        the manifest records the result. Unknown names and values of the wrong type are user
+        errors; m, seed, threads and device have options of their own."""
+        types = {f.name: f.type for f in fields(self) if f.name not in _OWN_OPTIONS}
+        kw: dict[str, Any] = {}
+        for item in settings:
+            name, sep, text = item.partition("=")
+            if not sep or name not in types:
+                raise UserError(f"--set {item!r}: expected NAME=VALUE with NAME one of "
+                                f"{', '.join(types)}")
+            try:
+                kw[name] = {"int": int, "float": float}.get(str(types[name]), str)(text)
+            except ValueError:
+                raise UserError(f"--set {item!r}: {name} takes a number of type "
+                                f"{types[name]}") from None
+        return replace(self, **kw)
+
+    def __post_init__(self) -> None:
+        if self.io_term not in ("mean", "sample"):
+            raise UserError(f"io_term {self.io_term!r}: choose mean or sample")
+
+
+_OWN_OPTIONS = ("m", "seed", "threads", "device")
 
 RECIPES: dict[str, dict[str, int]] = {
     "short": {},

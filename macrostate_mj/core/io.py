@@ -103,6 +103,16 @@ def prepare_out_dir(out: str | os.PathLike, products: list[str], overwrite: bool
     return out
 
 
+def claim_run(out: Path, inputs: dict, command: str) -> None:
+    """Record in `out/run.json` what a resumable run's cache is made from; refuse a rerun with
+    other inputs in the same folder (it would mix two runs' finished tasks)."""
+    path, inputs = out / "run.json", json.loads(json.dumps(inputs))    # tuples as lists
+    if path.exists() and json.loads(path.read_text()) != inputs:
+        raise UserError(f"{out} holds a `{command}` run with other inputs ({path}); choose "
+                        "another --out or delete it")
+    write_json_atomic(path, inputs)
+
+
 def write_manifest(out_dir: str | os.PathLike, command: str, config: Any, seed: int | None,
                    timings: dict[str, float], **extra: Any) -> Path:
     """Write `manifest.json` beside a run's outputs: what ran, with which config, seed and code."""

@@ -316,6 +316,11 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     picks = probed["selection_on_test"]["iogen"]
     assert picks["best_auc"]["mean"] >= picks["kept_auc"]["mean"]
     assert "chosen on test data" in (out / "tables.md").read_text()
+    # another recipe into the same folder would mix two runs' reports: refused, nothing changed
+    before = (out / "results.json").read_bytes()
+    run = _cli(*base, "--set", "dsvdd_epochs=2", "--overwrite")
+    assert run.returncode == 2 and "other inputs" in run.stderr, run.stderr
+    assert (out / "results.json").read_bytes() == before
 
 
 def test_a_probe_watches_every_epoch_and_never_chooses(fitted):

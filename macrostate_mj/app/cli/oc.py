@@ -119,6 +119,8 @@ def oc_train(
                          ("short", "published")),
     epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the recipe "
                                   "(0.05 = quick).", "--epoch-scale"),
+    settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
+                                       "recipe (e.g. dsvdd_epochs=160); repeatable."),
     threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
                          "threads).", max=MAX_WORKERS),
     device: str = Choice("cpu", "Where torch trains.", ("cpu", "cuda")),
@@ -134,13 +136,13 @@ def oc_train(
     from estimators.oneclass import OCConfig, fit
     from macrostate_mj.formats.hsants import open_dataset
 
+    cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device).scaled(
+        epoch_scale).overridden(settings)
     if device == "cuda" and not torch.cuda.is_available():
         raise UserError("--device cuda but torch sees no GPU; use --device cpu")
     d = open_dataset(data)
     train, _ = d.split(split)
     x = d.load("Stable", train, m)
-    cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device).scaled(
-        epoch_scale)
     t0 = time.perf_counter()
     with stage_progress() as tick:     # finished stages wait in OUT/stages: a rerun resumes
         model = fit(x, methods, cfg, tick, stages_dir=out / "stages")
@@ -232,6 +234,8 @@ def experiment_oc(
                          "published (the published code's; hours on a CPU).",
                          ("short", "published")),
     quick: bool = Switch(False, "Smoke run: epoch scale x0.03, 200 train samples."),
+    settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
+                                       "recipe (e.g. dsvdd_epochs=160); repeatable."),
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
                               "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
@@ -260,7 +264,7 @@ def experiment_oc(
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
     cfg = OCConfig.recipe(recipe, seed=seed, threads=threads).scaled(
-        epoch_scale * (0.03 if quick else 1.0))
+        epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
                        unstable=unstable, seeds=seeds, probe=probe_test)
     out.mkdir(parents=True, exist_ok=True)

@@ -4,9 +4,10 @@ and seeds), Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM o
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +16,7 @@ import numpy as np
 from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
 from estimators.oneclass.train import OCConfig, Tick
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.io import claim_run, write_json_atomic
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
 PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",
@@ -126,6 +127,9 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     if exp.unstable is not None:
         d = d.with_unstable(exp.unstable)
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
+    claim_run(out, {"config": asdict(exp.config), "max_train": exp.max_train,
+                    "unstable_ids": hashlib.sha256(str(d.unstable_ids).encode()).hexdigest()},
+              "experiment oc")                  # the run reports below are only its own
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
     runs: dict[str, dict] = {}

@@ -31,7 +31,7 @@ from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import mean_std
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
+from macrostate_mj.core.io import check_writable_dir, claim_run, write_json_atomic, write_manifest
 from macrostate_mj.core.parallel import runner_for
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
@@ -145,15 +145,6 @@ def _cached(task: dict) -> bool:
         task["arm"] != "sim" or Path(task["checkpoint"]).exists())
 
 
-def _claim(out: Path, inputs: dict) -> None:
-    """Record what the cache in `out` is made from; refuse other inputs in the same folder."""
-    path, inputs = out / "run.json", json.loads(json.dumps(inputs))    # tuples as lists
-    if path.exists() and json.loads(path.read_text()) != inputs:
-        raise UserError(f"{out} holds a sim2real run with other inputs ({path}); choose another "
-                        "--out or delete it")
-    write_json_atomic(path, inputs)
-
-
 def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path | None = None,
                  randomize: str | None = None, workers: int = 1, ray: str | None = None
                  ) -> list[str]:
@@ -173,10 +164,11 @@ def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path 
         Randomization.parse(randomize)
     check_writable_dir(out)
     # The real data by content, not by path: the same run resumes from another checkout.
-    _claim(out, {"profile": asdict(profile),
-                 "real_sha256": hashlib.sha256(np.ascontiguousarray(pooled)).hexdigest(),
-                 "sim": None if sim is None else str(sim.resolve()), "randomize": randomize,
-                 "lab": None if sim is not None else asdict(get_scenario("lab"))})
+    claim_run(out, {"profile": asdict(profile),
+                    "real_sha256": hashlib.sha256(np.ascontiguousarray(pooled)).hexdigest(),
+                    "sim": None if sim is None else str(sim.resolve()), "randomize": randomize,
+                    "lab": None if sim is not None else asdict(get_scenario("lab"))},
+              "experiment sim2real")
     sim_dir = sim if sim is not None else check_writable_dir(out / "data" / "sim")
     models = check_writable_dir(out / "models")
     first, second = [], []
