@@ -71,9 +71,8 @@ def plot_stepwise(results: dict, path: str | os.PathLike) -> None:
     """Fig 3.6: step-wise Head (solid) and F2 (dashed) error on the 5-robot tests, 100 %."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.2, 3.8))
-    for i, config in enumerate(results["configs"]):
-        if config.startswith("ro_") and config != "ro_0.75":
-            continue
+    shown = [c for c in results["configs"] if not c.startswith("ro_") or c == "ro_0.75"]
+    for i, config in enumerate(shown):        # one colour per configuration shown
         cell = _full(results, config)
         colour = f"C{i % 10}"
         for robot, style in (("H", "-"), ("F2", "--")):
