@@ -310,6 +310,17 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     assert run.returncode == 0, run.stderr
     assert (out / "results.json").read_bytes() == before
     assert {p.name for p in (out / "stages").iterdir()} == {"m2_split2_s5"}   # the figures' model
+    # runs are keyed by their seed: another first seed shares the folder; figures come from the
+    # first run whose stages are kept, reloaded rather than retrained
+    run = _cli(*base, "--seed", "6", "--seeds", "1", "--overwrite")
+    assert run.returncode == 0, run.stderr
+    assert json.loads((out / "results.json").read_text())["figures_run"] == "m2_split2_s6"
+    shutil.rmtree(out / "stages" / "m2_split2_s5")
+    run = _cli(*args, "--overwrite")
+    assert run.returncode == 0, run.stderr
+    rerun = json.loads((out / "results.json").read_text())
+    assert rerun["figures_run"] == "m2_split2_s6" and rerun["runs"] == results["runs"]
+    assert not (out / "stages" / "m2_split2_s5").exists()
     # the research probe: same honest figures, plus what choosing epochs on test would score
     run = _cli(*base, "--seeds", "1", "--probe-test", "--overwrite")
     assert run.returncode == 0, run.stderr

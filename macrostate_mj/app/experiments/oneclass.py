@@ -127,23 +127,23 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     if exp.unstable is not None:
         d = d.with_unstable(exp.unstable)
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
-    claim_run(out, {"config": asdict(exp.config), "max_train": exp.max_train,
+    config = {k: v for k, v in asdict(exp.config).items() if k != "seed"}  # runs are keyed by
+    claim_run(out, {"config": config, "max_train": exp.max_train,  # their seed, so a rerun from
                     "unstable_ids": hashlib.sha256(str(d.unstable_ids).encode()).hexdigest()},
-              "experiment oc")                  # the run reports below are only its own
+              "experiment oc")                  # another first seed adds runs to the same folder
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
     runs: dict[str, dict] = {}
-    first = (main_m, exp.splits[0], seeds[0])        # the run whose model the figures show
-    keep: Kept | None = None
+    keep: tuple[str, Kept] | None = None        # the run whose model the figures show
     for m in exp.ms:
         for split in exp.splits:
             for seed in seeds:
-                runs[f"m{m}_split{split}_s{seed}"], trained = _run(d, exp, m, split, seed,
-                                                                   main_m, out, tick)
-                if (m, split, seed) == first:
-                    keep = trained
-    if keep is None:       # that run came from its report: its model again (from its stages)
-        _, keep = _train(d, exp, *first, main_m, out, tick)
+                key = f"m{m}_split{split}_s{seed}"
+                runs[key], trained = _run(d, exp, m, split, seed, main_m, out, tick)
+                if keep is None and trained is not None and m == main_m:
+                    keep = key, trained
+    if keep is None:       # every run came from its report: a model again, from its stages
+        keep = _figures_run(d, exp, main_m, seeds, out, tick)
 
     def over(m: int, get: Callable[[dict], Any]) -> list:
         return [get(runs[f"m{m}_split{k}_s{s}"]) for k in exp.splits for s in seeds]
@@ -168,7 +168,7 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     weights = _flow_weights(d)
     figures.flow_weight_figure(out / PRODUCTS[2], *weights)
     figures.bins_figure(out / PRODUCTS[3], fig48, marks)
-    model, x, xs, xu = keep
+    results["figures_run"], (model, x, xs, xu) = keep
     results["fig4_10"] = figures.model_figures(out / PRODUCTS[4], out / PRODUCTS[5], model, x, xs,
                                                xu)
     results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xu,
@@ -176,6 +176,17 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks,
                          results.get("selection_on_test"))
     return results
+
+
+def _figures_run(d: AntFlowData, exp: OCExperiment, main_m: int, seeds: range, out: Path,
+                 tick: Tick) -> tuple[str, Kept]:
+    """The first run whose stages are kept in `out/stages/` (reloaded, not retrained), else the
+    first run, trained again."""
+    runs = [(split, seed) for split in exp.splits for seed in seeds]
+    split, seed = next((r for r in runs if (out / "stages" / f"m{main_m}_split{r[0]}_s{r[1]}")
+                        .is_dir()), runs[0])
+    return f"m{main_m}_split{split}_s{seed}", _train(d, exp, main_m, split, seed, main_m, out,
+                                                     tick)[1]
 
 
 def _flow_weights(d: AntFlowData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
