@@ -120,7 +120,7 @@ def oc_train(
     epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the recipe "
                                   "(0.05 = quick).", "--epoch-scale"),
     settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
-                                       "recipe (e.g. dsvdd_epochs=160); repeatable."),
+                                       "recipe (e.g. cls_epochs=40); repeatable."),
     threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
                          "threads).", max=MAX_WORKERS),
     device: str = Choice("cpu", "Where torch trains.", ("cpu", "cuda")),
@@ -235,7 +235,7 @@ def experiment_oc(
                          ("short", "published")),
     quick: bool = Switch(False, "Smoke run: epoch scale x0.03, 200 train samples."),
     settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
-                                       "recipe (e.g. dsvdd_epochs=160); repeatable."),
+                                       "recipe (e.g. cls_epochs=40); repeatable."),
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
                               "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
