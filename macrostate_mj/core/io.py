@@ -10,6 +10,7 @@ import contextlib
 import json
 import os
 import platform
+import sys
 import tempfile
 import time
 from collections.abc import Iterator
@@ -114,24 +115,33 @@ def claim_run(out: Path, inputs: dict, command: str) -> None:
 
 
 def write_manifest(out_dir: str | os.PathLike, command: str, config: Any, seed: int | None,
-                   timings: dict[str, float], **extra: Any) -> Path:
-    """Write `manifest.json` beside a run's outputs: what ran, with which config, seed and code."""
-    import mujoco
-    import numpy
-
-    path = Path(out_dir) / "manifest.json"
+                   timings: dict[str, float], name: str = "manifest.json", **extra: Any) -> Path:
+    """Write `name` (manifest.json) beside a run's outputs: what ran, with which config, seed,
+    code and machine (float results repeat bit for bit only on the same CPU type)."""
+    path = Path(out_dir) / name
     write_json_atomic(path, {
         "command": command,
         "config": config,
         "seed": seed,
         "version": __version__,
-        "versions": {"mujoco": mujoco.__version__, "numpy": numpy.__version__,
-                     "python": platform.python_version()},
+        "versions": {"python": platform.python_version(),  # the numeric libraries this run loaded
+                     **{lib: sys.modules[lib].__version__ for lib in ("mujoco", "numpy", "torch")
+                        if lib in sys.modules}},
+        "machine": {"cpu": _cpu_model(), "arch": platform.machine(), "cores": os.cpu_count()},
         "created_unix": round(time.time(), 3),
         "timings_s": {k: round(v, 4) for k, v in timings.items()},
         **extra,
     })
     return path
+
+
+def _cpu_model() -> str:
+    """The CPU's model name (Linux's /proc/cpuinfo), else what `platform` knows."""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or "unknown"
 
 
 def _jsonable(obj: Any) -> Any:

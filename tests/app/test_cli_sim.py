@@ -29,6 +29,7 @@ def test_simulate_writes_long_format_poses_and_manifest(tmp_path):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["seed"] == 3 and manifest["config"]["scenario"]["name"] == "lab"
     assert {"build", "run"} <= set(manifest["timings_s"]) and manifest["version"]
+    assert "mujoco" in manifest["versions"] and manifest["machine"]["cores"] >= 1
 
 
 def test_same_seed_bit_identical_parquet_other_seed_differs(tmp_path):

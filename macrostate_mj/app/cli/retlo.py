@@ -244,18 +244,8 @@ def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bo
 
 def _manifest_beside(path: Path, command: str, config: object, seed: int | None,
                      timings: dict[str, float], **extra: object) -> None:
-    """`io.write_manifest` names its file manifest.json; a single-file output gets its own."""
-    import platform
+    """A single-file output gets its own `<file>.manifest.json`."""
+    from macrostate_mj.core.io import write_manifest
 
-    import numpy
-    import torch
-
-    from macrostate_mj import __version__
-    from macrostate_mj.core.io import write_json_atomic
-
-    write_json_atomic(path.with_name(path.name + ".manifest.json"), {
-        "command": command, "config": config, "seed": seed, "version": __version__,
-        "versions": {"torch": torch.__version__, "numpy": numpy.__version__,
-                     "python": platform.python_version()},
-        "created_unix": round(time.time(), 3),
-        "timings_s": {k: round(v, 4) for k, v in timings.items()}, **extra})
+    write_manifest(path.parent, command, config, seed, timings,
+                   name=path.name + ".manifest.json", **extra)
