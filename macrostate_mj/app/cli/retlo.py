@@ -115,7 +115,7 @@ def train_retlo(
     from estimators.retlo.models import ModelConfig
     from estimators.retlo.train import TrainConfig, save_checkpoint
     from estimators.retlo.train import train as fit
-    from macrostate_mj.core.io import check_writable_file
+    from macrostate_mj.core.io import check_writable_file, write_manifest
     from macrostate_mj.formats.thymioloc import read_csv, to_world
 
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained,
@@ -128,8 +128,8 @@ def train_retlo(
     start = time.perf_counter()
     net, info = fit(worlds, val_world, cfg)
     save_checkpoint(out, net, px_per_cm, cfg, info)
-    _manifest_beside(out, "train retlo", cfg, seed, {"train": time.perf_counter() - start},
-                     inputs=[str(p) for p in [*train, val]])
+    write_manifest(out.parent, "train retlo", cfg, seed, {"train": time.perf_counter() - start},
+                   name=out.name + ".manifest.json", inputs=[str(p) for p in [*train, val]])
     typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
                f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
     if info["interrupted"]:     # the best checkpoint so far is saved; say so and stop as Ctrl-C
@@ -241,11 +241,3 @@ def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bo
     if plot is not None:
         print(f"plot      {plot}")
 
-
-def _manifest_beside(path: Path, command: str, config: object, seed: int | None,
-                     timings: dict[str, float], **extra: object) -> None:
-    """A single-file output gets its own `<file>.manifest.json`."""
-    from macrostate_mj.core.io import write_manifest
-
-    write_manifest(path.parent, command, config, seed, timings,
-                   name=path.name + ".manifest.json", **extra)
