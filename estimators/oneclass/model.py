@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -148,32 +149,79 @@ class OCModel:
         return model
 
 
+SNAPSHOT_EVERY_S = 600.0   # a killed stage loses at most this much work
+
+
 class StageCache:
     """Each finished training stage kept on disk (`stages/<name>.pt`) with the generator and
     torch states after it, so that a killed run resumes from its last finished stage and ends
     with the same weights as an uninterrupted one. A stage file made with another config or
-    other inputs is not reused (`key`)."""
+    other inputs is not reused (`key`). Inside a stage, its state is kept every `every_s`
+    seconds (`StageSnapshots`): a stage longer than a session (the published recipe's DCAE on a
+    CPU) goes on where it was stopped."""
 
-    def __init__(self, folder: Path | None, key: str, gen: torch.Generator):
-        self.folder, self.key, self.gen = folder, key, gen
+    def __init__(self, folder: Path | None, key: str, gen: torch.Generator,
+                 every_s: float = SNAPSHOT_EVERY_S):
+        self.folder, self.key, self.gen, self.every_s = folder, key, gen, every_s
         self.reused: list[str] = []
 
-    def run(self, name: str, train: Callable[[], Any]) -> Any:
-        path = None if self.folder is None else self.folder / f"{name}.pt"
-        if path is not None and path.is_file():
-            saved = torch.load(path, map_location="cpu", weights_only=False)
-            if saved.get("key") == self.key:
-                self.gen.set_state(saved["gen"])
-                torch.set_rng_state(saved["torch"])
-                self.reused.append(name)
-                return saved["out"]
-        out = train()
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(path) as tmp:
-                torch.save({"key": self.key, "out": out, "gen": self.gen.get_state(),
-                            "torch": torch.get_rng_state()}, tmp)
+    def run(self, name: str, train: Callable[[T.Snapshots], Any]) -> Any:
+        if self.folder is None:
+            return train(T.NO_SNAPSHOTS)
+        path = self.folder / f"{name}.pt"
+        saved = self.load_file(path)
+        if saved is not None:
+            self.reused.append(name)
+            return saved["out"]
+        snaps = StageSnapshots(self.folder / f"{name}.partial.pt", self, self.every_s)
+        out = train(snaps)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as tmp:
+            torch.save({"key": self.key, "out": out, **self.rng_states()}, tmp)
+        snaps.path.unlink(missing_ok=True)
         return out
+
+    def rng_states(self) -> dict[str, torch.Tensor]:
+        return {"gen": self.gen.get_state(), "torch": torch.get_rng_state()}
+
+    def load_file(self, path: Path) -> dict | None:
+        """A file of this run (same key), its random states restored; else None."""
+        if not path.is_file():
+            return None
+        saved = torch.load(path, map_location="cpu", weights_only=False)
+        if saved.get("key") != self.key:
+            return None
+        self.gen.set_state(saved["gen"])
+        torch.set_rng_state(saved["torch"])
+        return saved
+
+
+class StageSnapshots:
+    """One stage's loop state (weights, optimizers, best epoch so far, random states) in
+    `stages/<name>.partial.pt`, written atomically when `every_s` seconds have passed since the
+    last; removed once the stage is done. Restoring it continues the stage bit for bit."""
+
+    def __init__(self, path: Path, cache: StageCache, every_s: float):
+        self.path, self.cache, self.every_s = path, cache, every_s
+        self.last = time.monotonic()
+
+    def restore(self, parts: T.Parts) -> tuple[int, dict[str, Any]]:
+        saved = self.cache.load_file(self.path)
+        if saved is None:
+            return 0, {}
+        for name, part in parts.items():
+            part.load_state_dict(saved["parts"][name])
+        return saved["done"], saved["loop"]
+
+    def save(self, done: int, parts: T.Parts, loop: dict[str, Any]) -> None:
+        if time.monotonic() - self.last < self.every_s:
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(self.path) as tmp:
+            torch.save({"key": self.cache.key, "done": done, "loop": loop,
+                        "parts": {name: part.state_dict() for name, part in parts.items()},
+                        **self.cache.rng_states()}, tmp)
+        self.last = time.monotonic()
 
 
 def stage_key(x: np.ndarray, cfg: T.OCConfig) -> str:
@@ -201,9 +249,11 @@ class Probe:
 
 
 def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | None = None,
-        stages_dir: Path | None = None, probe: Probe | None = None) -> OCModel:
+        stages_dir: Path | None = None, probe: Probe | None = None,
+        snapshot_every_s: float = SNAPSHOT_EVERY_S) -> OCModel:
     """Train every stage `methods` need on stable training inputs x (N × 2m × 64 × 64); with
-    `stages_dir`, keep each finished stage there and reuse those already done (`StageCache`)."""
+    `stages_dir`, keep each finished stage there and reuse those already done, and the
+    unfinished one's state every `snapshot_every_s` seconds (`StageCache`)."""
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise UserError(f"unknown method {unknown[0]!r}; choose from {', '.join(METHODS)}")
@@ -211,7 +261,7 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)  # weight initialisation
     gen = torch.Generator().manual_seed(cfg.seed)
-    cache = StageCache(stages_dir, stage_key(x, cfg), gen)
+    cache = StageCache(stages_dir, stage_key(x, cfg), gen, snapshot_every_s)
     perm = np.random.default_rng(cfg.seed).permutation(len(x))
     n_val = max(1, round(len(x) * cfg.val_fraction))
     xall = torch.from_numpy(np.ascontiguousarray(x)).to(cfg.device)
@@ -220,10 +270,10 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     stages = {s for m in methods for s in NEEDS[m]}
     if "dcae" in stages:
         model.ae, model.history["dcae_val"] = cache.run(
-            "dcae", lambda: T.train_dcae(xtr, xval, cfg, gen, tick))
+            "dcae", lambda snaps: T.train_dcae(xtr, xval, cfg, gen, tick, snaps))
     if "ocsvm" in stages:
-        model.ocsvm = cache.run("ocsvm", lambda: fit_ocsvm(T.encode(model.ae.encoder, xall).cpu(),
-                                                           cfg.ocsvm_nu))
+        model.ocsvm = cache.run("ocsvm", lambda _: fit_ocsvm(
+            T.encode(model.ae.encoder, xall).cpu(), cfg.ocsvm_nu))
     px = None if probe is None else torch.from_numpy(np.ascontiguousarray(probe.x)).to(cfg.device)
 
     def watch(method: str, inputs: Callable[[], torch.Tensor]) -> T.Watch | None:
@@ -231,12 +281,13 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
 
     if "dsvdd" in stages:
         model.dsvdd, model.c, model.history["dsvdd_val"] = cache.run(
-            "dsvdd", lambda: T.train_dsvdd(model.ae, xtr, xval, cfg, gen, tick,
-                                           watch("dsvdd", lambda: px)))
+            "dsvdd", lambda snaps: T.train_dsvdd(model.ae, xtr, xval, cfg, gen, tick,
+                                                 watch("dsvdd", lambda: px), snaps))
     for kind in ("iogen", "gen"):
         if kind in stages:
-            model.generators[kind], log = cache.run(kind, lambda kind=kind: T.train_generator(
-                model.ae, model.dsvdd, model.c, xtr, cfg, gen, tick, kind))
+            model.generators[kind], log = cache.run(kind, lambda snaps, kind=kind: (
+                T.train_generator(model.ae, model.dsvdd, model.c, xtr, cfg, gen, tick, kind,
+                                  snaps)))
             model.history.update({f"{kind}_{k}": v[::10] for k, v in log.items()})
     if any(s.startswith("cls_") for s in stages):
         real, real_val = T.encode(model.dsvdd, xtr), T.encode(model.dsvdd, xval)
@@ -244,11 +295,11 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
             if f"cls_{kind}" not in stages:
                 continue
 
-            def classifier(kind: str = kind) -> tuple:
+            def classifier(snaps: T.Snapshots, kind: str = kind) -> tuple:
                 fake, fake_val = _synthetic(model, kind, 2 * len(xtr), len(xval), gen)
                 return T.train_classifier(
                     real, real_val, fake, fake_val, model.c, cfg, gen, tick,
-                    f"CLS-{kind.upper()}", watch(kind, lambda: T.encode(model.dsvdd, px)))
+                    f"CLS-{kind.upper()}", watch(kind, lambda: T.encode(model.dsvdd, px)), snaps)
 
             model.classifiers[kind], model.history[f"cls_{kind}_val"] = cache.run(
                 f"cls_{kind}", classifier)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, fields, replace
-from typing import Any
+from typing import Any, Protocol
 
 import torch
 import torch.nn.functional as F
@@ -22,6 +22,31 @@ from macrostate_mj.core.errors import UserError
 Tick = Callable[[str, float], None]  # (stage, completed fraction) -> None, for a progress bar
 Scorer = Callable[[torch.Tensor], torch.Tensor]   # inputs -> novelty scores, this epoch's weights
 Watch = Callable[[Scorer], None]   # called after every epoch (research probes, `model.Probe`)
+Parts = dict[str, Any]   # what a stage's loop carries: modules and optimizers (state_dict owners)
+
+
+class Snapshots(Protocol):
+    """Where a long stage keeps its state between epochs or steps, so that a killed run goes on
+    inside the stage (`model.StageSnapshots`; `NO_SNAPSHOTS` keeps nothing)."""
+
+    def restore(self, parts: Parts) -> tuple[int, dict[str, Any]]:
+        """Load the last snapshot into `parts`; (epochs or steps done, the loop's own state)."""
+        ...
+
+    def save(self, done: int, parts: Parts, loop: dict[str, Any]) -> None:
+        """Offer the state after `done` epochs or steps; kept when one is due."""
+        ...
+
+
+class _NoSnapshots:
+    def restore(self, parts: Parts) -> tuple[int, dict[str, Any]]:
+        return 0, {}
+
+    def save(self, done: int, parts: Parts, loop: dict[str, Any]) -> None:
+        pass
+
+
+NO_SNAPSHOTS: Snapshots = _NoSnapshots()
 
 
 @dataclass(frozen=True)
@@ -133,13 +158,18 @@ def reconstruction_error(ae: DCAE, x: torch.Tensor, batch: int = 256) -> torch.T
                       for xb in x.split(batch)])
 
 
-def _select_best(model: nn.Module, epochs: int, run_epoch: Callable[[], None],
-                 val_loss: Callable[[], float], stage: str, tick: Tick,
-                 watch: Callable[[], None] | None = None) -> list[float]:
+def _select_best(model: nn.Module, opt: torch.optim.Optimizer, epochs: int,
+                 run_epoch: Callable[[], None], val_loss: Callable[[], float], stage: str,
+                 tick: Tick, snaps: Snapshots, watch: Callable[[], None] | None = None,
+                 ) -> list[float]:
     """Train `epochs` epochs; restore the weights with the lowest held-out stable loss.
     `watch` runs after every epoch's validation and takes no part in the choice."""
-    best, state, history = float("inf"), copy.deepcopy(model.state_dict()), []
-    for e in range(epochs):
+    parts = {"model": model, "opt": opt}
+    done, loop = snaps.restore(parts)
+    best, state, history = (loop.get("best", float("inf")),
+                            loop.get("state", copy.deepcopy(model.state_dict())),
+                            loop.get("history", []))
+    for e in range(done, epochs):
         model.train()
         run_epoch()
         loss = val_loss()
@@ -148,13 +178,14 @@ def _select_best(model: nn.Module, epochs: int, run_epoch: Callable[[], None],
             best, state = loss, copy.deepcopy(model.state_dict())
         if watch is not None:
             watch()
+        snaps.save(e + 1, parts, {"best": best, "state": state, "history": history})
         tick(stage, (e + 1) / epochs)
     model.load_state_dict(state)
     return history
 
 
 def train_dcae(x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig, gen: torch.Generator,
-               tick: Tick) -> tuple[DCAE, list[float]]:
+               tick: Tick, snaps: Snapshots = NO_SNAPSHOTS) -> tuple[DCAE, list[float]]:
     """Denoising autoencoder, MSE; selected on held-out stable reconstruction error."""
     ae = DCAE(x.shape[1]).to(x.device, memory_format=torch.channels_last)
     opt = torch.optim.Adam(ae.parameters(), lr=cfg.dcae_lr)
@@ -168,8 +199,8 @@ def train_dcae(x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig, gen: torch.Ge
             loss.backward()
             opt.step()
 
-    hist = _select_best(ae, cfg.dcae_epochs, epoch,
-                        lambda: float(reconstruction_error(ae, xval).mean()), "DCAE", tick)
+    hist = _select_best(ae, opt, cfg.dcae_epochs, epoch,
+                        lambda: float(reconstruction_error(ae, xval).mean()), "DCAE", tick, snaps)
     return ae.eval(), hist
 
 
@@ -181,7 +212,7 @@ def center(codes: torch.Tensor) -> torch.Tensor:
 
 def train_dsvdd(ae: DCAE, x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig,
                 gen: torch.Generator, tick: Tick, watch: Watch | None = None,
-                ) -> tuple[Encoder, torch.Tensor, list[float]]:
+                snaps: Snapshots = NO_SNAPSHOTS) -> tuple[Encoder, torch.Tensor, list[float]]:
     """Fine-tune a copy of the DCAE encoder toward c; selected on held-out mean distance to c."""
     enc = copy.deepcopy(ae.encoder)
     c = center(encode(enc, x))
@@ -200,7 +231,7 @@ def train_dsvdd(ae: DCAE, x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig,
     def score(xb: torch.Tensor) -> torch.Tensor:
         return ((encode(enc, xb) - c) ** 2).sum(1)
 
-    hist = _select_best(enc, cfg.dsvdd_epochs, epoch, val, "DSVDD", tick,
+    hist = _select_best(enc, opt, cfg.dsvdd_epochs, epoch, val, "DSVDD", tick, snaps,
                         None if watch is None else lambda: watch(score))
     for p in enc.parameters():
         p.requires_grad_(False)
@@ -209,7 +240,7 @@ def train_dsvdd(ae: DCAE, x: torch.Tensor, xval: torch.Tensor, cfg: OCConfig,
 
 def train_generator(ae: DCAE, dsvdd: Encoder, c: torch.Tensor, x: torch.Tensor, cfg: OCConfig,
                     gen: torch.Generator, tick: Tick, kind: str = "iogen",
-                    ) -> tuple[Generator, dict[str, list[float]]]:
+                    snaps: Snapshots = NO_SNAPSHOTS) -> tuple[Generator, dict[str, list[float]]]:
     """IO-GEN: adversarial + λ‖mean φ(G(z)) − c‖² (frozen DSVDD φ); GEN: feature matching on D.
 
     Both start from a copy of the pre-trained decoder; the discriminator is a fresh encoder.
@@ -219,9 +250,11 @@ def train_generator(ae: DCAE, dsvdd: Encoder, c: torch.Tensor, x: torch.Tensor, 
     d = Discriminator(x.shape[1]).to(x.device, memory_format=torch.channels_last)
     opt_d = torch.optim.Adam(d.parameters(), lr=cfg.gan_lr_d, betas=(0.5, 0.999))
     opt_g = torch.optim.Adam(g.parameters(), lr=cfg.gan_lr_g, betas=(0.5, 0.999))
-    b, log = cfg.gan_batch, {"d_loss": [], "g_adv": [], "g_feat": []}
+    parts = {"g": g, "d": d, "opt_d": opt_d, "opt_g": opt_g}
+    done, loop = snaps.restore(parts)
+    b, log = cfg.gan_batch, loop.get("log", {"d_loss": [], "g_adv": [], "g_feat": []})
     ones = torch.ones(b, device=x.device)
-    for step in range(cfg.gan_steps):
+    for step in range(done, cfg.gan_steps):
         g.train()
         d.train()
         real = x[torch.randint(len(x), (b,), generator=gen)]
@@ -251,6 +284,7 @@ def train_generator(ae: DCAE, dsvdd: Encoder, c: torch.Tensor, x: torch.Tensor, 
         opt_g.step()
         for key, val in (("d_loss", d_loss), ("g_adv", adv), ("g_feat", feat)):
             log[key].append(float(val.detach()))
+        snaps.save(step + 1, parts, {"log": log})
         if (step + 1) % 10 == 0 or step + 1 == cfg.gan_steps:
             tick(kind.upper(), (step + 1) / cfg.gan_steps)
     return g.eval(), log
@@ -269,7 +303,7 @@ def generated_codes(g: Generator, dsvdd: Encoder, n: int, gen: torch.Generator,
 def train_classifier(real: torch.Tensor, real_val: torch.Tensor, fake: torch.Tensor,
                      fake_val: torch.Tensor, center: torch.Tensor, cfg: OCConfig,
                      gen: torch.Generator, tick: Tick, stage: str, watch: Watch | None = None,
-                     ) -> tuple[Classifier, list[float]]:
+                     snaps: Snapshots = NO_SNAPSHOTS) -> tuple[Classifier, list[float]]:
     """Classifier on DSVDD codes with the label switch: real stable = 1 ("unstable"), synthetic = 0.
 
     Each epoch pairs every real code with a fresh draw from the synthetic pool; the epoch kept is
@@ -302,6 +336,6 @@ def train_classifier(real: torch.Tensor, real_val: torch.Tensor, fake: torch.Ten
         clf.eval()
         return torch.cat([clf(v) for v in codes.split(512)])
 
-    hist = _select_best(clf, cfg.cls_epochs, epoch, val, stage, tick,
+    hist = _select_best(clf, opt, cfg.cls_epochs, epoch, val, stage, tick, snaps,
                         None if watch is None else lambda: watch(score))
     return clf.eval(), hist

@@ -282,6 +282,46 @@ def test_a_killed_training_resumes_from_its_last_stage_with_the_same_weights(tmp
     assert OCConfig.recipe("published").gan_steps == 20_000
 
 
+class _Killed(Exception):
+    pass
+
+
+def test_a_stage_killed_midway_goes_on_from_its_snapshot_with_the_same_weights(tmp_path):
+    """A long stage keeps its loop state (`<stage>.partial.pt`): killed inside the DCAE, then
+    inside the IO-GEN GAN, each rerun's progress starts where the last stopped, and the run
+    ends with the weights of one uninterrupted run, no snapshot left behind."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(0, 0.1, (40, 4, 64, 64)).astype(np.float32)
+    probe = rng.normal(0, 0.3, (6, 4, 64, 64)).astype(np.float32)
+    cfg = OCConfig(seed=2, batch=16, dcae_epochs=3, dsvdd_epochs=2, gan_steps=12, gan_batch=4,
+                   cls_epochs=2)
+    plain = fit(x, ("dsvdd", "iogen"), cfg)
+    stages = tmp_path / "stages"
+
+    def run(kill: tuple[str, float] | None) -> tuple[dict[str, list[float]], OCModel | None]:
+        ticks: dict[str, list[float]] = {}
+
+        def tick(stage: str, frac: float) -> None:
+            ticks.setdefault(stage, []).append(frac)
+            if kill is not None and stage == kill[0] and frac >= kill[1]:
+                raise _Killed
+        try:
+            return ticks, fit(x, ("dsvdd", "iogen"), cfg, tick, stages, snapshot_every_s=0)
+        except _Killed:
+            return ticks, None
+
+    ticks, _ = run(("DCAE", 2 / 3))
+    assert ticks["DCAE"] == [1 / 3, 2 / 3] and (stages / "dcae.partial.pt").is_file()
+    ticks, _ = run(("IOGEN", 10 / 12))
+    assert ticks["DCAE"] == [1.0] and ticks["IOGEN"] == [10 / 12]
+    assert {p.name for p in stages.iterdir()} == {"dcae.pt", "dsvdd.pt", "iogen.partial.pt"}
+    ticks, resumed = run(None)
+    assert ticks["IOGEN"] == [1.0] and resumed.resumed == ["dcae", "dsvdd"]
+    assert not list(stages.glob("*.partial.pt"))
+    for meth in ("dsvdd", "iogen"):
+        assert np.array_equal(plain.score(meth, probe), resumed.score(meth, probe))
+
+
 def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     """Tables are mean ± std over every (split, seed) run; each run's report is all a rerun
     needs (what a fresh machine has from a copy kept in git), and gives the same results; the
