@@ -161,8 +161,9 @@ class StageCache:
     CPU) goes on where it was stopped."""
 
     def __init__(self, folder: Path | None, key: str, gen: torch.Generator,
-                 every_s: float = SNAPSHOT_EVERY_S):
+                 every_s: float = SNAPSHOT_EVERY_S, device: str = "cpu"):
         self.folder, self.key, self.gen, self.every_s = folder, key, gen, every_s
+        self.device = device   # where the run trains: a stage's modules come back there
         self.reused: list[str] = []
 
     def run(self, name: str, train: Callable[[T.Snapshots], Any]) -> Any:
@@ -188,11 +189,11 @@ class StageCache:
         """A file of this run (same key), its random states restored; else None."""
         if not path.is_file():
             return None
-        saved = torch.load(path, map_location="cpu", weights_only=False)
+        saved = torch.load(path, map_location=self.device, weights_only=False)
         if saved.get("key") != self.key:
             return None
-        self.gen.set_state(saved["gen"])
-        torch.set_rng_state(saved["torch"])
+        self.gen.set_state(saved["gen"].cpu())      # random states live on the CPU
+        torch.set_rng_state(saved["torch"].cpu())
         return saved
 
 
@@ -261,7 +262,7 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)  # weight initialisation
     gen = torch.Generator().manual_seed(cfg.seed)
-    cache = StageCache(stages_dir, stage_key(x, cfg), gen, snapshot_every_s)
+    cache = StageCache(stages_dir, stage_key(x, cfg), gen, snapshot_every_s, cfg.device)
     perm = np.random.default_rng(cfg.seed).permutation(len(x))
     n_val = max(1, round(len(x) * cfg.val_fraction))
     xall = torch.from_numpy(np.ascontiguousarray(x)).to(cfg.device)
