@@ -17,7 +17,7 @@ import hashlib
 import json
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +88,16 @@ class OCModel:
         z = codes.double()
         k = torch.exp(-s["gamma"] * torch.cdist(z, s["sv"]) ** 2)
         return (k @ s["dual"] + s["intercept"]).numpy()
+
+    def to(self, device: str) -> OCModel:
+        """This model with its weights and c on `device` (figures and Grad-CAM read CPU
+        tensors; a model trained with `--device cuda` comes back for them)."""
+        for mod in self._modules().values():
+            mod.to(device)
+        if self.c is not None:
+            self.c = self.c.to(device)
+        self.cfg = replace(self.cfg, device=device)
+        return self
 
     # --- persistence: tensors in weights.pt (loadable with weights_only), the rest in JSON ---
     def save(self, out: Path) -> None:

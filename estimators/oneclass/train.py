@@ -166,9 +166,8 @@ def _select_best(model: nn.Module, opt: torch.optim.Optimizer, epochs: int,
     `watch` runs after every epoch's validation and takes no part in the choice."""
     parts = {"model": model, "opt": opt}
     done, loop = snaps.restore(parts)
-    best, state, history = (loop.get("best", float("inf")),
-                            loop.get("state", copy.deepcopy(model.state_dict())),
-                            loop.get("history", []))
+    best, history = loop.get("best", float("inf")), loop.get("history", [])
+    state = loop["state"] if "state" in loop else copy.deepcopy(model.state_dict())
     for e in range(done, epochs):
         model.train()
         run_epoch()

@@ -170,6 +170,17 @@ def test_cli_train_evaluate_and_bad_input(tmp_path):
     assert not (tmp_path / "m2").exists() or not any((tmp_path / "m2").iterdir())
 
 
+@pytest.mark.skipif(torch.cuda.is_available(), reason="a GPU is here: --device cuda is valid")
+def test_device_cuda_without_a_gpu_is_refused_before_anything_is_written(tmp_path):
+    data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000))
+    out = tmp_path / "out"
+    for command in (("oc", "train", "--method", "dsvdd"), ("experiment", "oc")):
+        run = _cli(*command, "--data", str(data), "--out", str(out), "--device", "cuda")
+        assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+        assert "sees no GPU" in run.stderr and "--device cpu" in run.stderr, run.stderr
+        assert not out.exists()
+
+
 def test_rank_auc_is_scikit_learns_auc_ties_included():
     from estimators.oneclass.metrics import rank_auc, roc_auc
 

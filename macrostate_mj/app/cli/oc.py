@@ -14,6 +14,7 @@ from macrostate_mj.app.cli.params import (
     MAX_WORKERS,
     Choice,
     Count,
+    Device,
     InputDir,
     InputFile,
     OutputDir,
@@ -123,7 +124,7 @@ def oc_train(
                                        "recipe (e.g. cls_epochs=40); repeatable."),
     threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
                          "threads).", max=MAX_WORKERS),
-    device: str = Choice("cpu", "Where torch trains.", ("cpu", "cuda")),
+    device: str = Device(),
     overwrite: bool = Switch(False, "Replace an earlier model."),
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
@@ -131,15 +132,11 @@ def oc_train(
     from macrostate_mj.core.io import prepare_out_dir, write_manifest
 
     prepare_out_dir(out, ["weights.pt", "model.json"], overwrite)
-    import torch
-
     from estimators.oneclass import OCConfig, fit
     from macrostate_mj.formats.hsants import open_dataset
 
     cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device).scaled(
         epoch_scale).overridden(settings)
-    if device == "cuda" and not torch.cuda.is_available():
-        raise UserError("--device cuda but torch sees no GPU; use --device cpu")
     d = open_dataset(data)
     train, _ = d.split(split)
     x = d.load("Stable", train, m)
@@ -239,6 +236,7 @@ def experiment_oc(
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
                               "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
+    device: str = Device(),
     probe_test: bool = Switch(False, "Research only: score the test and unstable samples after "
                               "every DSVDD and classifier epoch and report what choosing the "
                               "checkpoint on them would score (the published code's protocol); "
@@ -263,7 +261,7 @@ def experiment_oc(
     for m in m_list:
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
-    cfg = OCConfig.recipe(recipe, seed=seed, threads=threads).scaled(
+    cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device).scaled(
         epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
     exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
                        unstable=unstable, seeds=seeds, probe=probe_test)

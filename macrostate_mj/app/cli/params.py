@@ -106,6 +106,21 @@ def Choice(default: Any, help: str, choices: Sequence[str], flag: str | None = N
                         callback=_checked(check, "choice"), **kw)
 
 
+def Device() -> Any:  # noqa: N802
+    """`--device`: where torch trains; cuda only where torch sees a GPU (checked while parsing,
+    so a run never starts on a device it cannot use)."""
+    def check(v: str) -> None:
+        if v not in ("cpu", "cuda"):
+            _fail(f"{v!r} is not one of cpu, cuda")
+        if v == "cuda":
+            import torch
+
+            if not torch.cuda.is_available():
+                _fail("cuda: torch sees no GPU here; use --device cpu")
+    return typer.Option("cpu", help="Where torch trains. One of: cpu, cuda.",
+                        callback=_checked(check, "choice"))
+
+
 def _scenario() -> Any:
     from macrostate_mj.chain.scenarios import SCENARIOS
 

@@ -169,6 +169,7 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
     figures.flow_weight_figure(out / PRODUCTS[2], *weights)
     figures.bins_figure(out / PRODUCTS[3], fig48, marks)
     results["figures_run"], (model, x, xs, xu) = keep
+    model = model.to("cpu")
     results["fig4_10"] = figures.model_figures(out / PRODUCTS[4], out / PRODUCTS[5], model, x, xs,
                                                xu)
     results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xu,
