@@ -270,6 +270,8 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
         raise UserError(f"unknown method {unknown[0]!r}; choose from {', '.join(METHODS)}")
     tick = tick or (lambda stage, frac: None)
     torch.set_num_threads(cfg.threads)
+    if cfg.device == "cuda":   # cuDNN's fastest convolutions differ from run to run
+        torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
     torch.manual_seed(cfg.seed)  # weight initialisation
     gen = torch.Generator().manual_seed(cfg.seed)
     cache = StageCache(stages_dir, stage_key(x, cfg), gen, snapshot_every_s, cfg.device)
