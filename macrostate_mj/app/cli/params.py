@@ -99,19 +99,22 @@ def Fraction(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
 def Choice(default: Any, help: str, choices: Sequence[str], flag: str | None = None,  # noqa: N802
            **kw: Any) -> Any:
     """One of `choices` (each, when repeatable), listed in the help text."""
+    return typer.Option(default, *_flags(flag), help=f"{help} One of: {', '.join(choices)}.",
+                        callback=_checked(_one_of(choices), "choice"), **kw)
+
+
+def _one_of(choices: Sequence[str]) -> Callable[[str], None]:
     def check(v: str) -> None:
         if v not in choices:
             _fail(f"{v!r} is not one of {', '.join(choices)}")
-    return typer.Option(default, *_flags(flag), help=f"{help} One of: {', '.join(choices)}.",
-                        callback=_checked(check, "choice"), **kw)
+    return check
 
 
 def Device() -> Any:  # noqa: N802
     """`--device`: where torch trains; cuda only where torch sees a GPU (checked while parsing,
     so a run never starts on a device it cannot use)."""
     def check(v: str) -> None:
-        if v not in ("cpu", "cuda"):
-            _fail(f"{v!r} is not one of cpu, cuda")
+        _one_of(("cpu", "cuda"))(v)
         if v == "cuda":
             import torch
 
