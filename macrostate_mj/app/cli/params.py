@@ -113,14 +113,17 @@ def _one_of(choices: Sequence[str]) -> Callable[[str], None]:
 def Device() -> Any:  # noqa: N802
     """`--device`: where torch trains; cuda only where torch sees a GPU (checked while parsing,
     so a run never starts on a device it cannot use)."""
+    devices = ("cpu", "cuda")
+    known = _one_of(devices)
+
     def check(v: str) -> None:
-        _one_of(("cpu", "cuda"))(v)
+        known(v)
         if v == "cuda":
             import torch
 
             if not torch.cuda.is_available():
                 _fail("cuda: torch sees no GPU here; use --device cpu")
-    return typer.Option("cpu", help="Where torch trains. One of: cpu, cuda.",
+    return typer.Option("cpu", help=f"Where torch trains. One of: {', '.join(devices)}.",
                         callback=_checked(check, "choice"))
 
 
