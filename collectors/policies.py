@@ -31,7 +31,7 @@ class PolicyHook(Protocol):
 
 class PolicySpec(Protocol):
     """A picklable policy configuration that an episode task carries to its worker, where
-    `build` makes the hook (the SR phase's lives in `estimators.srs.policy`); `tracker` is the
+    `build` makes the hook (the SR phase's lives in `collectors.srs_policy`); `tracker` is the
     episode's camera chain, for a policy that acts on tracked poses."""
 
     name: str

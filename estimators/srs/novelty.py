@@ -73,7 +73,8 @@ class NoveltyNet(nn.Module):
 
 
 class NoveltyModel:
-    """A trained (φ, ψ, ζ) with numpy in and out, in the features of `srs_windows`."""
+    """A trained (φ, ψ, ζ) with numpy in and out, in the features of `srs_windows` (the SR
+    phase's Tail sees it as a `NoveltyScorer`)."""
 
     def __init__(self, net: NoveltyNet, cfg: NoveltyConfig, robots: int, scenario: str,
                  info: dict | None = None):
@@ -210,3 +211,37 @@ def load_novelty(path: str | os.PathLike, robots: int | None = None,
     net = NoveltyNet(cfg)
     net.load_state_dict(ckpt["state_dict"])
     return NoveltyModel(net, cfg, ckpt["robots"], ckpt["scenario"], ckpt.get("info"))
+
+
+@dataclass(frozen=True)
+class NoveltyFile:
+    """Models stored by `save_novelty`, as the SR phase's Tail loads them in each episode
+    (a `formats.srs_windows.NoveltySource`): the path and hash name them in the plan."""
+
+    path: str
+    sha256: str = ""
+
+    def load(self) -> NoveltyModel:
+        return load_novelty(self.path)
+
+
+@dataclass(frozen=True)
+class NoveltyTraining:
+    """These models as `collectors.srs.collect_srs` makes them (its `NoveltyTrainer`), wired
+    in by `app`: collectors cannot import estimators."""
+
+    cfg: NoveltyConfig | None = None    # None: the defaults, seeded with the collection's seed
+
+    def config(self, seed: int) -> NoveltyConfig:
+        return self.cfg or NoveltyConfig(seed=seed)
+
+    def stored_key(self, path: Path, robots: int, scenario: str) -> str | None:
+        return load_novelty(path, robots, scenario).info.get("data_key")
+
+    def train(self, tracks: np.ndarray, config: NoveltyConfig, scenario: str, path: Path,
+              data_key: str, progress: bool) -> None:
+        model, info = train_novelty(tracks, config, scenario, progress=progress)
+        save_novelty(path, model, {**info, "data_key": data_key})
+
+    def source(self, path: Path, sha256: str) -> NoveltyFile:
+        return NoveltyFile(str(path), sha256)

@@ -5,10 +5,13 @@ beyond, H (in a 3-robot team, the Head). Each step becomes 8 features: F's posit
 cos, sin of its heading, then H's, all in the frame of the Tail at the window's last step
 (`core.frames`: origin at the Tail, x along Tail→F). h′_t of §3.3.1 is such a window (ℓ − 1 = 9
 steps for ℓ = 10); the step after it is the next-step predictor ζ's target, in the same frame.
-Pure numpy: the collector scores windows online with these, the estimator trains on them.
+Pure numpy: the collector scores windows online with these, the estimator trains on them; the
+two meet only through `NoveltyScorer` and `NoveltySource` (independent layers, see pyproject).
 """
 
 from __future__ import annotations
+
+from typing import Protocol
 
 import numpy as np
 
@@ -17,6 +20,26 @@ from macrostate_mj.core.frames import frame_of, from_frame, to_frame
 WINDOW = 9          # ℓ − 1 steps (§3.3.1: h′_t drops the latest of ℓ = 10)
 FEATURES = 8        # per step: F (x, y, cos, sin), H (x, y, cos, sin)
 CM = 100.0
+
+
+class NoveltyScorer(Protocol):
+    """What the SR phase's Tail asks of the novelty models (φ, ψ, ζ), in these windows'
+    features: enough to hallucinate the next step and score candidates, nothing of training."""
+
+    def predict_next(self, windows: np.ndarray) -> np.ndarray:
+        """ζ(φ(h′)): the step after each window (B, WINDOW, 8) -> (B, 8), in its frame."""
+        ...
+
+    def novelty(self, windows: np.ndarray) -> np.ndarray:
+        """e, the novelty index, of each window (B, WINDOW, 8) -> (B,)."""
+        ...
+
+
+class NoveltySource(Protocol):
+    """A stored scorer that each episode loads where it runs (a worker, a Ray node): it must
+    pickle, and be a dataclass, since the collection's plan records its fields."""
+
+    def load(self) -> NoveltyScorer: ...
 
 
 def module_of(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

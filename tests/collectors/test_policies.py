@@ -1,10 +1,16 @@
 """Chapter 3's Rand-Only phase (§3.3): the Tail adds w ~ N(0, σ² I) to its destination, σ =
-0.75 × 11 cm, alternating random and passive modes every 6 log steps."""
+0.75 × 11 cm, alternating random and passive modes every 6 log steps; and the SR phase's Tail
+on a stand-in novelty model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from collectors.policies import PolicyConfig, TailPolicy
+from collectors.srs_policy import SRSConfig
 from macrostate_mj.chain.motion import ROBOT_SIZE_M
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
@@ -70,3 +76,34 @@ def test_bad_policy_input():
         PolicyConfig("wild")
     with pytest.raises(UserError, match="--sigma"):
         PolicyConfig("random", -1.0)
+
+
+@dataclass(frozen=True)
+class _Leftmost:
+    """A stand-in novelty model (no torch, no estimators): ζ says nothing moves, and e is how
+    far left of the Tail→F axis H ends, so the Tail's pick is known."""
+
+    def load(self) -> _Leftmost:
+        return self
+
+    def predict_next(self, windows: np.ndarray) -> np.ndarray:
+        return windows[:, -1]
+
+    def novelty(self, windows: np.ndarray) -> np.ndarray:
+        return windows[:, -1, 5]
+
+
+def test_the_srs_tail_drives_to_its_pick_through_the_scorer_interface():
+    """The SR phase's Tail needs only a `NoveltyScorer`: with SRS-Max, each scored step's pick
+    is the candidate of largest e, and its offset is the one set."""
+    sim = ChainSim(build_world(get_scenario("webots"), 3))
+    sim.reset(np.random.default_rng(5))
+    policy = SRSConfig(_Leftmost(), "max", k=6).build(np.random.default_rng([5, 2]))
+    offsets = []
+    sim.run(15.0, [Every(0.5, lambda s: (policy(s), offsets.append(s.tail_offset.copy())))])
+    rec = policy.records()
+    es, picks = np.array(rec["e"].to_pylist()), rec["pick"].to_numpy()
+    assert rec.num_rows >= 6 and np.array_equal(picks, np.argmax(es, axis=1))
+    cands = np.array(rec["offsets"].to_pylist()).reshape(rec.num_rows, 6, 2)
+    times = np.round(rec["t"].to_numpy() / 0.5).astype(int)
+    assert np.array_equal(np.array(offsets)[times], cands[np.arange(rec.num_rows), picks])

@@ -8,16 +8,16 @@ import torch
 from clitools import assert_clean_error, cli
 
 from collectors.policies import PolicyConfig
-from estimators.srs import PICKS
+from collectors.srs_policy import PICKS, SRSConfig, pick_index
 from estimators.srs.novelty import (
     NoveltyConfig,
+    NoveltyFile,
     NoveltyModel,
     NoveltyNet,
     load_novelty,
     save_novelty,
     train_novelty,
 )
-from estimators.srs.policy import SRSConfig, pick_index
 from macrostate_mj.chain.motion import drive_tail
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
@@ -116,7 +116,8 @@ def test_the_srs_tail_drives_to_its_pick_on_a_fixed_model(tmp_path, pick):
         world = build_world(get_scenario("webots"), 3)
         sim = ChainSim(world)
         sim.reset(np.random.default_rng(seed))
-        policy = SRSConfig(str(path), "", pick, k=9).build(np.random.default_rng([seed, 2]))
+        policy = SRSConfig(NoveltyFile(str(path)), pick, k=9).build(
+            np.random.default_rng([seed, 2]))
         offsets = []
         sim.run(30.0, [Every(0.5, lambda s: (policy(s), offsets.append(s.tail_offset.copy())))])
         return policy.records(), np.array(offsets)
@@ -144,7 +145,7 @@ def test_a_tracking_srs_tail_scores_the_tracked_poses(tmp_path):
     path = str(save_novelty(tmp_path / "m.pt", model, {}))
     first = []
     for track in (False, True):
-        policy = SRSConfig(path, "", "max", k=9, track=track)
+        policy = SRSConfig(NoveltyFile(path), "max", k=9, track=track)
         _, table, stats = run_episode(EpisodeSpec("webots", 3, 12.0, 0.0, 7, 0, policy))
         first.append(np.array(stats["decisions"]["e"].to_pylist()[0]))
     assert not np.array_equal(first[0], first[1])
@@ -163,7 +164,7 @@ def test_novelty_models_refuse_another_team_or_format(tmp_path, trained):
     with pytest.raises(UserError, match="version 99"):
         load_novelty(tmp_path / "v.pt")
     with pytest.raises(UserError, match="at least 2 candidates"):
-        SRSConfig("x", "", "max", k=1)
+        SRSConfig(NoveltyFile("x"), "max", k=1)
 
 
 SRS = ["collect", "--scenario", "webots", "--robots", "3", "--policy", "srs", "--srs", "med",

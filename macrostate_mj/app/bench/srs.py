@@ -19,14 +19,21 @@ def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dic
 
     from collectors.episodes import EpisodeSpec, run_episode
     from collectors.policies import PolicyConfig
-    from estimators.srs.novelty import NoveltyConfig, NoveltyModel, NoveltyNet, save_novelty
-    from estimators.srs.policy import SRSConfig
+    from collectors.srs_policy import SRSConfig
+    from estimators.srs.novelty import (
+        NoveltyConfig,
+        NoveltyFile,
+        NoveltyModel,
+        NoveltyNet,
+        save_novelty,
+    )
 
     torch.manual_seed(0)
     with tempfile.TemporaryDirectory() as tmp:
         path = str(save_novelty(Path(tmp) / "m.pt", NoveltyModel(
             NoveltyNet(NoveltyConfig()), NoveltyConfig(), 3, "webots"), {}))
-        policies = {"passive": PolicyConfig("passive"), "srs": SRSConfig(path, "", "max", k)}
+        srs = SRSConfig(NoveltyFile(path), "max", k)
+        policies = {"passive": PolicyConfig("passive"), "srs": srs}
         run_episode(EpisodeSpec("webots", 3, 5.0, 0.0, 0, 0))          # warm-up (imports, GL)
         best = dict.fromkeys(policies, np.inf)
         scored = 0

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from collectors.policies import POLICIES
-from estimators.srs import PICKS
+from collectors.srs_policy import PICKS
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.cli.params import (
     MAX_SECONDS,
@@ -91,7 +91,8 @@ def collect(
 
 def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
                  track: bool) -> None:
-    from macrostate_mj.app.srs import SRSRequest, collect_srs
+    from collectors.srs import SRSRequest, collect_srs
+    from estimators.srs.novelty import NoveltyTraining
     from macrostate_mj.core.progress import LoggedProgress
 
     with LoggedProgress(transient=True) as bar:
@@ -101,6 +102,6 @@ def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
             bar.update(task, completed=done, total=total, description=stage)
 
         written = collect_srs(SRSRequest(req, pick, instances, ro_instances, k, track),
-                              progress)
+                              NoveltyTraining(), progress)
     for kind, path in written.items():
         typer.echo(f"{kind:<16} {path}")

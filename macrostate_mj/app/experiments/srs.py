@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
+from collectors.srs import SRSRequest, collect_srs, episodes_for
 from macrostate_mj.app.experiments import mean_std
-from macrostate_mj.app.srs import SRSRequest, collect_srs, episodes_for
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
 from macrostate_mj.core.parallel import runner_for
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
@@ -101,8 +101,11 @@ class _SRSDataset(_Dataset):
 
     def ensure(self, profile: SRSProfile, workers: int, ray: str | None) -> Path:
         if not (self.out / "manifest.json").exists():
+            from estimators.srs.novelty import NoveltyTraining  # torch, only when collecting
+
             collect_srs(SRSRequest(self.request(workers, ray, profile), self.pick,
-                                   self.instances, profile.ro_instances, profile.k))
+                                   self.instances, profile.ro_instances, profile.k),
+                        NoveltyTraining())
         return self.csv
 
 

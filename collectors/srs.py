@@ -7,8 +7,10 @@
 3. SR (Selective-Random): `instances - ro_instances` more with the SRS Tail (`OUT/sr/`, with
    `decisions.parquet`: per scored step the k candidates' offsets, e and the pick);
 4. the dataset in `OUT/`: the RO instances then the SR ones, in the ThymioLoc layout.
-Each stage is cached: a rerun after a kill resumes where it stopped (the collections shard by
-shard). SR episodes take indices after the RO ones, so no episode repeats another's seeds.
+Each stage is cached: a rerun after a kill resumes where it stopped (the collections episode by
+episode). SR episodes take indices after the RO ones, so no episode repeats another's seeds.
+The novelty models come through `NoveltyTrainer`, which the caller passes in: `collectors` and
+`estimators` are independent layers (pyproject's import contract).
 """
 
 from __future__ import annotations
@@ -18,12 +20,15 @@ import math
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
+from collectors.policies import PolicyConfig, PolicySpec
 from collectors.runner import SPLIT_NAMES, CollectRequest, collect, finished, parse_split, plan
+from collectors.srs_policy import SRSConfig, check_srs
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path, prepare_out_dir, write_manifest
@@ -33,6 +38,7 @@ from macrostate_mj.formats.instances import (
     instance_starts,
     split_indices,
 )
+from macrostate_mj.formats.srs_windows import NoveltySource
 from macrostate_mj.formats.thymioloc import read_csv, write_csv
 
 PRODUCTS = ["instances.csv", "instances_truth.csv", "decisions.parquet",  # novelty.pt: a stage
@@ -47,7 +53,28 @@ class SRSRequest:
     ro_instances: int
     k: int = 30
     track: bool = False         # the Tail acts on, and its models learn from, tracked poses
-    novelty: object = field(default=None)     # a NoveltyConfig; None: its defaults
+
+
+class NoveltyTrainer(Protocol):
+    """The novelty models' stage as this collection needs it, without knowing how they are made
+    (`estimators.srs.novelty.NoveltyTraining`, passed in by `app`)."""
+
+    def config(self, seed: int) -> object:
+        """The training settings for a collection of `seed`; their repr keys the cached model."""
+        ...
+
+    def stored_key(self, path: Path, robots: int, scenario: str) -> str | None:
+        """The data key of the models stored at `path`; refuses another team's or scenario's."""
+        ...
+
+    def train(self, tracks: np.ndarray, config: object, scenario: str, path: Path,
+              data_key: str, progress: bool) -> None:
+        """Train on RO team tracks (instances, steps, n, 3) and store the models at `path`."""
+        ...
+
+    def source(self, path: Path, sha256: str) -> NoveltySource:
+        """The stored models as the SR phase's Tail loads them in each episode."""
+        ...
 
 
 def episodes_for(req: CollectRequest, instances: int) -> int:
@@ -62,7 +89,7 @@ def episodes_for(req: CollectRequest, instances: int) -> int:
     return math.ceil(instances / per)
 
 
-def _phase(req: SRSRequest, name: str, instances: int, first: int, policy: object
+def _phase(req: SRSRequest, name: str, instances: int, first: int, policy: PolicySpec
            ) -> CollectRequest:
     base = req.base
     n = episodes_for(base, instances)
@@ -71,33 +98,29 @@ def _phase(req: SRSRequest, name: str, instances: int, first: int, policy: objec
 
 
 def validate(req: SRSRequest) -> None:
+    """Refuse a request the phases cannot serve, before anything is written."""
     if req.ro_instances < 2:
         raise UserError(f"--ro-instances must be at least 2, got {req.ro_instances}")
     if req.ro_instances >= req.instances:
         raise UserError(f"--ro-instances {req.ro_instances} leaves no SR phase within "
                         f"--instances {req.instances}; give fewer RO instances than instances")
-    from estimators.srs.policy import SRSConfig
-
-    SRSConfig("", "", req.pick, req.k, req.base.sigma)     # checks pick, k and sigma
+    check_srs(req.pick, req.k, req.base.sigma)
     if req.base.robots < 3:
         raise UserError(f"--policy srs needs a team of at least 3 robots, got {req.base.robots}")
 
 
-def collect_srs(req: SRSRequest, progress: Callable[[str, int, int], None] | None = None
-                ) -> dict[str, Path]:
-    """Run (or resume) the four stages; returns the written paths."""
-    from collectors.policies import PolicyConfig
-    from estimators.srs.novelty import NoveltyConfig, load_novelty, save_novelty, train_novelty
-    from estimators.srs.policy import SRSConfig
-
+def collect_srs(req: SRSRequest, novelty: NoveltyTrainer,
+                progress: Callable[[str, int, int], None] | None = None) -> dict[str, Path]:
+    """Run (or resume) the four stages, the models made by `novelty`; returns the written
+    paths."""
     validate(req)
     fractions = parse_split(req.base.split)
     out = prepare_out_dir(req.base.out, PRODUCTS, req.base.overwrite)
     model_path = out / "novelty.pt"
     robots, scenario = req.base.robots, req.base.scenario
-    cached = None
+    cached_key = None
     if model_path.exists() and not req.base.overwrite:  # an earlier run's must fit this team
-        cached = load_novelty(model_path, robots, scenario)
+        cached_key = novelty.stored_key(model_path, robots, scenario)
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -108,18 +131,17 @@ def collect_srs(req: SRSRequest, progress: Callable[[str, int, int], None] | Non
     timings["ro_phase"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    cfg = req.novelty or NoveltyConfig(seed=req.base.seed)
+    cfg = novelty.config(req.base.seed)
     data = ro_req.out / ("instances.csv" if req.track else "instances_truth.csv")
     key = hashlib.sha256(data.read_bytes() + repr((cfg, req.ro_instances)).encode()).hexdigest()
-    if cached is None or cached.info.get("data_key") != key:     # else: the cached stage
+    if cached_key != key:     # else: the cached stage
         tracks = _tracks(data, ro_req, req.ro_instances)
-        model, info = train_novelty(tracks, cfg, scenario, progress=progress is not None)
-        save_novelty(model_path, model, {**info, "data_key": key})
+        novelty.train(tracks, cfg, scenario, model_path, key, progress is not None)
     timings["novelty_models"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     sha = hashlib.sha256(model_path.read_bytes()).hexdigest()
-    srs = SRSConfig(str(model_path.resolve()), sha, req.pick, req.k, req.base.sigma,
+    srs = SRSConfig(novelty.source(model_path.resolve(), sha), req.pick, req.k, req.base.sigma,
                     track=req.track)
     sr_req = _phase(req, "sr", req.instances - req.ro_instances, n_ro, srs)
     if req.base.overwrite or not finished(sr_req):

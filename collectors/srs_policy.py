@@ -12,26 +12,44 @@ Per random-mode log step, from the last `WINDOW` steps of the team's poses (grou
 Passive mode (every other `alternate` steps) and the first steps of an episode, before a whole
 window exists (or, with `track`, while a robot has not been seen yet), behave as the RO phase
 does. The team's poses are the truth, or with `track` the overhead tracker's latest.
+
+The novelty models are seen only as `formats.srs_windows.NoveltyScorer`, loaded from the
+config's `NoveltySource` in the episode: `estimators` trains them, and is not imported here.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
 
-from estimators.srs import PICKS
 from macrostate_mj.chain.motion import draw_tail_offsets, drive_tail
 from macrostate_mj.chain.sim import ChainSim, Tracker
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.frames import frame_of
-from macrostate_mj.formats.srs_windows import WINDOW, features_to_poses, module_of, window_features
+from macrostate_mj.formats.srs_windows import (
+    WINDOW,
+    NoveltyScorer,
+    NoveltySource,
+    features_to_poses,
+    module_of,
+    window_features,
+)
 
-if TYPE_CHECKING:
-    from estimators.srs.novelty import NoveltyModel
+# The pick policies of §3.5.2.1 as the quantile of the novelty e they take. "Q3" and "Q2" are
+# read as the upper and lower quartile (the text's "second and third quantile" is ambiguous).
+PICKS = {"max": 1.0, "q3": 0.75, "med": 0.5, "q2": 0.25}
 
+
+def check_srs(pick: str, k: int, sigma: float) -> None:
+    """Refuse a pick, candidate count or σ the Tail cannot use, before anything is collected."""
+    if pick not in PICKS:
+        raise UserError(f"unknown SRS pick {pick!r}; choose one of {', '.join(PICKS)}")
+    if k < 2:
+        raise UserError(f"--k must be at least 2 candidates, got {k}")
+    if sigma < 0:
+        raise UserError(f"--sigma must be non-negative, got {sigma}")
 
 
 def pick_index(e: np.ndarray, quantile: float) -> int:
@@ -45,8 +63,7 @@ def pick_index(e: np.ndarray, quantile: float) -> int:
 class SRSConfig:
     """The SR phase's policy: a `collectors` policy config (`build` makes its hook)."""
 
-    model: str                 # path of the novelty model (φ, ψ, ζ)
-    model_sha256: str          # which model: part of the collection's plan
+    model: NoveltySource       # the novelty models; which ones is part of the collection's plan
     pick: str = "max"
     k: int = 30
     sigma: float = 0.75        # fraction of the robot size, as in the RO phase
@@ -55,26 +72,19 @@ class SRSConfig:
     name: str = field(default="srs", init=False)
 
     def __post_init__(self) -> None:
-        if self.pick not in PICKS:
-            raise UserError(f"unknown SRS pick {self.pick!r}; choose one of {', '.join(PICKS)}")
-        if self.k < 2:
-            raise UserError(f"--k must be at least 2 candidates, got {self.k}")
-        if self.sigma < 0:
-            raise UserError(f"--sigma must be non-negative, got {self.sigma}")
+        check_srs(self.pick, self.k, self.sigma)
 
     def build(self, rng: np.random.Generator, tracker: Tracker | None = None) -> SRSPolicy:
-        from estimators.srs.novelty import load_novelty  # torch, only where the hook runs
-
         if self.track and tracker is None:
             raise UserError("an SRS Tail with track=True needs the episode's tracker")
-        return SRSPolicy(self, load_novelty(self.model), rng, tracker if self.track else None)
+        return SRSPolicy(self, self.model.load(), rng, tracker if self.track else None)
 
 
 class SRSPolicy:
     """A periodic hook, one call per log step, setting the simulation's Tail offset; keeps per
     scored step the candidates' e and the pick (`records`)."""
 
-    def __init__(self, cfg: SRSConfig, model: NoveltyModel, rng: np.random.Generator,
+    def __init__(self, cfg: SRSConfig, model: NoveltyScorer, rng: np.random.Generator,
                  tracker: Tracker | None = None):
         self.cfg, self.model, self.rng, self.tracker = cfg, model, rng, tracker
         self.step = 0
