@@ -1,7 +1,9 @@
-"""The Tail as an agent: a dm_control environment (`task`) and its Gymnasium view (`gym`).
+"""The Tail as an agent: dm_control tasks (`suite.SUITE`: `explore`, `caging`; `suite.load`
+builds one's environment) and their Gymnasium view (`gym.TailEnv`).
 
 Importing this package registers the Gymnasium ids (`gymnasium.make("macrostate_mj/
-ExploreTail-v0")`). The testbed core never imports it; it imports the core.
+ExploreTail-v0")`), by entry point only: it imports nothing of the env itself. The testbed core
+never imports it; it imports the core.
 """
 
 import gymnasium

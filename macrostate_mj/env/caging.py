@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import collections
 
+import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 from dm_env import specs
 
-from macrostate_mj.chain.caging import CagingConfig, cage_report, start_poses
+from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
 from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.world import World
 from macrostate_mj.env.task import TailTask
 
 SETTLE_S = 5.0
@@ -34,7 +36,7 @@ class CagingTask(TailTask):
 
     def __init__(self, sim: ChainSim, caging: CagingConfig, history: int = 10,
                  observe: str = "truth", random: np.random.RandomState | int | None = None):
-        super().__init__(sim, "caging", history, observe, random)
+        super().__init__(sim, history, observe, random)
         self.caging = caging
         self.max_offset = 2 * sim.cfg.spacing
         self.team_at_start = np.zeros((sim.n, 3))
@@ -42,6 +44,26 @@ class CagingTask(TailTask):
         self.caged = False
         self.shared: np.ndarray | None = None
         self._ticks = 0
+
+    @classmethod
+    def create(cls, world: World, data: mujoco.MjData, history: int = 10,
+               observe: str = "truth", random: np.random.RandomState | int | None = None,
+               caging: CagingConfig | None = None) -> CagingTask:
+        """The task on a simulation of `world` with the caging mission of `caging` (default
+        `CagingConfig()`), checked against the arena."""
+        caging = caging or CagingConfig()
+        caging.validate(world.scenario.arena)
+        sim = ChainSim(world, data=data, mission=CagingMission(caging))
+        return cls(sim, caging, history, observe, random)
+
+    def reset_info(self) -> dict:
+        return {"team_at_start": self.team_at_start.copy()}
+
+    def step_info(self) -> dict:
+        info = {**super().step_info(), "caged_at": self.caged_at}
+        if self.shared is not None:          # the team shares its poses (Head first)
+            info["team"] = self.shared.copy()
+        return info
 
     def initialize_episode(self, physics: dm_mujoco.Physics) -> None:
         rng = np.random.default_rng(self.random.randint(2**31))
@@ -84,6 +106,4 @@ class CagingTask(TailTask):
 
     def get_termination(self, physics: dm_mujoco.Physics) -> float | None:
         settled = self.caged_at is not None and self.sim.time >= self.caged_at + SETTLE_S - 1e-9
-        if self.fault is not None or settled:
-            return 0.0
-        return None
+        return 0.0 if settled else super().get_termination(physics)

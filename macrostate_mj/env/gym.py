@@ -1,9 +1,9 @@
-"""The Gymnasium view of `task.make_environment`: spaces from the dm_control specs, Gymnasium
-seeding, and the overhead camera as `render_mode="rgb_array"`.
+"""The Gymnasium view of a `suite` task: spaces from the dm_control specs, Gymnasium seeding,
+and the overhead camera as `render_mode="rgb_array"`.
 
 A wrapper of our own rather than shimmy's `DmControlCompatibilityV0`: shimmy renders through
 dm_control's own cameras (and needs imageio), registers the whole dm_control suite when imported,
-and seeds the task by replacing its RandomState, which we do here in ten lines.
+and seeds the task by replacing its RandomState; we seed through `TailTask.seed`.
 """
 
 from __future__ import annotations
@@ -12,14 +12,18 @@ from typing import Any
 
 import gymnasium
 import numpy as np
+from dm_control.rl import control
 from gymnasium import spaces
 
-from macrostate_mj.env.task import make_environment
+from macrostate_mj.env.suite import load
+from macrostate_mj.env.task import TailTask
 
 
 class TailEnv(gymnasium.Env):
     """The Tail as an agent (see `macrostate_mj.env.task`): Dict observation of its own and
-    its neighbour's (history, 3) poses (x, y m; θ rad), a 2-D destination offset as action."""
+    its neighbour's (history, 3) poses (x, y m; θ rad), a 2-D destination offset as action.
+    `environment` is the dm_control environment it wraps, `task` its task (`task.sim` the
+    simulation)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
@@ -29,44 +33,42 @@ class TailEnv(gymnasium.Env):
         if render_mode not in (None, "rgb_array"):
             raise gymnasium.error.Error(f"render_mode {render_mode!r}; only 'rgb_array' or None")
         self.render_mode = render_mode
-        self._env, self._task = make_environment(scenario, robots, task, history, observe,
-                                                 time_limit)
-        self.metadata = {**self.metadata, "render_fps": self._task.sim.cfg.command_hz}
-        spec = self._env.action_spec()
+        self.environment: control.Environment = load(task, scenario, robots, history, observe,
+                                                     time_limit)
+        self.metadata = {**self.metadata, "render_fps": self.task.sim.cfg.command_hz}
+        spec = self.environment.action_spec()
         self.action_space = spaces.Box(np.broadcast_to(spec.minimum, spec.shape).astype(np.float32),
                                        np.broadcast_to(spec.maximum, spec.shape).astype(np.float32),
                                        dtype=np.float32)
-        hx, hy = np.array(self._task.sim.cfg.arena) / 2      # walls bound every pose
+        hx, hy = np.array(self.task.sim.cfg.arena) / 2      # walls bound every pose
         low, high = np.array([-hx, -hy, -np.pi]), np.array([hx, hy, np.pi])
         self.observation_space = spaces.Dict({
             name: spaces.Box(np.broadcast_to(low, s.shape), np.broadcast_to(high, s.shape),
                              dtype=np.float64)
-            for name, s in self._env.observation_spec().items()})
+            for name, s in self.environment.observation_spec().items()})
         self._renderer = None
+
+    @property
+    def task(self) -> TailTask:
+        return self.environment.task
 
     def reset(self, *, seed: int | None = None, options: dict | None = None
               ) -> tuple[dict, dict]:
         super().reset(seed=seed)
-        self._task._random = np.random.RandomState(int(self.np_random.integers(2**31)))
-        step = self._env.reset()
-        start = getattr(self._task, "team_at_start", None)       # caging: the poses at τ
-        return self._obs(step.observation), ({} if start is None else
-                                             {"team_at_start": start.copy()})
+        self.task.seed(int(self.np_random.integers(2**31)))
+        step = self.environment.reset()
+        return self._obs(step.observation), self.task.reset_info()
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
         action = np.asarray(action, np.float64)
         if not self.action_space.contains(action.astype(np.float32)):
             raise gymnasium.error.InvalidAction(
                 f"action {action.tolist()} is outside {self.action_space}")
-        step = self._env.step(action)
+        step = self.environment.step(action)
         terminated = step.last() and step.discount == 0.0
         truncated = step.last() and not terminated
-        info = {"fault": None if self._task.fault is None else str(self._task.fault)}
-        if hasattr(self._task, "caged_at"):
-            info["caged_at"] = self._task.caged_at
-            if self._task.shared is not None:          # the team shares its poses (Head first)
-                info["team"] = self._task.shared.copy()
-        return self._obs(step.observation), float(step.reward), terminated, truncated, info
+        return (self._obs(step.observation), float(step.reward), terminated, truncated,
+                self.task.step_info())
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
@@ -74,16 +76,14 @@ class TailEnv(gymnasium.Env):
         from macrostate_mj.vision.camera import OverheadRenderer
 
         if self._renderer is None:
-            self._renderer = OverheadRenderer(self._task.sim.model)
-        return self._renderer.render(self._task.sim.data)
+            self._renderer = OverheadRenderer(self.task.sim.model)
+        return self._renderer.render(self.task.sim.data)
 
     def close(self) -> None:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        if self._task.camera is not None:
-            self._task.camera.close()
-            self._task.camera = None
+        self.task.close()
 
     @staticmethod
     def _obs(observation: dict) -> dict:

@@ -1,60 +1,78 @@
 """The Tail's task on dm_control's lifecycle (`suite.base.Task`: `initialize_episode`,
 `before_step`, `after_step`, `get_observation`, `get_reward`, `get_termination`, and its
-seeded `random`), and the `control.Environment` that runs it.
+seeded `random`): what every Tail task shares. The tasks themselves (`ExploreTask`,
+`CagingTask`) set the reward and the ending; `env.suite` names them and builds their
+`control.Environment`.
 
 One environment step is one command tick: the agent sets the Tail's destination offset (the same
 control SRS perturbs), every robot's controller runs (planner, motion rules, unicycle tracking),
 and MuJoCo steps to the next tick. The Tail observes its own pose and its neighbour's over the
 last `history` ticks: from the ground truth, or with `observe="camera"` its neighbour through
 the overhead camera, imaging noise and tracker (the Tail knows its own pose).
-
-Tasks (`TASKS`): `explore` rewards the change of the neighbour's position in the Tail's frame
-from one tick to the next (m): a plain exploration signal, not chapter 3's novelty index. An
-episode ends (discount 0) when the chain breaks (a neighbour gap over `BREAK_SPACINGS` × d) or
-the physics faults; it is truncated at `time_limit`.
 """
 
 from __future__ import annotations
 
 import collections
 
+import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
-from dm_control.mujoco import wrapper
-from dm_control.rl import control
 from dm_control.suite import base
 from dm_env import specs
 
-from macrostate_mj.chain.caging import CagingConfig, CagingMission
-from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.sim import ChainSim
-from macrostate_mj.chain.world import build_world, validate_chain
+from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
 
-TASKS = ("explore", "caging")
 OBSERVE = ("truth", "camera")
-BREAK_SPACINGS = 2.5
 
 
 class TailTask(base.Task):
-    """What the Tail sees, may do and is rewarded for (see the module docstring)."""
+    """What the Tail sees and may do (see the module docstring); subclasses say what it is
+    rewarded for (`get_reward`, abstract here) and when the episode ends."""
 
-    def __init__(self, sim: ChainSim, task: str = "explore", history: int = 10,
-                 observe: str = "truth", random: np.random.RandomState | int | None = None):
-        if task not in TASKS:
-            raise UserError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
+    def __init__(self, sim: ChainSim, history: int = 10, observe: str = "truth",
+                 random: np.random.RandomState | int | None = None):
         if observe not in OBSERVE:
             raise UserError(f"observe={observe!r}; choose one of {', '.join(OBSERVE)}")
         if history < 1:
             raise UserError(f"history must be at least 1 tick, got {history}")
         super().__init__(random=random)
-        self.sim, self.task, self.history, self.observe = sim, task, history, observe
+        self.sim, self.history, self.observe = sim, history, observe
         self.max_offset = sim.cfg.spacing            # the destination moves at most d
         self.camera = None
         self.fault = None
         self._tail: collections.deque = collections.deque(maxlen=history)
         self._neighbour: collections.deque = collections.deque(maxlen=history)
-        self._relative = np.zeros(2)
+
+    @classmethod
+    def create(cls, world: World, data: mujoco.MjData, history: int = 10,
+               observe: str = "truth", random: np.random.RandomState | int | None = None
+               ) -> TailTask:
+        """The task on a simulation of `world` that steps the physics' own `data` (what
+        `suite.load` calls: each task builds the simulation it needs)."""
+        return cls(ChainSim(world, data=data), history, observe, random)
+
+    def seed(self, random: np.random.RandomState | int | None) -> None:
+        """Draw the next episodes from `random` (a RandomState, or its seed): how the
+        Gymnasium view passes on `reset(seed=...)`."""
+        self._random = (random if isinstance(random, np.random.RandomState)
+                        else np.random.RandomState(random))
+
+    def reset_info(self) -> dict:
+        """What the Tail knows at the start beyond its observation (Gymnasium's reset info)."""
+        return {}
+
+    def step_info(self) -> dict:
+        """What a step reports beyond its observation (Gymnasium's step info)."""
+        return {"fault": None if self.fault is None else str(self.fault)}
+
+    def close(self) -> None:
+        """Release the camera's renderer (with `observe="camera"`)."""
+        if self.camera is not None:
+            self.camera.close()
+            self.camera = None
 
     # -- dm_control lifecycle ----------------------------------------------------------------
     def initialize_episode(self, physics: dm_mujoco.Physics) -> None:
@@ -76,7 +94,6 @@ class TailTask(base.Task):
         while len(self._tail) < self.history:       # a still history before the first tick
             self._tail.append(self._tail[-1])
             self._neighbour.append(self._neighbour[-1])
-        self._relative = self._relative_position()
 
     def before_step(self, action: np.ndarray, physics: dm_mujoco.Physics) -> None:
         action = np.asarray(action, np.float64)
@@ -105,16 +122,9 @@ class TailTask(base.Task):
         return collections.OrderedDict(tail=np.array(self._tail), neighbour=np.array(
             self._neighbour))
 
-    def get_reward(self, physics: dm_mujoco.Physics) -> float:
-        now = self._relative_position()
-        reward, self._relative = float(np.linalg.norm(now - self._relative)), now
-        return reward
-
     def get_termination(self, physics: dm_mujoco.Physics) -> float | None:
-        gaps = np.linalg.norm(np.diff(self.sim.poses[:, :2], axis=0), axis=1)
-        if self.fault is not None or gaps.max() > BREAK_SPACINGS * self.sim.cfg.spacing:
-            return 0.0
-        return None
+        """Every task ends (discount 0) when the physics faults."""
+        return 0.0 if self.fault is not None else None
 
     # -- what the Tail knows -----------------------------------------------------------------
     def _record(self) -> None:
@@ -127,38 +137,3 @@ class TailTask(base.Task):
                 self._neighbour[-1] if self._neighbour else neighbour)
         self._tail.append(poses[-1].copy())
         self._neighbour.append(np.asarray(neighbour, np.float64).copy())
-
-    def _relative_position(self) -> np.ndarray:
-        tail, neighbour = self._tail[-1], self._neighbour[-1]
-        d = neighbour[:2] - tail[:2]
-        c, s = np.cos(tail[2]), np.sin(tail[2])
-        return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-
-
-def make_environment(scenario: str = "lab", robots: int = 3, task: str = "explore",
-                     history: int = 10, observe: str = "truth", time_limit: float = 60.0,
-                     random: np.random.RandomState | int | None = None,
-                     caging: CagingConfig | None = None,
-                     ) -> tuple[control.Environment, TailTask]:
-    """A dm_control `Environment` of the Tail's task (and the task, for its simulation);
-    `caging` configures the caging task's object (default `CagingConfig()`)."""
-    if task not in TASKS:
-        raise UserError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
-    cfg = scenario_for(scenario)
-    validate_chain(cfg, robots, time_limit)
-    world = build_world(cfg, robots)
-    physics = dm_mujoco.Physics.from_model(wrapper.MjModel(world.model))
-    if task == "caging":
-        from macrostate_mj.env.caging import CagingTask
-
-        caging = caging or CagingConfig()
-        caging.validate(cfg.arena)
-        sim = ChainSim(world, data=physics.data.ptr, mission=CagingMission(caging))
-        tail: TailTask = CagingTask(sim, caging, history, observe, random)
-    else:
-        sim = ChainSim(world, data=physics.data.ptr)
-        tail = TailTask(sim, task, history, observe, random)
-    env = control.Environment(physics, tail, time_limit=time_limit,
-                              control_timestep=1 / cfg.command_hz)
-    return env, tail
-

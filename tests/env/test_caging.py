@@ -17,7 +17,7 @@ from macrostate_mj.chain.caging import (
 )
 from macrostate_mj.chain.motion import pull
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.env.task import make_environment
+from macrostate_mj.env.suite import load
 
 CFG = CagingConfig()
 
@@ -76,14 +76,14 @@ def test_caging_env_passes_the_checker_and_repeats_with_its_seed():
     assert np.array_equal(*runs)
     env.close()
     with pytest.raises(UserError, match="does not fit"):
-        make_environment("robotarium", 6, "caging", caging=CagingConfig(ring_radius=0.4))
+        load("caging", "robotarium", 6, caging=CagingConfig(ring_radius=0.4))
 
 
 def test_the_tail_senses_the_object_only_within_its_sensor_radius():
     env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=5.0)
     obs, _ = env.reset(seed=1)
     assert np.array_equal(obs["object"], np.zeros(3))          # starts in the far corner
-    task = env.unwrapped._task
+    task = env.unwrapped.task
     reach = CFG.object_radius + CFG.sensor_radius
     near = task.sense_object(np.array([reach - 0.01, 0.0]))
     assert np.allclose(near, [-(reach - 0.01), 0.0, 1.0])
@@ -94,22 +94,26 @@ def test_the_tail_senses_the_object_only_within_its_sensor_radius():
 def test_the_retlo_tail_receives_the_shared_poses():
     """The team's poses shared at a tick reach the Tail's estimator at that very step: with a
     module that knows nothing (it predicts zeros), the Head estimate of a sync step is the truth."""
-    from types import SimpleNamespace
+    from collectors.caging import LiveHeadSource
+    from estimators.retlo.mlp import OneStepModule
+    from estimators.retlo.online import OnlineChain
 
-    from macrostate_mj.app.experiments.caging import _retlo_source
+    class Blind(OneStepModule):
+        def predict(self, base: np.ndarray) -> np.ndarray:
+            return np.zeros((len(base), 3))
 
     env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=20.0)
     obs, info = env.reset(seed=2)
-    sim, stride = env.unwrapped._task.sim, 30
-    blind = SimpleNamespace(predict=lambda base: np.zeros((len(base), 3)))
-    source = _retlo_source(blind, env, info, 20.0, stride)
+    sim, stride = env.unwrapped.task.sim, 30
+    blind = OnlineChain(Blind(), sim.n, int(20.0 * sim.cfg.command_hz / stride) + 2)
+    source = LiveHeadSource(blind, info["team_at_start"], stride)
     share = int(round(CFG.share_every_s * sim.cfg.command_hz))
     heads = []
     for _ in range(share + (sim.n - 2) * stride + 1):
         heads.append(sim.poses[0, :2].copy())
         source(obs, info)
         obs, *_, info = env.step(np.zeros(2, np.float32))
-    tick, head = source.estimate()
+    tick, head = source.latest()
     assert tick == share and np.allclose(head, heads[share])
     env.close()
 

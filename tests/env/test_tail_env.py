@@ -8,7 +8,7 @@ from gymnasium.utils.env_checker import check_env
 
 import macrostate_mj.env  # noqa: F401  (registers the ids)
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.env.task import make_environment
+from macrostate_mj.env.suite import SUITE, load
 
 ID = "macrostate_mj/ExploreTail-v0"
 
@@ -47,7 +47,8 @@ def test_same_seed_same_episode_other_seed_another():
 def test_the_action_moves_the_tail():
     """Offsetting the destination to the Tail's left for 5 s puts it left of where the
     passive Tail drives (the SRS control, §3.3)."""
-    env, task = make_environment(robots=3, random=4)
+    env = load("explore", robots=3, random=4)
+    task = env.task
     left = np.array([0.0, task.max_offset])
     finals = []
     for offset in (np.zeros(2), left):
@@ -90,11 +91,29 @@ def test_bad_input():
     finally:
         env.close()
     with pytest.raises(UserError, match="unknown task"):
-        make_environment(task="cage-the-moon")
+        load("cage-the-moon")
     with pytest.raises(UserError, match="observe="):
-        make_environment(observe="sonar")
+        load(observe="sonar")
     with pytest.raises(UserError, match="do not fit"):
-        make_environment(scenario="robotarium", robots=400)
+        load(scenario="robotarium", robots=400)
+
+
+def test_the_suite_names_each_task_once_and_gymnasium_reaches_it_publicly():
+    """`SUITE` is the one registry; the Gymnasium view exposes its task (and simulation), and
+    seeding through it repeats the task's own draws."""
+    assert set(SUITE) == {"explore", "caging"}
+    for env_id, name in ((ID, "explore"), ("macrostate_mj/CagingTail-v0", "caging")):
+        env = gymnasium.make(env_id, time_limit=5.0)
+        try:
+            env.reset(seed=3)
+            task = env.unwrapped.task
+            assert type(task) is SUITE[name] and task.sim is env.unwrapped.environment.task.sim
+        finally:
+            env.close()
+    env = load("explore", random=9)
+    first = env.reset().observation["tail"]
+    env.task.seed(9)
+    assert np.array_equal(env.reset().observation["tail"], first)
 
 
 @pytest.mark.parametrize("env_id", [ID, "macrostate_mj/CagingTail-v0"])

@@ -115,7 +115,7 @@ def bench_env(seconds: float = 60.0) -> list[dict]:
     figures = []
     for task, scenario, robots in (("explore", "lab", 3), ("caging", "robotarium", 6)):
         env = TailEnv(task=task, scenario=scenario, robots=robots, time_limit=seconds + 1.0)
-        steps = int(round(seconds * env._task.sim.cfg.command_hz))
+        steps = int(round(seconds * env.task.sim.cfg.command_hz))
         zero = np.zeros(2, np.float32)
 
         def ours(env=env, steps=steps, zero=zero) -> None:
@@ -126,7 +126,7 @@ def bench_env(seconds: float = 60.0) -> list[dict]:
         mission = CagingMission(CagingConfig()) if task == "caging" else None
         sim = ChainSim(build_world(get_scenario(scenario), robots), mission=mission)
         env.reset(seed=0)
-        start = env._task.sim.poses.copy()
+        start = env.task.sim.poses.copy()
 
         def bare(sim=sim, start=start) -> None:
             sim.reset(np.random.default_rng(0), start)

@@ -5,14 +5,18 @@ Gymnasium API only.
 - retlo: runs the §2.5 three-MLP ReTLo estimator live at 1 Hz (`OnlineChain`, trained here on
   the robotarium training runs of `experiment retlo-sim` and on rehearsal caging runs, cached)
   from its own and its neighbour's observed positions and the poses the team shares (at τ and
-  every 5 s); when its last `TRACK_STEPS` estimates of the Head fit a circle of about the
-  boundary's size (`chain.caging.circling_centre`, loose `DETECTION` bounds), it encircles
+  every 5 s); when its last `chain.caging.TRACK_STEPS` estimates of the Head fit a circle of
+  about the boundary's size (`circling_centre`, loose `DETECTION` bounds), it encircles
   clockwise, against the Head: around the mean centre of the circles found, then, once its own
   sensor has the object (the `object` observation), around the object;
 - oracle: the same Tail fed the Head's true position each second (privileged): the upper bound;
 - random: a new uniform offset within the action bounds every second.
 Per policy over the seeds: success rate (caged before the time limit), time to cage, the final
 spacing's coefficient of variation (mean ± std), and Fig 2.3-style snapshots of the first seed.
+
+This module composes: the scripted Tail and the oracle are `chain.caging`'s, the episode, the
+live head source and the estimator's runs `collectors.caging`'s, the recordings
+`viz.caging_video`'s, the estimator `estimators.retlo`'s.
 """
 
 from __future__ import annotations
@@ -21,16 +25,21 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
 
+if TYPE_CHECKING:
+    import gymnasium
+
+    from collectors.caging import CagingPolicy
+    from estimators.retlo.mlp import ChainedMLP
+
 POLICIES = ("passive", "retlo", "oracle", "random")
 PRODUCTS = ["results.json", "snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp4",
             "retlo_seed0.rrd", "manifest.json"]
-TRACK_STEPS = 5        # how many of the Head's latest positions the Tail fits a circle to
-DETECTION = {"min_arc_deg": 90.0, "max_rms": 0.06, "radius_factor": 2.0}   # loose: estimates
 
 
 @dataclass(frozen=True)
@@ -44,94 +53,7 @@ class CagingExperiment:
     seed: int = 0
 
 
-class _Tail:
-    """A scripted Tail: watch the Head's track (one position per estimator step); once it
-    circles, encircle clockwise: around the mean centre of every circle found so far (an estimated
-    track gives a new, noisy fit at most steps) until its own sensor finds the object, then
-    around the object it senses (and remembers)."""
-
-    def __init__(self, env, head_source: Callable[[dict, dict], np.ndarray | None]):
-        from macrostate_mj.chain.caging import CagingConfig
-
-        task = env.unwrapped._task
-        self.sim_cfg, self.k_t = task.sim.cfg, task.sim.k_t
-        self.caging: CagingConfig = task.caging
-        self.bound = float(env.action_space.high[0])
-        self.head_source = head_source
-        self.track: list[np.ndarray] = []
-        self.found: list[np.ndarray] = []          # the centres of the circles found
-        self.sensed: np.ndarray | None = None      # the object's centre, once sensed
-        self.detected_at: float | None = None
-
-    @property
-    def centre(self) -> np.ndarray | None:
-        """Where the Tail encircles: the sensed object, else the circles' mean centre."""
-        if self.sensed is not None or not self.found:
-            return self.sensed
-        return np.mean(self.found, axis=0)
-
-    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
-        from macrostate_mj.chain.caging import (
-            circle_velocity,
-            circling_centre,
-            offset_for_velocity,
-        )
-
-        head = self.head_source(obs, info)
-        if head is not None:
-            self.track = [*self.track[-(TRACK_STEPS - 1):], head]
-            found = (circling_centre(np.array(self.track), self.caging, **DETECTION)
-                     if len(self.track) == TRACK_STEPS and self.sensed is None else None)
-            if found is not None:
-                self.found.append(found)
-                self.detected_at = self.detected_at or t
-        tail, fol = obs["tail"][-1], obs["neighbour"][-1]
-        if self.found and obs["object"][2] > 0:
-            self.sensed = tail[:2] + obs["object"][:2]
-        if self.centre is None:
-            return np.zeros(2, np.float32)
-        u = circle_velocity(tail[:2], self.centre, self.caging.ring_radius,
-                            self.sim_cfg.chain_speed, -1.0, self.caging.circle_gain)
-        w = offset_for_velocity(u, tail, fol, self.sim_cfg.spacing, self.k_t, self.bound)
-        return w.astype(np.float32)
-
-
-def _oracle_source(sim, stride: int) -> Callable[[dict, dict], np.ndarray | None]:
-    """The Head's true position every `stride` ticks (privileged, no lag)."""
-    ticks = [-1]
-
-    def source(_obs: dict, _info: dict) -> np.ndarray | None:
-        ticks[0] += 1
-        return sim.poses[0, :2].copy() if ticks[0] % stride == 0 else None
-    return source
-
-
-def _retlo_source(model, env, info: dict, seconds: float, stride: int
-                  ) -> Callable[[dict, dict], np.ndarray | None]:
-    """The Head's position as the Tail's live ReTLo estimator has it after each of its steps
-    (lagging n - 2 steps), from its observations and the poses the team shares (at τ and every
-    `share_every_s`); None between steps."""
-    from estimators.retlo_sim.estimate import OnlineChain
-
-    sim = env.unwrapped._task.sim
-    chain = OnlineChain(model.predict, sim.n, int(seconds * sim.cfg.command_hz / stride) + 2)
-    chain.start(info["team_at_start"][::-1])            # Tail first
-    ticks = [-1]          # the observation of tick k comes with the info of tick k
-
-    def source(obs: dict, step_info: dict) -> np.ndarray | None:
-        ticks[0] += 1
-        if ticks[0] == 0 or ticks[0] % stride:
-            return None
-        chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
-        if "team" in step_info:
-            chain.share(step_info["team"][::-1])
-        t, head = chain.head
-        return head.copy() if t > 0 else None
-    source.estimate = lambda: (chain.head[0] * stride, chain.head[1])   # (tick, Head)
-    return source
-
-
-def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
+def run_episode(policy: str, seed: int, cfg: CagingExperiment, model: ChainedMLP | None = None,
                 frames_every: float | None = None, video: Path | None = None,
                 rerun: Path | None = None) -> dict:
     """One seeded episode of one Tail; its outcome (and snapshots, a video with the object and
@@ -139,142 +61,73 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model=None,
     import gymnasium
 
     import macrostate_mj.env  # noqa: F401  (registers the ids)
-    from macrostate_mj.chain.caging import cage_report
+    from collectors.caging import run_caging_episode
+    from viz.caging_video import caging_recorders
 
     env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=cfg.time_limit)
     obs, info = env.reset(seed=seed)
-    sim = env.unwrapped._task.sim
-    tail, source = None, None
-    if policy == "retlo":
-        source = _retlo_source(model, env, info, cfg.time_limit, cfg.stride)
-        tail = _Tail(env, source)
-    elif policy == "oracle":
-        tail = _Tail(env, _oracle_source(sim, cfg.stride))
-    recorders = _recorders(sim, env.unwrapped._task.caging, video, rerun,
-                           lambda: None if tail is None or not tail.track else tail.track[-1])
-    rng = np.random.default_rng([cfg.seed, seed, 7])
-    action = np.zeros(2, np.float32)
-    frames, next_frame, done = [], 0.0, False
-    estimate = None
-    per_second = int(round(sim.cfg.command_hz))
-    heads, errors = [], []            # the Head's true track, the ReTLo estimate's errors
-    tick = 0
-    while not done:
-        t = sim.time
-        if frames_every is not None and t >= next_frame - 1e-9:
-            frames.append({"t": t, "poses": sim.poses.copy(), "head_estimate":
-                           None if estimate is None else estimate.copy()})
-            next_frame += frames_every
-        heads.append(sim.poses[0, :2].copy())
-        if tail is not None:
-            action = tail.act(obs, info, t)
-            estimate = tail.track[-1] if tail.track else None
-        if source is not None and estimate is not None:
-            at, head = source.estimate()
-            errors.append(float(np.linalg.norm(head - heads[at])))
-        if policy == "random" and tick % per_second == 0:       # a new offset each second
-            action = rng.uniform(-1, 1, 2).astype(np.float32) * env.action_space.high
-        for every, recorder in recorders:
-            if tick % every == 0:
-                recorder.capture(sim)
-                if hasattr(recorder, "log_points") and estimate is not None:
-                    recorder.log_points("head_estimate", estimate, 0.012, (230, 60, 60),
-                                        "Tail's estimate of H")
-        obs, _, terminated, truncated, info = env.step(action)
-        done = terminated or truncated
-        tick += 1
-    report = cage_report(sim.poses, env.unwrapped._task.caging)
-    out = {"policy": policy, "seed": seed, "caged": info["caged_at"] is not None,
-           "time_to_cage_s": info["caged_at"], "spacing_cv": report["spacing_cv"],
-           "detected_at_s": None if tail is None else tail.detected_at,
-           "head_estimate_error_m": float(np.mean(errors)) if errors else None,
-           "fault": info["fault"]}
-    if frames_every is not None:
-        frames.append({"t": sim.time, "poses": sim.poses.copy(), "head_estimate": estimate})
-        out["frames"] = frames
-    for _, recorder in recorders:
-        recorder.finish()
+    tail, scored = _tail(policy, env, info, seed, cfg, model)
+    task = env.unwrapped.task
+    recorders = caging_recorders(task.sim, task.caging, video, rerun, lambda: tail.head_estimate)
+    outcome = run_caging_episode(env, obs, info, tail, recorders, frames_every, scored)
     env.close()
-    return out
+    return {"policy": policy, "seed": seed, **outcome}
 
 
-def _recorders(sim, caging, video: Path | None, rerun: Path | None,
-               estimate: Callable[[], np.ndarray | None]) -> list[tuple[int, object]]:
-    """(every how many ticks, recorder): a 10 fps video with the object, the boundary and the
-    Tail's estimate of the Head drawn in, and a 10 Hz rerun recording with the estimate."""
-    import cv2
+def _tail(policy: str, env: gymnasium.Env, info: dict, seed: int, cfg: CagingExperiment,
+          model: ChainedMLP | None
+          ) -> tuple[CagingPolicy, Callable[[], tuple[int, np.ndarray]] | None]:
+    """The Tail of `policy` on the reset `env`, and what scores its estimates of the Head (the
+    ReTLo Tail's only)."""
+    from collectors.caging import LiveHeadSource, PassiveTail, RandomTail
+    from estimators.retlo.online import OnlineChain
+    from macrostate_mj.chain.caging import ScriptedTail, oracle_source
 
-    out: list[tuple[int, object]] = []
-    every = max(1, int(round(sim.cfg.command_hz / 10)))
-    if video is not None:
-        from viz.video import VideoRecorder
-
-        def decorate(bgr: np.ndarray, px) -> None:
-            c = px(np.array(caging.centre))[0]
-            scale = np.linalg.norm(px(np.array(caging.centre) + [1.0, 0.0])[0] - c)
-            centre = tuple(int(v) for v in np.round(c))
-            cv2.circle(bgr, centre, int(caging.object_radius * scale), (150, 150, 150), -1)
-            cv2.circle(bgr, centre, int(caging.ring_radius * scale), (60, 60, 60), 1,
-                       cv2.LINE_AA)
-            head = estimate()
-            if head is not None:
-                u, v = np.round(px(head)[0]).astype(int)
-                cv2.circle(bgr, (int(u), int(v)), 9, (60, 60, 230), 2, cv2.LINE_AA)
-                cv2.putText(bgr, "Tail's estimate of H", (int(u) + 11, int(v) - 6),
-                            cv2.FONT_HERSHEY_SIMPLEX, 0.4, (60, 60, 230), 1, cv2.LINE_AA)
-        out.append((every, VideoRecorder(video, sim, fps=10.0, decorate=decorate)))
-    if rerun is not None:
-        from viz.rerun_log import RerunRecorder
-
-        recorder = RerunRecorder(rerun, sim, rate_hz=10.0)
-        recorder.log_points("object", np.array(caging.centre), caging.object_radius,
-                            (150, 150, 150), "object", static=True)
-        out.append((every, recorder))
-    return out
+    task, bound = env.unwrapped.task, env.action_space.high
+    sim = task.sim
+    if policy == "passive":
+        return PassiveTail(), None
+    if policy == "random":               # a new offset each second
+        rng = np.random.default_rng([cfg.seed, seed, 7])
+        return RandomTail(rng, bound, int(round(sim.cfg.command_hz))), None
+    scored = None
+    if policy == "retlo":
+        steps = int(cfg.time_limit * sim.cfg.command_hz / cfg.stride) + 2
+        live = LiveHeadSource(OnlineChain(model, sim.n, steps), info["team_at_start"],
+                              cfg.stride)
+        source, scored = live, live.latest
+    else:
+        source = oracle_source(sim, cfg.stride)
+    tail = ScriptedTail(sim.cfg, sim.k_t, task.caging, float(bound[0]), source)
+    return tail, scored
 
 
-def rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
-    """Caging episodes with a passive Tail (seeds 10000.., never an evaluation seed), every
-    consecutive three robots as a 3-robot module run: (runs * (n - 2), steps, 3, 3), H first."""
-    from macrostate_mj.chain.caging import CagingConfig, CagingMission, start_poses
-    from macrostate_mj.chain.scenarios import get_scenario
-    from macrostate_mj.chain.sim import ChainSim, Every
-    from macrostate_mj.chain.world import build_world
+def train_caging_estimator(epochs: int, train_steps: int, rehearsals: int, seconds: float,
+                           stride: int, seed: int) -> ChainedMLP:
+    """The three MLPs of §2.5 on `collectors.caging.estimator_runs`."""
+    from collectors.caging import estimator_runs
+    from estimators.retlo.mlp import train_mlp, training_pairs
 
-    caging = CagingConfig()
-    world = build_world(get_scenario("robotarium"), 6)
-    sim = ChainSim(world, mission=CagingMission(caging))
-    out = []
-    for i in range(runs):
-        rng = np.random.default_rng(10_000 + i)
-        sim.reset(rng, start=start_poses(caging, sim.n, sim.cfg.spacing, rng))
-        log: list[np.ndarray] = []
-        sim.run(seconds, [Every(1 / sim.cfg.log_hz, lambda s, log=log: log.append(s.poses))])
-        poses = np.array(log)
-        out += [poses[:, k:k + 3] for k in range(sim.n - 2)]
-    return np.array(out)
-
-
-def _train_model(cfg: CagingExperiment, path: Path):
-    """The three MLPs of §2.5 on the robotarium training runs of `experiment retlo-sim` and on
-    rehearsal caging runs with a passive Tail (cached as .npz)."""
-    from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs
-    from estimators.retlo_sim.frames import training_pairs
-    from estimators.retlo_sim.mlp import ChainedMLP, train_mlp
-    from macrostate_mj.chain.scenarios import get_scenario
-
-    if path.exists():
-        with np.load(path) as z:
-            return ChainedMLP(**{k: z[k] for k in z.files})
-    rng = np.random.default_rng(cfg.seed)
-    runs = training_runs(get_scenario("robotarium"), cfg.train_steps, K_T_FACTORS)
-    rehearsed = rehearsal_runs(cfg.rehearsals, cfg.time_limit)
-    parts = [training_pairs(noisy_replicas(r[:, k::cfg.stride], 5, 0.001, rng))
-             for r in (runs, rehearsed) for k in range(cfg.stride)]
-    base, targets = (np.concatenate(a) for a in zip(*parts, strict=True))
-    model, _ = train_mlp(base, targets, rng, cfg.epochs, 0.05, 0.2, 128)
-    np.savez(path, **asdict(model))
+    rng = np.random.default_rng(seed)
+    runs = estimator_runs(train_steps, rehearsals, seconds, stride, rng)
+    base, targets = (np.concatenate(a) for a in zip(*map(training_pairs, runs), strict=True))
+    model, _ = train_mlp(base, targets, rng, epochs, 0.05, 0.2, 128)
     return model
+
+
+def load_estimator(path: Path) -> ChainedMLP | None:
+    """The estimator saved at `path` (its arrays, .npz), or None when there is none."""
+    from estimators.retlo.mlp import ChainedMLP
+
+    if not path.exists():
+        return None
+    with np.load(path) as z:
+        return ChainedMLP(**{k: z[k] for k in z.files})
+
+
+def save_estimator(model: ChainedMLP, path: Path) -> None:
+    """Its arrays as .npz: `load_estimator` rebuilds it without pickling code."""
+    np.savez(path, **asdict(model))
 
 
 def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
@@ -285,7 +138,12 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
 
     t0 = time.perf_counter()
     models = check_writable_dir(out / "models")
-    model = _train_model(cfg, models / f"retlo_mlp_stride{cfg.stride}.npz")
+    path = models / f"retlo_mlp_stride{cfg.stride}.npz"
+    model = load_estimator(path)
+    if model is None:
+        model = train_caging_estimator(cfg.epochs, cfg.train_steps, cfg.rehearsals,
+                                       cfg.time_limit, cfg.stride, cfg.seed)
+        save_estimator(model, path)
     timings = {"train_retlo": time.perf_counter() - t0}
     episodes, snapshots = [], {}
     with LoggedProgress(transient=True) as bar:

@@ -1,0 +1,181 @@
+"""Caging runs (seed §2.5.4): one episode of a Tail on `macrostate_mj/CagingTail-v0`, the Tail's
+live ReTLo head source, and the simulated runs its estimator learns from.
+
+This layer sits beside `macrostate_mj.env` and `estimators`, independent of both: the caller
+makes the environment and the estimator's online chain and passes them in (any object with
+their methods will do), and builds the recorders (`viz.caging_video`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import gymnasium
+import numpy as np
+
+from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs
+from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
+from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.sim import ChainSim, Every
+from macrostate_mj.chain.world import build_world
+
+
+class CagingPolicy(Protocol):
+    """A Tail in a caging episode (`chain.caging.ScriptedTail`, `PassiveTail`, `RandomTail`)."""
+
+    detected_at: float | None           # when it found the Head circling (s), if it did
+
+    @property
+    def head_estimate(self) -> np.ndarray | None: ...
+
+    def act(self, obs: dict, info: dict, t: float) -> np.ndarray: ...
+
+
+class Recorder(Protocol):
+    def capture(self, sim: ChainSim) -> None: ...
+
+    def finish(self) -> None: ...
+
+
+class OnlineEstimator(Protocol):
+    """`estimators.retlo.online.OnlineChain`'s interface (poses Tail first)."""
+
+    def start(self, poses: np.ndarray) -> None: ...
+
+    def observe(self, sensed: np.ndarray) -> None: ...
+
+    def share(self, poses: np.ndarray) -> None: ...
+
+    @property
+    def head(self) -> tuple[int, np.ndarray]: ...
+
+
+class PassiveTail:
+    """Follows its neighbour (offset 0): the team the text says cannot cage."""
+
+    detected_at: float | None = None
+    head_estimate: np.ndarray | None = None
+
+    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
+        return np.zeros(2, np.float32)
+
+
+class RandomTail:
+    """A new uniform offset within `bound` (the action space's high) every `every` steps."""
+
+    detected_at: float | None = None
+    head_estimate: np.ndarray | None = None
+
+    def __init__(self, rng: np.random.Generator, bound: np.ndarray, every: int):
+        self.rng, self.bound, self.every = rng, bound, every
+        self._action = np.zeros(2, np.float32)
+        self._steps = 0
+
+    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
+        if self._steps % self.every == 0:
+            self._action = self.rng.uniform(-1, 1, 2).astype(np.float32) * self.bound
+        self._steps += 1
+        return self._action
+
+
+class LiveHeadSource:
+    """The Head's position as the Tail's live estimator (`chain`, e.g. ReTLo's `OnlineChain`) has
+    it after each of its steps (every `stride` ticks; lagging n - 2 steps), from the Tail's
+    observations and the poses the team shares (at τ: `team_at_start`, Head first, and in the
+    step info's `team`); None between steps. A `chain.caging.HeadSource`."""
+
+    def __init__(self, chain: OnlineEstimator, team_at_start: np.ndarray, stride: int):
+        self.chain, self.stride = chain, stride
+        chain.start(team_at_start[::-1])            # Tail first
+        self._tick = -1          # the observation of tick k comes with the info of tick k
+
+    def __call__(self, obs: dict, info: dict) -> np.ndarray | None:
+        self._tick += 1
+        if self._tick == 0 or self._tick % self.stride:
+            return None
+        self.chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
+        if "team" in info:
+            self.chain.share(info["team"][::-1])
+        t, head = self.chain.head
+        return head.copy() if t > 0 else None
+
+    def latest(self) -> tuple[int, np.ndarray]:
+        """(the command tick it is for, the Head's position): the estimate to score."""
+        step, head = self.chain.head
+        return step * self.stride, head
+
+
+def run_caging_episode(env: gymnasium.Env, obs: dict, info: dict, tail: CagingPolicy,
+                       recorders: Sequence[tuple[int, Recorder]] = (),
+                       frames_every: float | None = None,
+                       scored: Callable[[], tuple[int, np.ndarray]] | None = None) -> dict:
+    """Run a reset caging environment (`obs`, `info` from its reset) to its end with `tail`;
+    the outcome: caged, when, the final spacing's CV, when the Tail detected the circling, the
+    mean error of the estimates `scored` gives (tick, Head), the fault; with `frames_every`
+    (s), `frames`: snapshots for the figures. Each recorder captures every so many ticks and
+    is finished."""
+    task = env.unwrapped.task
+    sim = task.sim
+    frames, next_frame, done = [], 0.0, False
+    estimate = None
+    heads, errors = [], []            # the Head's true track, the scored estimates' errors
+    tick = 0
+    while not done:
+        t = sim.time
+        if frames_every is not None and t >= next_frame - 1e-9:
+            frames.append({"t": t, "poses": sim.poses.copy(), "head_estimate":
+                           None if estimate is None else estimate.copy()})
+            next_frame += frames_every
+        heads.append(sim.poses[0, :2].copy())
+        action = tail.act(obs, info, t)
+        estimate = tail.head_estimate
+        if scored is not None and estimate is not None:
+            at, head = scored()
+            errors.append(float(np.linalg.norm(head - heads[at])))
+        for every, recorder in recorders:
+            if tick % every == 0:
+                recorder.capture(sim)
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+        tick += 1
+    report = cage_report(sim.poses, task.caging)
+    out = {"caged": info["caged_at"] is not None, "time_to_cage_s": info["caged_at"],
+           "spacing_cv": report["spacing_cv"], "detected_at_s": tail.detected_at,
+           "head_estimate_error_m": float(np.mean(errors)) if errors else None,
+           "fault": info["fault"]}
+    if frames_every is not None:
+        frames.append({"t": sim.time, "poses": sim.poses.copy(), "head_estimate": estimate})
+        out["frames"] = frames
+    for _, recorder in recorders:
+        recorder.finish()
+    return out
+
+
+def rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
+    """Caging episodes with a passive Tail (seeds 10000.., never an evaluation seed), every
+    consecutive three robots as a 3-robot module run: (runs * (n - 2), steps, 3, 3), H first."""
+    caging = CagingConfig()
+    world = build_world(get_scenario("robotarium"), 6)
+    sim = ChainSim(world, mission=CagingMission(caging))
+    out = []
+    for i in range(runs):
+        rng = np.random.default_rng(10_000 + i)
+        sim.reset(rng, start=start_poses(caging, sim.n, sim.cfg.spacing, rng))
+        log: list[np.ndarray] = []
+        sim.run(seconds, [Every(1 / sim.cfg.log_hz, lambda s, log=log: log.append(s.poses))])
+        poses = np.array(log)
+        out += [poses[:, k:k + 3] for k in range(sim.n - 2)]
+    return np.array(out)
+
+
+def estimator_runs(train_steps: int, rehearsals: int, seconds: float, stride: int,
+                   rng: np.random.Generator) -> list[np.ndarray]:
+    """What the caging Tail's estimator learns from: the robotarium training runs of `experiment
+    retlo-sim` and `rehearsals` passive-Tail caging runs of `seconds`, each taken at every
+    `stride`-th log step from each phase, as 5 noisy replicas (σ 1 mm): one array per (source,
+    phase), in that order (the draws from `rng` follow it)."""
+    runs = training_runs(get_scenario("robotarium"), train_steps, K_T_FACTORS)
+    rehearsed = rehearsal_runs(rehearsals, seconds)
+    return [noisy_replicas(r[:, k::stride], 5, 0.001, rng)
+            for r in (runs, rehearsed) for k in range(stride)]

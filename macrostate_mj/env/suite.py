@@ -1,0 +1,35 @@
+"""The Tail's tasks by name, in one place (as dm_control's `suite`): `SUITE` maps each name to
+its task class, and `load` builds the task's `control.Environment` on a scenario's world.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco import wrapper
+from dm_control.rl import control
+
+from macrostate_mj.chain.scenarios import scenario_for
+from macrostate_mj.chain.world import build_world, validate_chain
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.env.caging import CagingTask
+from macrostate_mj.env.explore import ExploreTask
+from macrostate_mj.env.task import TailTask
+
+SUITE: dict[str, type[TailTask]] = {"explore": ExploreTask, "caging": CagingTask}
+
+
+def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history: int = 10,
+         observe: str = "truth", time_limit: float = 60.0,
+         random: np.random.RandomState | int | None = None, **options) -> control.Environment:
+    """The dm_control `Environment` of the task `name` (its task: `.task`, its simulation:
+    `.task.sim`); `options` go to the task's `create` (`caging=CagingConfig(...)`)."""
+    if name not in SUITE:
+        raise UserError(f"unknown task {name!r}; choose one of {', '.join(SUITE)}")
+    cfg = scenario_for(scenario)
+    validate_chain(cfg, robots, time_limit)
+    world = build_world(cfg, robots)
+    physics = dm_mujoco.Physics.from_model(wrapper.MjModel(world.model))
+    task = SUITE[name].create(world, physics.data.ptr, history, observe, random, **options)
+    return control.Environment(physics, task, time_limit=time_limit,
+                               control_timestep=1 / cfg.command_hz)
