@@ -1,9 +1,10 @@
 """`macrostate-mj collect`: episodes in parallel (local processes or Ray), shards, datasets.
 
-Each finished episode is stored as `shards/episode_NNNNN.parquet`, written atomically by the
-driver as results arrive; a rerun of the same command after a kill skips the shards present,
-and no partial shard can exist. The datasets are assembled from the shards in episode order,
-so the CSVs are bit-identical whatever the number of workers or the executor.
+Each episode is a cached task (`core.cache`) under `OUT/cache/collect-episode/<key>/`, written
+atomically by the driver as results arrive; a rerun of the same command after a kill runs only
+the episodes missing, and no partial episode can exist. The datasets are assembled from the
+episodes in episode order, so the CSVs are bit-identical whatever the number of workers or
+the executor.
 """
 
 from __future__ import annotations
@@ -11,10 +12,10 @@ from __future__ import annotations
 import json
 import math
 import shutil
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pyarrow as pa
@@ -25,9 +26,11 @@ from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import Randomization
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.world import validate_chain
+from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
-from macrostate_mj.core.io import atomic_path, prepare_out_dir, write_manifest, write_text_atomic
+from macrostate_mj.core.io import atomic_path
 from macrostate_mj.core.parallel import runner_for
+from macrostate_mj.core.run import Run, run_finished
 from macrostate_mj.formats.instances import (
     INSTANCE_STEPS,
     cut_instances,
@@ -39,6 +42,7 @@ from macrostate_mj.formats.poses import table_arrays, write_poses
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, write_csv
 
 SPLIT_NAMES = ("Train", "Val", "Test")
+CACHE = "cache"          # the folder of a collection's cached episodes
 PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.json",
             "decisions.parquet",
             *(f"{s}{t}.csv" for s in SPLIT_NAMES for t in ("", "_truth"))]
@@ -104,95 +108,116 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
             for i in range(req.first_episode, req.first_episode + n)]
 
 
+class EpisodeTask:
+    """One episode as a cached task: keyed by its spec and the scenario's constants (a new fit
+    of `lab` is not taken for a finished episode); outputs its log (and the policy's decisions,
+    where it keeps any) as Parquet and its figures as JSON."""
+
+    stage: ClassVar[str] = "collect-episode"
+    version: ClassVar[int] = 1
+
+    def __init__(self, spec: EpisodeSpec):
+        self.spec = spec
+
+    def key(self) -> str:
+        cfg = scenario_for(self.spec.scenario, self.spec.head_speed)
+        return task_key(self.stage, self.version, {"spec": self.spec, "scenario": cfg})
+
+    def compute(self) -> dict[str, bytes]:
+        _, table, stats = run_episode(self.spec)
+        if table is None:
+            raise TaskFailed(stats["failure"])
+        files = {"episode.parquet": _parquet_bytes(table)}
+        decisions = stats.pop("decisions", None)
+        if decisions is not None:
+            files["decisions.parquet"] = _parquet_bytes(decisions)
+        files["stats.json"] = json.dumps(stats, sort_keys=True).encode()
+        return files
+
+
+def _parquet_bytes(table: pa.Table) -> bytes:
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink, compression="zstd")
+    return sink.getvalue().to_pybytes()
+
+
+def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
+    """What a collection's outputs depend on (not where or how fast it runs): its run's
+    identity, so a resumed run may change --workers but not the collection."""
+    identity = {k: v for k, v in asdict(req).items()
+                if k not in ("out", "workers", "ray", "overwrite")}
+    return {"request": identity, "scenario": asdict(scenario_for(req.scenario, req.head_speed)),
+            "episodes": len(specs), "episode_seconds": specs[0].seconds}
+
+
 def collect(req: CollectRequest, progress: Callable[[int, float], None] | None = None
             ) -> dict[str, Path]:
     """Run (or resume) a collection and write its datasets; returns the written paths."""
     specs = plan(req)
     fractions = parse_split(req.split)
-    out = prepare_out_dir(req.out, PRODUCTS, req.overwrite)
-    runner = runner_for(req.ray)
-    shards = out / "shards"
-    plan_json = _plan_json(specs)
-    if req.overwrite and shards.exists():
-        shutil.rmtree(shards)
-    finished = list(shards.glob("episode_*.parquet")) if shards.is_dir() else []
-    if (finished and (shards / "plan.json").exists()
-            and (shards / "plan.json").read_text() != plan_json):
-        raise UserError(f"{shards} holds episodes of a different collection; pass --overwrite "
-                        "or choose another --out")
-    shards.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(shards / "plan.json", plan_json)
-
-    t0 = time.perf_counter()
-    damaged = [s.index for s in specs if _shard(shards, s.index).exists()
-               and not _readable(_shard(shards, s.index))]
-    for index in damaged:       # atomic writes cannot truncate a shard; something else did
-        _shard(shards, index).unlink()
-    todo = [s for s in specs if not _shard(shards, s.index).exists()]
-    done = len(specs) - len(todo)
-    if progress:
-        progress(done, done * specs[0].seconds / 60)
-    episode_stats: dict[int, dict] = {}
-    failures: dict[int, str] = {}
-    for index, table, stats in runner(run_episode, todo, req.workers):
-        if table is None:
-            failures[index] = stats["failure"]
-            continue
-        decisions = stats.pop("decisions", None)
-        if decisions is not None:         # before the shard: a shard means the episode is done
-            with atomic_path(_shard(shards, index, "decisions")) as tmp:
-                pq.write_table(decisions, tmp, compression="zstd")
-        with atomic_path(_shard(shards, index)) as tmp:
-            pq.write_table(table, tmp, compression="zstd")
-        episode_stats[index] = stats
-        done += 1
-        if progress:
-            progress(done, done * specs[0].seconds / 60)
-    t_run = time.perf_counter() - t0
-    if failures:
-        index = min(failures)
-        raise RunFailure(
-            f"episode {index} (seeds [{req.seed}, {index}, 0..2]) failed: {failures[index]}; "
-            f"{len(failures)} of {len(specs)} episodes failed; {done} finished episode(s) kept in "
-            f"{shards}")
-    written = assemble(req, specs, out, fractions)
-    cfg = scenario_for(req.scenario, req.head_speed)
-    written["manifest"] = write_manifest(
-        out, "collect", {"request": asdict(req), "scenario": asdict(cfg),
-                         "episodes": len(specs), "episode_seconds": specs[0].seconds},
-        req.seed, {"episodes": t_run, "assemble": time.perf_counter() - t0 - t_run},
-        px_per_cm=req.px_per_cm, resumed_episodes=len(specs) - len(todo),
-        randomization=None if specs[0].randomize is None else asdict(specs[0].randomize),
-        damaged_shards_rerun=damaged,
-        episode_stats={str(k): v for k, v in sorted(episode_stats.items())},
-        outputs={k: str(v) for k, v in written.items()})
+    runner_for(req.ray)                                  # an unreachable cluster: bad input now
+    cache = TaskCache(Path(req.out) / CACHE)
+    with Run(req.out, "collect", run_config(req, specs), req.seed, PRODUCTS,
+             req.overwrite) as run:
+        tasks = [EpisodeTask(s) for s in specs]
+        damaged = [t.spec.index for t in tasks if not _intact(cache, t)]
+        done, resumed = 0, 0
+        failures: dict[int, str] = {}
+        with run.stage("episodes"):
+            for outcome in run_tasks(cache, tasks, req.workers, req.ray):
+                if outcome.folder is None:
+                    failures[outcome.task.spec.index] = outcome.failure or "failed"
+                    continue
+                done += 1
+                resumed += outcome.task.key() in cache.hits
+                if progress:
+                    progress(done, done * specs[0].seconds / 60)
+        if failures:
+            index = min(failures)
+            raise RunFailure(
+                f"episode {index} (seeds [{req.seed}, {index}, 0..2]) failed: {failures[index]}; "
+                f"{len(failures)} of {len(specs)} episodes failed; {done} finished episode(s) "
+                f"kept in {cache.root}")
+        folders = [cache.folder(t.stage, t.key()) for t in tasks]
+        with run.stage("assemble"):
+            written = assemble(req, specs, folders, fractions)
+        stats = {t.spec.index: json.loads((f / "stats.json").read_text())
+                 for t, f in zip(tasks, folders, strict=True)}
+        written["manifest"] = run.path
+        run.record(px_per_cm=req.px_per_cm, workers=req.workers, ray=req.ray,
+                   resumed_episodes=resumed, damaged_shards_rerun=damaged,
+                   randomization=None if specs[0].randomize is None
+                   else asdict(specs[0].randomize),
+                   episode_stats={str(k): v for k, v in sorted(stats.items())},
+                   outputs={k: str(v) for k, v in written.items()})
     return written
 
 
-def _plan_json(specs: list[EpisodeSpec]) -> str:
-    """The plan as cached beside the shards: every episode's spec and the scenario's constants,
-    so a collection made before a scenario's values changed (a new fit of `lab`) is not taken
-    for a finished one."""
-    first = specs[0]
-    return json.dumps({"scenario": asdict(scenario_for(first.scenario, first.head_speed)),
-                       "episodes": [asdict(s) for s in specs]}, sort_keys=True, default=str)
+def _intact(cache: TaskCache, task: EpisodeTask) -> bool:
+    """False for a cached episode whose Parquet cannot be opened (a copy cut short, a full
+    disk): its folder is removed, so the episode is simulated again."""
+    folder = cache.folder(task.stage, task.key())
+    if not folder.is_dir() or _readable(folder / "episode.parquet"):
+        return True
+    shutil.rmtree(folder)
+    return False
 
 
 def finished(req: CollectRequest) -> bool:
-    """Has this very collection (same plan) run to the end in `req.out`?"""
-    out = Path(req.out)
-    plan_file = out / "shards" / "plan.json"
-    return ((out / "manifest.json").is_file() and plan_file.is_file()
-            and plan_file.read_text() == _plan_json(plan(req)))
+    """Has this very collection (same request and scenario constants) run to the end in
+    `req.out`?"""
+    return run_finished(Path(req.out), run_config(req, plan(req)))
 
 
-def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
+def assemble(req: CollectRequest, specs: list[EpisodeSpec], folders: list[Path],
              fractions: tuple[float, ...] | None) -> dict[str, Path]:
-    """Shards -> full log + ThymioLoc instances (tracked and truth) + optional splits."""
+    """Episodes (in episode order) -> full log + ThymioLoc instances (tracked and truth) +
+    optional splits."""
     cfg = scenario_for(req.scenario, req.head_speed)
+    out = Path(req.out)
     tables, tracked, truth = [], [], []
-    for spec in specs:
-        table = pq.read_table(_shard(out / "shards", spec.index))
+    for spec, folder in zip(specs, folders, strict=True):
+        table = pq.read_table(folder / "episode.parquet")
         tables.append(table)
         arrays = table_arrays(table)
         first = int(round(spec.warmup * cfg.log_hz))
@@ -209,8 +234,8 @@ def assemble(req: CollectRequest, specs: list[EpisodeSpec], out: Path,
                "instances_truth": write_csv(out / "instances_truth.csv", truth_px)}
     write_poses(written["poses"], pa.concat_tables(tables))
     decisions = []
-    for spec in specs:          # a policy's per-step decisions, where it kept any (SRS)
-        path = _shard(out / "shards", spec.index, "decisions")
+    for spec, folder in zip(specs, folders, strict=True):   # a policy's decisions (SRS)
+        path = folder / "decisions.parquet"
         if path.exists():
             table = pq.read_table(path)
             decisions.append(table.append_column(
@@ -235,7 +260,3 @@ def _readable(path: Path) -> bool:
     except (pa.ArrowException, OSError):
         return False
     return True
-
-
-def _shard(shards: Path, index: int, kind: str = "episode") -> Path:
-    return shards / f"{kind}_{index:05d}.parquet"

@@ -13,7 +13,7 @@
 
 from __future__ import annotations
 
-import hashlib
+import io
 import json
 import time
 from collections.abc import Callable, Sequence
@@ -27,6 +27,7 @@ import torch
 from estimators.oneclass import METHODS
 from estimators.oneclass import train as T
 from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
+from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
 from macrostate_mj.vision.flow import BOUND
@@ -160,66 +161,113 @@ class OCModel:
 
 
 SNAPSHOT_EVERY_S = 600.0   # a killed stage loses at most this much work
+STAGE_VERSION = 1          # bump when a stage's training code changes what it computes
+_MODULES = {cls.__name__: cls for cls in (DCAE, Encoder, Generator, Classifier)}
 
 
 class StageCache:
-    """Each finished training stage kept on disk (`stages/<name>.pt`) with the generator and
-    torch states after it, so that a killed run resumes from its last finished stage and ends
-    with the same weights as an uninterrupted one. A stage file made with another config or
-    other inputs is not reused (`key`). Inside a stage, its state is kept every `every_s`
-    seconds (`StageSnapshots`): a stage longer than a session (the published recipe's DCAE on a
-    CPU) goes on where it was stopped."""
+    """Each finished training stage is a cached task (`core.cache`) under
+    `stages/oc-<name>/<key>/`: its tensors (`tensors.pt`, loaded with weights_only) and the
+    structure around them (`stage.json`), with the generator and torch states after it, so that
+    a killed run resumes from its last finished stage and ends with the same weights as an
+    uninterrupted one. The key hashes the inputs, the whole config and the stage's version: a
+    stage made with another config or other inputs is not reused. Inside a stage, its state is
+    kept every `every_s` seconds (`StageSnapshots`, `oc-<name>/<key>.partial.pt`): a stage
+    longer than a session (the published recipe's DCAE on a CPU) goes on where it stopped."""
 
-    def __init__(self, folder: Path | None, key: str, gen: torch.Generator,
+    def __init__(self, folder: Path | None, x: np.ndarray, cfg: T.OCConfig, gen: torch.Generator,
                  every_s: float = SNAPSHOT_EVERY_S, device: str = "cpu"):
-        self.folder, self.key, self.gen, self.every_s = folder, key, gen, every_s
+        self.cache = None if folder is None else TaskCache(folder)
+        self.x, self.config, self.channels = x, asdict(cfg), x.shape[1]
+        self.gen, self.every_s = gen, every_s
         self.device = device   # where the run trains: a stage's modules come back there
         self.reused: list[str] = []
 
     def run(self, name: str, train: Callable[[T.Snapshots], Any]) -> Any:
-        if self.folder is None:
+        if self.cache is None:
             return train(T.NO_SNAPSHOTS)
-        path = self.folder / f"{name}.pt"
-        saved = self.load_file(path)
-        if saved is not None:
+        stage = f"oc-{name}"
+        key = task_key(stage, STAGE_VERSION, self.config, [self.x])
+        folder = self.cache.get(stage, key)
+        if folder is not None:
+            tensors = self.load_tensors(folder / "tensors.pt")
             self.reused.append(name)
-            return saved["out"]
-        snaps = StageSnapshots(self.folder / f"{name}.partial.pt", self, self.every_s)
+            out = _unpack(json.loads((folder / "stage.json").read_text()), tensors,
+                          self.channels, self.device)
+            self.restore_rng(tensors)       # after building the modules, which draw weights
+            return out
+        snaps = StageSnapshots(self.cache.folder(stage, key).with_suffix(".partial.pt"), self,
+                               self.every_s)
         out = train(snaps)
-        self.folder.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as tmp:
-            torch.save({"key": self.key, "out": out, **self.rng_states()}, tmp)
+        tensors: dict[str, torch.Tensor] = {}
+        meta = _pack(out, "out", tensors)
+        tensors.update(self.rng_states())
+        buf = io.BytesIO()
+        torch.save({k: v.detach().cpu() for k, v in tensors.items()}, buf)
+        self.cache.put(stage, key, {"tensors.pt": buf.getvalue(),
+                                    "stage.json": json.dumps(meta).encode()})
         snaps.path.unlink(missing_ok=True)
         return out
 
     def rng_states(self) -> dict[str, torch.Tensor]:
-        return {"gen": self.gen.get_state(), "torch": torch.get_rng_state()}
+        return {"rng.gen": self.gen.get_state(), "rng.torch": torch.get_rng_state()}
 
-    def load_file(self, path: Path) -> dict | None:
-        """A file of this run (same key), its random states restored; else None."""
-        if not path.is_file():
-            return None
-        saved = torch.load(path, map_location=self.device, weights_only=False)
-        if saved.get("key") != self.key:
-            return None
-        self.gen.set_state(saved["gen"].cpu())      # random states live on the CPU
-        torch.set_rng_state(saved["torch"].cpu())
-        return saved
+    def restore_rng(self, saved: dict[str, Any]) -> None:
+        self.gen.set_state(saved["rng.gen"].cpu())      # random states live on the CPU
+        torch.set_rng_state(saved["rng.torch"].cpu())
+
+    def load_tensors(self, path: Path) -> dict[str, Any]:
+        """Tensors and plain data only: a tampered file cannot run code."""
+        return torch.load(path, map_location=self.device, weights_only=True)
+
+
+def _pack(obj: Any, prefix: str, tensors: dict[str, torch.Tensor]) -> Any:
+    """A stage's output as JSON, its tensors moved into `tensors` under dotted names."""
+    if isinstance(obj, torch.nn.Module):
+        tensors.update({f"{prefix}.{k}": v for k, v in obj.state_dict().items()})
+        return {"module": type(obj).__name__, "at": prefix}
+    if isinstance(obj, torch.Tensor):
+        tensors[prefix] = obj
+        return {"tensor": prefix}
+    if isinstance(obj, tuple):
+        return {"tuple": [_pack(v, f"{prefix}.{i}", tensors) for i, v in enumerate(obj)]}
+    if isinstance(obj, dict):
+        return {"dict": {k: _pack(v, f"{prefix}.{k}", tensors) for k, v in obj.items()}}
+    return {"value": obj}           # numbers and lists of numbers (histories)
+
+
+def _unpack(meta: dict, tensors: dict[str, torch.Tensor], channels: int, device: str) -> Any:
+    if "module" in meta:
+        cls = _MODULES[meta["module"]]
+        mod = cls() if cls is Classifier else cls(channels)
+        mod = mod.to(device, memory_format=torch.channels_last)   # as trained (4-D weights)
+        at = meta["at"] + "."
+        mod.load_state_dict({k[len(at):]: v for k, v in tensors.items() if k.startswith(at)})
+        return mod.eval()
+    if "tensor" in meta:
+        return tensors[meta["tensor"]]
+    if "tuple" in meta:
+        return tuple(_unpack(m, tensors, channels, device) for m in meta["tuple"])
+    if "dict" in meta:
+        return {k: _unpack(m, tensors, channels, device) for k, m in meta["dict"].items()}
+    return meta["value"]
 
 
 class StageSnapshots:
     """One stage's loop state (weights, optimizers, best epoch so far, random states) in
-    `stages/<name>.partial.pt`, written atomically when `every_s` seconds have passed since the
-    last; removed once the stage is done. Restoring it continues the stage bit for bit."""
+    `<key>.partial.pt` beside the stage's cache folder, written atomically when `every_s`
+    seconds have passed since the last; removed once the stage is done. Restoring it continues
+    the stage bit for bit."""
 
     def __init__(self, path: Path, cache: StageCache, every_s: float):
         self.path, self.cache, self.every_s = path, cache, every_s
         self.last = time.monotonic()
 
     def restore(self, parts: T.Parts) -> tuple[int, dict[str, Any]]:
-        saved = self.cache.load_file(self.path)
-        if saved is None:
+        if not self.path.is_file():
             return 0, {}
+        saved = self.cache.load_tensors(self.path)
+        self.cache.restore_rng(saved)
         for name, part in parts.items():
             part.load_state_dict(saved["parts"][name])
         return saved["done"], saved["loop"]
@@ -229,17 +277,10 @@ class StageSnapshots:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.path) as tmp:
-            torch.save({"key": self.cache.key, "done": done, "loop": loop,
+            torch.save({"done": done, "loop": loop,
                         "parts": {name: part.state_dict() for name, part in parts.items()},
                         **self.cache.rng_states()}, tmp)
         self.last = time.monotonic()
-
-
-def stage_key(x: np.ndarray, cfg: T.OCConfig) -> str:
-    """What a stage's result depends on: the inputs' bytes and the whole config."""
-    digest = hashlib.sha1(np.ascontiguousarray(x).tobytes())
-    digest.update(json.dumps(asdict(cfg), sort_keys=True).encode())
-    return digest.hexdigest()
 
 
 @dataclass
@@ -274,7 +315,7 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
         torch.backends.cudnn.deterministic, torch.backends.cudnn.benchmark = True, False
     torch.manual_seed(cfg.seed)  # weight initialisation
     gen = torch.Generator().manual_seed(cfg.seed)
-    cache = StageCache(stages_dir, stage_key(x, cfg), gen, snapshot_every_s, cfg.device)
+    cache = StageCache(stages_dir, x, cfg, gen, snapshot_every_s, cfg.device)
     perm = np.random.default_rng(cfg.seed).permutation(len(x))
     n_val = max(1, round(len(x) * cfg.val_fraction))
     xall = torch.from_numpy(np.ascontiguousarray(x)).to(cfg.device)

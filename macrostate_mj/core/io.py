@@ -62,7 +62,7 @@ def write_text_atomic(final: str | os.PathLike, text: str) -> None:
 
 
 def write_json_atomic(final: str | os.PathLike, obj: Any) -> None:
-    write_text_atomic(final, json.dumps(_jsonable(obj), indent=2, sort_keys=True) + "\n")
+    write_text_atomic(final, json.dumps(jsonable(obj), indent=2, sort_keys=True) + "\n")
 
 
 def check_writable_file(path: str | os.PathLike, overwrite: bool, what: str = "output") -> Path:
@@ -144,13 +144,13 @@ def _cpu_model() -> str:
     return platform.processor() or "unknown"
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
     if is_dataclass(obj) and not isinstance(obj, type):
-        return _jsonable(asdict(obj))
+        return jsonable(asdict(obj))
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, Path):
         return str(obj)
     if hasattr(obj, "tolist"):

@@ -66,9 +66,10 @@ def test_collect_names_the_failed_episode_and_keeps_finished_shards(monkeypatch,
     line = one_line(err)
     assert code == 1
     assert "episode 1 (seeds [3, 1, 0..2])" in line and "tipped 31 deg at t=3.000 s" in line
-    assert sorted(p.name for p in (tmp_path / "shards").glob("*.parquet")) == \
-        ["episode_00000.parquet"]
+    assert len(list((tmp_path / "cache" / "collect-episode").glob("*/episode.parquet"))) == 1
     assert not (tmp_path / "instances.csv").exists()
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and "episode 1" in manifest["failure"]
     monkeypatch.undo()
     code, _, err = cli_inprocess(capsys, *args)   # the resumed run finishes it
     assert code == 0, err

@@ -82,13 +82,13 @@ def test_sigkill_then_same_command_resumes_without_loss(reference, tmp_path):
             "--out", str(tmp_path)]
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
-    shard = tmp_path / "shards" / "episode_00000.parquet"
     deadline = time.time() + 300
-    while not shard.exists() and time.time() < deadline and proc.poll() is None:
+    while not _episodes(tmp_path) and time.time() < deadline and proc.poll() is None:
         time.sleep(0.2)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
-    assert shard.exists() and not (tmp_path / "instances.csv").exists()
+    assert _episodes(tmp_path) and not (tmp_path / "instances.csv").exists()
+    shard = _episodes(tmp_path)[0]
     kept = shard.stat().st_mtime_ns
     res = cli(*args[3:])
     assert res.returncode == 0, res.stderr
@@ -124,27 +124,31 @@ def test_stats_prints_our_dataset_beside_real_data(reference, reference_data):
 def test_a_damaged_shard_is_simulated_again(reference, tmp_path):
     """A shard truncated by something outside the run (disk full, a copy cut short) is not
     finished work: the rerun simulates that episode again and the datasets come out the same."""
+    import shutil
+
     args = ["collect", *TINY, "--split", "60/10/30", "--out", str(tmp_path)]
-    shards = tmp_path / "shards"
-    shards.mkdir()
-    for shard in (reference / "shards").glob("episode_*.parquet"):
-        (shards / shard.name).write_bytes(shard.read_bytes())
-    (shards / "plan.json").write_bytes((reference / "shards" / "plan.json").read_bytes())
-    damaged = shards / "episode_00001.parquet"
+    shutil.copytree(reference / "cache", tmp_path / "cache")
+    damaged = _episodes(tmp_path)[1]
     damaged.write_bytes(damaged.read_bytes()[:100])
     res = cli(*args)
     assert res.returncode == 0, res.stderr
     manifest = json.loads((tmp_path / "manifest.json").read_text())
-    assert manifest["damaged_shards_rerun"] == [1] and manifest["resumed_episodes"] == 2
+    assert len(manifest["damaged_shards_rerun"]) == 1 and manifest["resumed_episodes"] == 2
     assert (tmp_path / "instances.csv").read_bytes() == (reference / "instances.csv").read_bytes()
 
 
-def test_a_plan_without_finished_episodes_does_not_block_another_collection(tmp_path):
-    (tmp_path / "shards").mkdir()
-    (tmp_path / "shards" / "plan.json").write_text("[]")   # an earlier run stopped at once
-    res = cli("collect", "--robots", "3", "--minutes", "0.25", "--seed", "1", "--out",
-              str(tmp_path))
+def test_an_unfinished_run_of_another_collection_is_refused_then_overwritten(tmp_path):
+    from macrostate_mj.core.run import Run
+
+    with pytest.raises(KeyboardInterrupt), Run(tmp_path, "collect", {"other": 1}, 0):
+        raise KeyboardInterrupt          # an earlier collection, stopped
+    args = ["collect", "--robots", "3", "--minutes", "0.25", "--seed", "1", "--out",
+            str(tmp_path)]
+    assert_clean_error(cli(*args), "unfinished", "--overwrite")
+    assert json.loads((tmp_path / "manifest.json").read_text())["status"] == "interrupted"
+    res = cli(*args, "--overwrite")
     assert res.returncode == 0, res.stderr
+    assert json.loads((tmp_path / "manifest.json").read_text())["status"] == "finished"
 
 
 def test_a_collection_made_with_other_scenario_values_is_not_finished(reference, monkeypatch):
@@ -152,8 +156,14 @@ def test_a_collection_made_with_other_scenario_values_is_not_finished(reference,
     from collectors.runner import CollectRequest, finished
     from macrostate_mj.chain import scenarios
 
-    req = CollectRequest("lab", 3, 0.75, 5, reference, "passive", episode_minutes=0.25)
+    req = CollectRequest("lab", 3, 0.75, 5, reference, "passive", split="60/10/30",
+                         episode_minutes=0.25)
     assert finished(req)
     refit = scenarios.SCENARIOS["lab"].with_overrides(k_f=9.0)
     monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
     assert not finished(req)
+
+
+def _episodes(out):
+    """The finished episodes' logs in a collection's task cache."""
+    return sorted((out / "cache" / "collect-episode").glob("*/episode.parquet"))

@@ -2,6 +2,7 @@
 save/load; determinism; Grad-CAM and the pointing game; CLI train/evaluate and bad input."""
 
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -280,9 +281,10 @@ def test_a_killed_training_resumes_from_its_last_stage_with_the_same_weights(tmp
     plain = fit(x, ("dsvdd", "iogen"), cfg)
     stages = tmp_path / "stages"
     first = fit(x, ("dsvdd", "iogen"), cfg, stages_dir=stages)
-    assert {p.stem for p in stages.iterdir()} == {"dcae", "dsvdd", "iogen", "cls_iogen"}
+    assert _stages(stages) == {"dcae": ["key"], "dsvdd": ["key"], "iogen": ["key"],
+                               "cls_iogen": ["key"]}
     for late in ("iogen", "cls_iogen"):
-        (stages / f"{late}.pt").unlink()
+        shutil.rmtree(stages / f"oc-{late}")
     resumed = fit(x, ("dsvdd", "iogen"), cfg, stages_dir=stages)
     assert resumed.resumed == ["dcae", "dsvdd"]
     for meth in ("dsvdd", "iogen"):
@@ -295,6 +297,13 @@ def test_a_killed_training_resumes_from_its_last_stage_with_the_same_weights(tmp
 
 class _Killed(Exception):
     pass
+
+
+def _stages(folder) -> dict[str, list[str]]:
+    """What a stage cache holds: per stage, a finished key folder ("key") or a snapshot."""
+    return {d.name.removeprefix("oc-"): sorted("partial" if p.name.endswith(".partial.pt")
+                                               else "key" for p in d.iterdir())
+            for d in folder.iterdir() if d.is_dir()}
 
 
 def test_a_stage_killed_midway_goes_on_from_its_snapshot_with_the_same_weights(tmp_path):
@@ -322,13 +331,13 @@ def test_a_stage_killed_midway_goes_on_from_its_snapshot_with_the_same_weights(t
             return ticks, None
 
     ticks, _ = run(("DCAE", 2 / 3))
-    assert ticks["DCAE"] == [1 / 3, 2 / 3] and (stages / "dcae.partial.pt").is_file()
+    assert ticks["DCAE"] == [1 / 3, 2 / 3] and _stages(stages) == {"dcae": ["partial"]}
     ticks, _ = run(("IOGEN", 10 / 12))
     assert ticks["DCAE"] == [1.0] and ticks["IOGEN"] == [10 / 12]
-    assert {p.name for p in stages.iterdir()} == {"dcae.pt", "dsvdd.pt", "iogen.partial.pt"}
+    assert _stages(stages) == {"dcae": ["key"], "dsvdd": ["key"], "iogen": ["partial"]}
     ticks, resumed = run(None)
     assert ticks["IOGEN"] == [1.0] and resumed.resumed == ["dcae", "dsvdd"]
-    assert not list(stages.glob("*.partial.pt"))
+    assert not list(stages.glob("*/*.partial.pt"))
     for meth in ("dsvdd", "iogen"):
         assert np.array_equal(plain.score(meth, probe), resumed.score(meth, probe))
 

@@ -1,0 +1,158 @@
+"""One task cache: a task's output files kept under the hash of everything that made them.
+
+A task's key hashes its stage's name and version, its config (canonical JSON) and the bytes of
+its inputs (files, folders, arrays), so a changed config, a changed input file or a new version
+of the stage's code gives a new key and the task is computed again; nothing is reused because
+of a name alone. A task's outputs are files written into a temporary folder that is renamed
+onto `<root>/<stage>/<key>/`: a key's folder is complete or absent, whatever killed the run.
+
+Tasks run through one runner (`run_tasks`): in this process, on local worker processes
+(`workers`) or on a Ray cluster (`ray`); the driver writes each result as it arrives, so a rerun
+of the same command after a kill computes only what is missing, and tasks with the same key run
+once. Nothing in a cache is unpickled: outputs are bytes that callers read as JSON, Parquet,
+`.npz` (allow_pickle=False) or tensors (`torch.load(weights_only=True)`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+
+from macrostate_mj.core.io import jsonable
+from macrostate_mj.core.parallel import runner_for
+
+Input = str | os.PathLike | bytes | np.ndarray
+
+
+def task_key(stage: str, version: int, config: Any, inputs: Iterable[Input] = ()) -> str:
+    """sha256 over the stage, its version, the config's canonical JSON and the inputs' bytes."""
+    h = hashlib.sha256()
+    h.update(json.dumps([stage, version, jsonable(config)], sort_keys=True,
+                        separators=(",", ":")).encode())
+    for item in inputs:
+        _update(h, item)
+    return h.hexdigest()
+
+
+def _update(h: Any, item: Input) -> None:
+    if isinstance(item, np.ndarray):
+        h.update(f"array {item.dtype.str} {item.shape}".encode())
+        h.update(np.ascontiguousarray(item).tobytes())
+    elif isinstance(item, bytes):
+        h.update(b"bytes %d " % len(item) + item)
+    else:
+        path = Path(item)
+        files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+        for f in files:
+            data = f.read_bytes()
+            h.update(f"file {f.relative_to(path) if path.is_dir() else ''} {len(data)} ".encode())
+            h.update(data)
+
+
+class TaskCache:
+    """Task outputs on disk, one folder per key under `<root>/<stage>/`."""
+
+    def __init__(self, root: str | os.PathLike):
+        self.root = Path(root)
+        self.hits: list[str] = []     # keys found done (a resumed run's record)
+
+    def folder(self, stage: str, key: str) -> Path:
+        return self.root / stage / key
+
+    def get(self, stage: str, key: str) -> Path | None:
+        """The task's output folder if it is complete, else None."""
+        folder = self.folder(stage, key)
+        if folder.is_dir():
+            self.hits.append(key)
+            return folder
+        return None
+
+    def put(self, stage: str, key: str, files: Mapping[str, bytes]) -> Path:
+        """Write `files` (name -> bytes) as the task's outputs, atomically."""
+        final = self.folder(stage, key)
+        final.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{key[:12]}.", suffix=".part", dir=final.parent))
+        try:
+            for name, data in files.items():
+                (tmp / name).parent.mkdir(parents=True, exist_ok=True)
+                (tmp / name).write_bytes(data)
+            os.chmod(tmp, 0o755)
+            if final.exists():       # another worker computed the same key: same content
+                return final
+            os.replace(tmp, final)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return final
+
+    def cached(self, stage: str, key: str, compute: Callable[[], Mapping[str, bytes]]) -> Path:
+        """The task's folder, computing it in this process first when it is missing."""
+        return self.get(stage, key) or self.put(stage, key, compute())
+
+
+class Task(Protocol):
+    """A unit of cached work: picklable (it travels to workers), its outputs plain bytes."""
+
+    stage: ClassVar[str]
+    version: ClassVar[int]
+
+    def key(self) -> str:
+        """`task_key(stage, version, config, inputs)` of what this task depends on."""
+
+    def compute(self) -> Mapping[str, bytes]:
+        """The outputs, file name -> bytes; raise `TaskFailed` for a failure the driver reports
+        after the other tasks finish."""
+
+
+class TaskFailed(Exception):
+    """A task that could not produce its outputs (the physics left its valid regime)."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    task: Any
+    folder: Path | None       # None: failed
+    failure: str | None = None
+
+
+def _compute(task: Task) -> tuple[dict[str, bytes] | None, str | None]:
+    try:
+        return dict(task.compute()), None
+    except TaskFailed as err:
+        return None, str(err)
+
+
+def _indexed(item: tuple[int, Task]) -> tuple[int, dict[str, bytes] | None, str | None]:
+    index, task = item
+    return (index, *_compute(task))
+
+
+def run_tasks(cache: TaskCache, tasks: Sequence[Task], workers: int = 1,
+              ray: str | None = None) -> Iterator[Outcome]:
+    """Every task's outcome, cached ones first, the rest as workers finish them (in any
+    order); a key shared by several tasks is computed once."""
+    todo: dict[str, tuple[int, Task]] = {}
+    waiting: dict[str, list[Task]] = {}
+    for i, task in enumerate(tasks):
+        key = task.key()
+        folder = cache.get(task.stage, key)
+        if folder is not None:
+            yield Outcome(task, folder)
+            continue
+        waiting.setdefault(key, []).append(task)
+        todo.setdefault(key, (i, task))
+    keys = {i: k for k, (i, _) in todo.items()}
+    for index, files, failure in runner_for(ray)(_indexed, list(todo.values()), workers):
+        key = keys[index]
+        stage = todo[key][1].stage
+        folder = None if files is None else cache.put(stage, key, files)
+        for task in waiting[key]:
+            yield Outcome(task, folder, failure)
