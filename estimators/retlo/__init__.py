@@ -1,10 +1,16 @@
 """ReTLo (remote teammate localization, dissertation ch. 2-3): a 3-robot module, applied along
-chains of any length.
+chains of any length, in both chapters' forms.
 
-`frames` (the reference-robot frame and module inputs), `models` (2X heuristic, FC, LSTM),
-`chain` (modular inference and its errors), `train` (training, checkpoints), `synthetic`
-(chains with a known law for tests and benchmarks). Fig 2.7-2.9 are drawn by
-`macrostate_mj.app.experiments.retlo`.
+`frames` (the reference-robot frame and what a module sees in it), `chain` (the `Module`
+protocol, the one chain step, offline inference), `online` (the same step live, as a Tail runs
+it), `report` (errors and their reports), `heuristic` (the 2X heuristic), `mlp` (§2.5's three
+chained MLPs), `models` and `train` (§2.6/§3.3's FC and LSTM modules, in torch), `api` (fit and
+evaluate from ThymioLoc files or world arrays), `synthetic` (chains with a known law).
+
+One unit throughout: metres and radians, world x right, y up. Centimetres appear only at the
+edges: ThymioLoc files (`api`), chapter 3's reports (cm, as its figures), and the networks'
+inputs (`models`: they were designed and first trained in cm).
 """
 
 MODEL_KINDS = ("fc", "lstm")   # here, not in models: the CLI lists them without importing torch
+CM_PER_M = 100.0

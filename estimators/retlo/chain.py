@@ -1,29 +1,148 @@
-"""Modular chain inference (§2.5.1.2) and its evaluation: one 3-robot module, any chain length.
+"""A 3-robot module applied along a chain (§2.5.1.2): the `Module` protocol, what the Tail holds
+(`Tracks`), the one chain step both chapters and both modes (offline, live) run, and offline
+inference.
 
 Robots are indexed from the Tail here (0 = Tail, 1 = its observed neighbour, ..., N-1 = Head);
-ThymioLoc files list them from the Head. Module k takes robot k as its reference (real or
-fictitious Tail), robot k+1 as its Follower and predicts robot k+2. Module k needs robot k+1 at
-t+1, which module k-1 estimated one step later, so robot j is known up to step S-j (the linear
-delay of §2.5.1.2); offline we simply run the modules in order over a whole instance.
+ThymioLoc files and pose logs list them from the Head. Module k takes robot k as its reference
+(real or fictitious Tail), robot k+1 as its Follower and estimates robot k+2. Module k reads
+robot k+1 at t+1, which module k-1 estimated one step later, so robot j is known up to step
+S-j (the linear delay of §2.5.1.2); offline the modules simply run in order over a whole run.
 
-Both chapters' modules share this schedule (`module_steps`), the names of the robots the Tail
-cannot see (`report_names`) and how their error is measured (`unseen_errors`); what differs is
-the module: chapter 3's (`predict_chain`) is fed ℓ steps of its own history over a batch of
-instances, chapter 2's (`estimators.retlo_sim.estimate`) one step, with true poses at sync steps.
+Both chapters' modules (§2.5's one-step MLP, §2.6/§3.3's FC and LSTM with ℓ steps of history)
+run through `module_step`; what differs is what the Tail knows: chapter 3 true poses until τ =
+ℓ-1 over a batch of instances (`predict_chain`), chapter 2 true poses at sync steps of one run
+(`estimate_chain`), and live the same one step at a time (`online.OnlineChain`).
 """
 
 from __future__ import annotations
 
-import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from estimators.retlo.frames import module_inputs, module_targets
-from estimators.retlo.models import Predictor
-from macrostate_mj.core.angles import wrap_angle
+from estimators.retlo.frames import FrameEstimate, Window, decode, window_of
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.frames import from_frame
-from macrostate_mj.formats.thymioloc import STEP_S, robot_names
+
+Features = tuple[np.ndarray, ...]
+
+
+class Module(Protocol):
+    """One 3-robot module as the chain step drives it: its inputs from a `Window` of its robots,
+    then an estimate in the module frame (metres, radians)."""
+
+    history: int   # ℓ: steps before t it reads; 0 for §2.5's one-step module
+    rotate: bool   # frame x axis along Tail→Follower (False: compass axes, §2.5.1.1)
+
+    def features(self, win: Window) -> Features: ...
+
+    def estimate(self, x: Features) -> FrameEstimate: ...
+
+
+@dataclass
+class Tracks:
+    """What the Tail holds of its chain, Tail first, for B runs of S steps and N robots.
+
+    pos (B, S, N, 2); each robot's heading twice, as the module that estimates it as its Head
+    has it (`head_theta`) and as the module that sees it as its Follower has it (`fol_theta`),
+    both (B, S, N): each module reads only its own heading estimates. `known` (S + 1,) marks
+    steps whose poses are true (τ and before, sync steps): no estimate overwrites them.
+    """
+
+    pos: np.ndarray
+    head_theta: np.ndarray
+    fol_theta: np.ndarray
+    known: np.ndarray
+
+
+def empty_tracks(n_runs: int, n_steps: int, n_robots: int) -> Tracks:
+    """Nothing known yet: every value NaN, no step true."""
+    theta = np.full((n_runs, n_steps, n_robots), np.nan)
+    return Tracks(np.full((n_runs, n_steps, n_robots, 2), np.nan), theta, theta.copy(),
+                  np.zeros(n_steps + 1, bool))
+
+
+def tracks_from_world(world: np.ndarray, first: int) -> Tracks:
+    """Chapter 3's knowledge from true poses (B, S, N, 3), Tail first: everything before step
+    `first`, afterwards only the Tail's pose and its neighbour's position. Truth after τ is
+    blanked, so a leak would surface as NaN rather than as a flattering error."""
+    world = np.asarray(world, np.float64)
+    pos, theta = world[..., :2].copy(), world[..., 2].copy()
+    pos[:, first:, 2:] = np.nan
+    theta[:, first:, 1:] = np.nan   # the neighbour's heading is not observed either
+    return Tracks(pos, theta, theta.copy(), np.arange(world.shape[1] + 1) < first)
+
+
+def sync_steps(steps: int, comm_every: int | None) -> np.ndarray:
+    """Steps at which the Tail holds every true pose: τ = 0, then every `comm_every` steps."""
+    return np.arange(0, steps, comm_every) if comm_every else np.array([0])
+
+
+def tracks_from_view(sensed: np.ndarray, synced: np.ndarray, sync: np.ndarray) -> Tracks:
+    """Chapter 2's knowledge of one run: sensed (S, 2, 2), the Tail's own and Follower 1's
+    positions at every step as sensed; synced (len(sync), N, 3), every pose (Tail first)
+    received at the `sync` steps (§2.5.3.2)."""
+    tracks = empty_tracks(1, len(sensed), synced.shape[1])
+    tracks.pos[0, :, :2] = sensed
+    tracks.pos[0, sync, 2:] = synced[:, 2:, :2]
+    tracks.head_theta[0, sync] = tracks.fol_theta[0, sync] = synced[:, :, 2]
+    tracks.known[sync] = True
+    return tracks
+
+
+def first_estimate(history: int) -> int:
+    """The first step a module estimates: after its ℓ true steps, and never τ = 0 itself."""
+    return max(history, 1)
+
+
+def module_steps(k: int, n_steps: int, first_step: int) -> range:
+    """Steps module k runs at: from `first_step` until it runs out of input. Module k reads
+    robot k+1 at t+1, which module k-1 estimated at its step t+1, so each module stops one step
+    before the one below it (k steps before the end, less the step after t)."""
+    return range(first_step, n_steps - 1 - k)
+
+
+def window(tracks: Tracks, k: int, t: int, history: int, rotate: bool) -> Window:
+    """Module k's window at step t: steps t-ℓ .. t+1 of robots k, k+1, k+2."""
+    lo, hi = t - history, t + 2
+    fol = np.concatenate([tracks.pos[:, lo:hi, k + 1], tracks.fol_theta[:, lo:hi, k + 1, None]],
+                         axis=-1)
+    head = np.concatenate([tracks.pos[:, lo:hi, k + 2],
+                           tracks.head_theta[:, lo:hi, k + 2, None]], axis=-1)
+    return window_of(tracks.pos[:, lo:hi, k], fol, head, ~tracks.known[lo:t], rotate)
+
+
+def module_step(module: Module, tracks: Tracks, k: int, t: int) -> tuple[Features, Window]:
+    """Module k at step t, the one chain step: read its window, estimate, write every estimate
+    into `tracks` except at known steps. Returns the module's inputs and window (for training
+    on the model's own feedback)."""
+    win = window(tracks, k, t, module.history, module.rotate)
+    x = module.features(win)
+    est = decode(module.estimate(x), win.origin, win.alpha)
+    if not tracks.known[t]:
+        tracks.pos[:, t, k + 2] = est.head_xy
+        if est.head_theta is not None:
+            tracks.head_theta[:, t, k + 2] = est.head_theta
+        if est.fol_theta is not None:
+            tracks.fol_theta[:, t, k + 1] = est.fol_theta
+    if est.fol_theta_next is not None and not tracks.known[t + 1]:
+        tracks.fol_theta[:, t + 1, k + 1] = est.fol_theta_next
+    return x, win
+
+
+Record = Callable[[int, int, Features, Window], None]   # (k, t, inputs, window) of each step
+
+
+def run_chain(module: Module, tracks: Tracks, record: Record | None = None) -> Tracks:
+    """Every module over every step it can reach, in order; `record` sees each step."""
+    n_steps, n_robots = tracks.pos.shape[1:3]
+    for k in range(n_robots - 2):
+        for t in module_steps(k, n_steps, module.history):
+            x, win = module_step(module, tracks, k, t)
+            if record is not None:
+                record(k, t, x, win)
+    return tracks
 
 
 def check_chain(shape: tuple[int, ...], history: int, what: str = "data") -> None:
@@ -37,91 +156,41 @@ def check_chain(shape: tuple[int, ...], history: int, what: str = "data") -> Non
                         f"({history} of history, then a step and the next observation)")
 
 
-def module_steps(k: int, n_steps: int, first_step: int) -> range:
-    """Steps module k estimates: from `first_step` until it runs out of input. Module k reads
-    robot k+1 at t+1, which module k-1 estimated at its step t+1, so each module stops one step
-    before the one below it (k steps before the end, less the step after t)."""
-    return range(first_step, n_steps - 1 - k)
+def predict_chain(module: Module, world: np.ndarray, record: Record | None = None
+                  ) -> np.ndarray:
+    """Estimate every robot the Tail cannot see, from true poses until τ and afterwards only the
+    Tail's own pose and its neighbour's position (chapter 3).
 
-
-def unseen_errors(est_xy: np.ndarray, truth_xy: np.ndarray) -> np.ndarray:
-    """Euclidean error (..., N-2) of robots 2.. (Tail first: the ones the Tail cannot see), from
-    positions (..., N, 2); NaN where there is no estimate."""
-    return np.linalg.norm(est_xy[..., 2:, :] - truth_xy[..., 2:, :], axis=-1)
-
-
-def predict_chain(pred: Predictor, world: np.ndarray,
-                  samples: dict[str, list[np.ndarray]] | None = None) -> np.ndarray:
-    """Estimate every robot the Tail cannot see, from true poses until τ = ℓ-1 and afterwards only
-    the Tail's own pose and its neighbour's position.
-
-    world: (B, S, N, 3) in file order (H, F1.., T), cm and radians. Returns the estimates in the
-    same layout: NaN where nothing is estimated (the Tail; the neighbour's position; steps < ℓ
-    and the last steps a module cannot reach). Truth after τ is blanked before use, so a leak
-    would surface as NaN rather than as a flattering error. If `samples` is given, the inputs
-    actually fed to the module are appended to it with their true targets (for training on the
-    model's own feedback, see `train`).
+    world: (B, S, N, 3) in file order (H, F1.., T), metres and radians. Returns the estimates in
+    the same layout: NaN where nothing is estimated (the Tail; the neighbour's position; steps
+    up to τ and the last steps a module cannot reach).
     """
-    hist = pred.history
-    check_chain(world.shape, hist)
-    n_steps, n_robots = world.shape[1], world.shape[2]
-    truth = world[:, :, ::-1].astype(np.float64)  # Tail first
-    track = truth.copy()
-    track[:, hist:, 2:] = np.nan  # unseen robots: unknown after τ
-    track[:, hist:, 1, 2] = np.nan  # the neighbour's heading is not observed either
-    est = np.full_like(track, np.nan)
-    for k in range(n_robots - 2):
-        ref, head = track[:, :, k], track[:, :, k + 2]
-        fol = track[:, :, k + 1].copy()  # this module's own estimates of θ_F go in its history
-        for t in module_steps(k, n_steps, hist):
-            obs, x_hist, origin, alpha = module_inputs(
-                ref, fol, head, t, hist, pred.cos_sin, hist if pred.mark_estimates else None,
-                pred.rotate)
-            pos, ang = pred.predict(obs, x_hist)
-            if samples is not None:
-                y_pos, y_ang = module_targets(truth[:, :, k + 1], truth[:, :, k + 2], t, origin,
-                                              alpha)
-                for key, val in zip(("obs", "hist", "pos", "ang"), (obs, x_hist, y_pos, y_ang),
-                                    strict=True):
-                    samples.setdefault(key, []).append(val)
-            head[:, t, :2] = from_frame(pos, origin, alpha)
-            head[:, t, 2] = wrap_angle(ang[:, 1] + alpha)
-            fol[:, t, 2] = wrap_angle(ang[:, 0] + alpha)
-            if k == 0:
-                est[:, t, 1, 2] = fol[:, t, 2]
-        est[:, hist:, k + 2] = head[:, hist:]
+    check_chain(world.shape, module.history)
+    first = first_estimate(module.history)
+    tracks = run_chain(module, tracks_from_world(world[:, :, ::-1], first), record)
+    est = np.full(world.shape, np.nan)
+    est[:, first:, 2:, :2] = tracks.pos[:, first:, 2:]
+    est[:, first:, 2:, 2] = tracks.head_theta[:, first:, 2:]
+    est[:, first:, 1, 2] = tracks.fol_theta[:, first:, 1]
     return est[:, :, ::-1]
 
 
-def report_names(n_robots: int) -> list[str]:
-    """Names in reports, Tail first: Followers counted from the Tail as in §2.5.3.1 (F1 = the
-    Tail's neighbour), so 5-robot reports read F2, F3, H as in Fig 2.7-2.8. ThymioLoc columns
-    count from the Head, so report F_j is column F_{N-1-j}."""
-    return ["T", *(f"F{j}" for j in range(1, n_robots - 1)), "H"]
+def estimate_chain(module: Module, sensed: np.ndarray, synced: np.ndarray, sync: np.ndarray
+                   ) -> np.ndarray:
+    """Estimated positions (S, N, 2) of one run, Tail first, NaN where nothing is estimated
+    (chapter 2; see `tracks_from_view` for what the Tail knows). Nothing else from the truth
+    enters the loop."""
+    return run_chain(module, tracks_from_view(sensed, synced, sync)).pos[0]
 
 
-def evaluate_chain(pred: Predictor, world: np.ndarray) -> dict:
-    """Errors (cm) of every robot the Tail cannot see: per robot, per step, and their mean."""
-    est = predict_chain(pred, world)
-    n_robots, hist = world.shape[2], pred.history
-    names = report_names(n_robots)
-    file_names = robot_names(n_robots)[::-1]
-    unseen = unseen_errors(est[:, hist:, ::-1, :2], world[:, hist:, ::-1, :2])  # (B, steps, robots)
-    per_robot = {names[j]: float(np.nanmean(unseen[:, :, j - 2])) for j in range(2, n_robots)}
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: steps out of reach
-        step_means = np.nanmean(unseen, axis=0)  # (steps, robots)
-    per_step = [None if np.all(np.isnan(row)) else float(np.nanmean(row)) for row in step_means]
-    return {
-        "mean_error_cm": float(np.nanmean(unseen)),
-        "per_robot_cm": per_robot,
-        "per_step_cm": per_step,
-        "per_robot_step_cm": {names[j]: [None if np.isnan(v) else float(v)
-                                         for v in step_means[:, j - 2]]
-                              for j in range(2, n_robots)},
-        "first_step": hist,
-        "step_s": STEP_S,
-        "n_instances": int(world.shape[0]),
-        "n_robots": n_robots,
-        "csv_robot": {names[j]: file_names[j] for j in range(2, n_robots)},
-    }
+def true_windows(world: np.ndarray, k: int, history: int, rotate: bool) -> Window:
+    """Module k's windows at every step it can take of true runs (R, S, N, 3), Tail first,
+    batched run-major (R · (S-ℓ-1) windows): inputs for training and one-step errors."""
+    n_runs, n_steps = world.shape[:2]
+    steps = n_steps - history - 1
+    idx = np.arange(steps)[:, None] + np.arange(history + 2)[None]    # (windows, ℓ+2)
+
+    def of(j: int) -> np.ndarray:
+        return world[:, idx, j].reshape(n_runs * steps, history + 2, 3)
+
+    return window_of(of(k)[..., :2], of(k + 1), of(k + 2), np.zeros(history, bool), rotate)

@@ -1,21 +1,25 @@
-"""ReTLo module predictors: the 2X heuristic, FC (recent observations only) and LSTM (§2.6.1.1).
+"""ReTLo's learned modules of §2.6.1.1 and §3.3: FC (recent observations only) and LSTM.
 
-Every predictor maps one 3-robot module's inputs in the reference-robot frame (see `frames`) to
-the Head's position at t and the angles (θ_F@t, θ_H@t, θ_F@t+1), so `chain.predict_chain` can
-apply any of them repeatedly along a chain of any length.
+Each is a chain `Module` (`TorchPredictor`): one 3-robot module's inputs in the reference-robot
+frame (see `frames`) map to the Head's position at t and the angles (θ_F@t, θ_H@t, θ_F@t+1),
+so `chain` can apply it repeatedly along a chain of any length.
+
+The networks work in cm, the unit they were designed and first trained in: `net_features`
+scales the frame's metres to cm in float64, before the float32 rounding of their inputs, so
+they see the numbers the cm pipeline gave them and keep its checkpoints and figures.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 import torch
 from torch import nn
 
-from estimators.retlo import MODEL_KINDS
-from estimators.retlo.frames import extrapolate_2x
+from estimators.retlo import CM_PER_M, MODEL_KINDS
+from estimators.retlo.chain import Features
+from estimators.retlo.frames import FrameEstimate, Window, history_features
 from macrostate_mj.core.errors import UserError
 
 
@@ -38,29 +42,6 @@ class ModelConfig:
             raise UserError(f"unknown model {self.kind!r}; choose one of {', '.join(MODEL_KINDS)}")
         if self.history < 1:
             raise UserError(f"history must be at least 1 step, got {self.history}")
-
-
-class Predictor(Protocol):
-    """One module step: obs (B, 4), hist (B, ℓ, F) in cm/rad → pos (B, 2) cm, angles (B, 3) rad."""
-
-    history: int
-    cos_sin: bool
-    mark_estimates: bool
-    rotate: bool
-
-    def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
-
-
-class Heuristic2X:
-    """Head ≈ Tail + 2·(F − Tail) (§2.6.2.3); headings along the chain, i.e. 0 in the frame."""
-
-    history = 10  # uses no history, but starts predicting where the learned models do
-    cos_sin = False
-    mark_estimates = False
-    rotate = True
-
-    def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return extrapolate_2x(0.0, obs[:, :2]), np.zeros((len(obs), 3))   # F relative to T
 
 
 class RetloNet(nn.Module):
@@ -110,19 +91,36 @@ def decode_angles(ang: torch.Tensor, cos_sin: bool) -> torch.Tensor:
     return torch.atan2(ang[..., 1], ang[..., 0]) if cos_sin else ang
 
 
+def net_features(win: Window, cfg: ModelConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The network's inputs (float64): `frames.history_features` with positions in cm."""
+    obs, hist = history_features(win, cfg.cos_sin, cfg.mark_estimates)
+    return obs * CM_PER_M, hist * position_scale(cfg)
+
+
+def position_scale(cfg: ModelConfig) -> np.ndarray:
+    """Per history channel: CM_PER_M on positions (Head xy, Follower xy), 1 on angles and flag."""
+    ang = [1.0] * (2 if cfg.cos_sin else 1)
+    return np.array(([CM_PER_M] * 2 + ang) * 2 + [1.0] * int(cfg.mark_estimates))
+
+
 class TorchPredictor:
-    """A trained RetloNet behind the numpy `Predictor` interface, for chain inference."""
+    """A trained RetloNet as a chain `Module`. It does not feed back its θ_F@t+1: the next
+    step estimates θ_F@t+1 itself, as θ_F@t, from newer inputs."""
 
     def __init__(self, net: RetloNet) -> None:
         self.net = net.eval()
+        self.cfg = net.cfg
         self.history = net.cfg.history
-        self.cos_sin = net.cfg.cos_sin
-        self.mark_estimates = net.cfg.mark_estimates
         self.rotate = net.cfg.rotate
 
+    def features(self, win: Window) -> Features:
+        return net_features(win, self.cfg)
+
     @torch.no_grad()
-    def predict(self, obs: np.ndarray, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def estimate(self, x: Features) -> FrameEstimate:
+        obs, hist = x
         pos, ang = self.net(torch.as_tensor(obs, dtype=torch.float32),
                             torch.as_tensor(hist, dtype=torch.float32))
-        pos = pos * self.net.pos_scale
-        return pos.double().numpy(), decode_angles(ang, self.cos_sin).double().numpy()
+        pos = (pos * self.net.pos_scale).double().numpy() / CM_PER_M
+        ang = decode_angles(ang, self.cfg.cos_sin).double().numpy()
+        return FrameEstimate(pos, head_theta=ang[:, 1], fol_theta=ang[:, 0])

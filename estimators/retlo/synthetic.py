@@ -11,8 +11,8 @@ import numpy as np
 
 
 def synthetic_chains(n_inst: int, n_robots: int, seed: int, n_steps: int = 26,
-                     spacing: float = 31.0, head_speed: float = 8.0) -> np.ndarray:
-    """(n_inst, n_steps, n_robots, 3) world poses (cm, rad) in file order (Head first), 2 Hz."""
+                     spacing: float = 0.31, head_speed: float = 0.08) -> np.ndarray:
+    """(n_inst, n_steps, n_robots, 3) world poses (m, rad) in file order (Head first), 2 Hz."""
     rng = np.random.default_rng(seed)
     sub, dt = 10, 0.05
     head0 = rng.uniform(-np.pi, np.pi, n_inst)
@@ -30,9 +30,9 @@ def synthetic_chains(n_inst: int, n_robots: int, seed: int, n_steps: int = 26,
             for r in range(1, n_robots):
                 gap = pos[:, r - 1] - pos[:, r]
                 dist = np.linalg.norm(gap, axis=-1)
-                speed = np.clip(0.6 * (dist - spacing), 0.0, 12.0)
+                speed = np.clip(0.6 * (dist - spacing), 0.0, 0.12)
                 pos[:, r] += (speed * dt / dist)[:, None] * gap
-                moving = speed > 0.1
+                moving = speed > 0.001
                 theta[:, r] = np.where(moving, np.arctan2(gap[:, 1], gap[:, 0]), theta[:, r])
     out[..., 2] = (out[..., 2] + np.pi) % (2 * np.pi) - np.pi
     return out

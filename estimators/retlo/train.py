@@ -1,8 +1,10 @@
-"""Training of a ReTLo module on ThymioLoc data, and its self-contained checkpoint.
+"""Training of a ReTLo network (FC or LSTM) on chains of true poses, and its self-contained
+checkpoint.
 
 Samples are every (module, step) of every training instance with the true history (teacher
 forcing). Model selection uses what the user will see: the closed-loop chain error on the
-validation file, predictions fed back exactly as at test time.
+validation set, predictions fed back exactly as at test time. Chains come in metres; samples
+are in the networks' own units (`models.net_features`), float32.
 """
 
 from __future__ import annotations
@@ -18,9 +20,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from estimators.retlo.chain import check_chain, evaluate_chain, predict_chain
-from estimators.retlo.frames import module_inputs, module_targets
-from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor
+from estimators.retlo import CM_PER_M
+from estimators.retlo.chain import (
+    Features,
+    check_chain,
+    predict_chain,
+    tracks_from_world,
+    window,
+)
+from estimators.retlo.frames import Window, module_targets
+from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
+from estimators.retlo.report import evaluate_chain
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
 
@@ -45,21 +55,26 @@ class TrainConfig:
     model: ModelConfig = field(default_factory=ModelConfig)
 
 
+def _append(parts: dict[str, list[np.ndarray]], x: Features, truth: np.ndarray, k: int, t: int,
+            win: Window) -> None:
+    """One step's network inputs and its eq. 2.4 targets from true poses (B, S, N, 3), Tail
+    first, in the step's frame (positions in cm, as the inputs)."""
+    pos, ang = module_targets(truth[:, t, k + 2], truth[:, t, k + 1], truth[:, t + 1, k + 1],
+                              win.origin, win.alpha)
+    for key, val in zip(("obs", "hist", "pos", "ang"), (*x, pos * CM_PER_M, ang), strict=True):
+        parts.setdefault(key, []).append(val)
+
+
 def make_samples(worlds: list[np.ndarray], cfg: ModelConfig) -> dict[str, np.ndarray]:
     """Every module and step of every chain, with true history: obs, hist, pos, ang arrays."""
     parts: dict[str, list[np.ndarray]] = {"obs": [], "hist": [], "pos": [], "ang": []}
     for world in worlds:
-        track = world[:, :, ::-1]  # Tail first
+        truth = world[:, :, ::-1]  # Tail first
+        tracks = tracks_from_world(truth, world.shape[1])   # all history true
         for k in range(world.shape[2] - 2):
-            ref, fol, head = track[:, :, k], track[:, :, k + 1], track[:, :, k + 2]
             for t in range(cfg.history, world.shape[1] - 1):
-                obs, hist, origin, alpha = module_inputs(
-                    ref, fol, head, t, cfg.history, cfg.cos_sin,
-                    world.shape[1] if cfg.mark_estimates else None,  # all history true
-                    cfg.rotate)
-                pos, ang = module_targets(fol, head, t, origin, alpha)
-                for key, val in zip(parts, (obs, hist, pos, ang), strict=True):
-                    parts[key].append(val)
+                win = window(tracks, k, t, cfg.history, cfg.rotate)
+                _append(parts, net_features(win, cfg), truth, k, t, win)
     return {k: np.concatenate(v).astype(np.float32) for k, v in parts.items()}
 
 
@@ -77,7 +92,7 @@ def mirror_signs(cfg: ModelConfig) -> dict[str, np.ndarray]:
 
 
 def mean_spacing(worlds: list[np.ndarray]) -> float:
-    """Mean neighbour distance (cm): the position scale the network works in."""
+    """Mean neighbour distance (in the worlds' unit): the position scale the network works in."""
     return float(np.mean(np.concatenate([np.linalg.norm(np.diff(w[..., :2], axis=2), axis=-1)
                                          .ravel() for w in worlds])))
 
@@ -109,6 +124,14 @@ def as_chained(world: np.ndarray, est: np.ndarray, rng: np.random.Generator) -> 
     return out
 
 
+def _predict_recorded(net: RetloNet, world: np.ndarray, samples: dict[str, list[np.ndarray]]
+                      ) -> np.ndarray:
+    """`predict_chain`, adding every step's inputs and true targets (from `world`) to samples."""
+    truth = world[:, :, ::-1]
+    return predict_chain(TorchPredictor(net), world,
+                         lambda k, t, x, win: _append(samples, x, truth, k, t, win))
+
+
 def _with_feedback(net: RetloNet, worlds: list[np.ndarray], data: dict[str, torch.Tensor],
                    chained: bool, rng: np.random.Generator) -> dict[str, torch.Tensor]:
     """Add the samples the current model would meet at test time: histories holding its own
@@ -117,9 +140,9 @@ def _with_feedback(net: RetloNet, worlds: list[np.ndarray], data: dict[str, torc
     this is DAgger-style data aggregation, refreshed every epoch."""
     samples: dict[str, list[np.ndarray]] = {}
     for world in worlds:
-        est = predict_chain(TorchPredictor(net), world, samples=samples)
+        est = _predict_recorded(net, world, samples)
         if chained:
-            predict_chain(TorchPredictor(net), as_chained(world, est, rng), samples=samples)
+            _predict_recorded(net, as_chained(world, est, rng), samples)
     extra = {k: torch.from_numpy(np.concatenate(v).astype(np.float32)) for k, v in samples.items()}
     return {k: torch.cat([data[k], extra[k]]) for k in data}
 
@@ -151,7 +174,8 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
 def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
           progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
           init: RetloNet | None = None) -> tuple[RetloNet, dict]:
-    """Train with Adam, keep the best closed-loop validation checkpoint, stop early.
+    """Train with Adam on chains (B, S, N, 3) in metres, file order; keep the best closed-loop
+    validation checkpoint, stop early.
 
     `init`: fine-tune a copy of this network (its sizes and spacing scale) instead of a fresh
     one; `cfg.model` must describe it.
@@ -168,7 +192,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     rng = np.random.default_rng(cfg.seed)
     base = make_samples(train_worlds, cfg.model)
     signs = {k: torch.from_numpy(v).float() for k, v in mirror_signs(cfg.model).items()}
-    net = (RetloNet(cfg.model, mean_spacing(train_worlds)) if init is None
+    net = (RetloNet(cfg.model, CM_PER_M * mean_spacing(train_worlds)) if init is None
            else copy.deepcopy(init).train())
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)

@@ -9,8 +9,12 @@ import pytest
 import torch
 from clitools import cli_inprocess as _cli
 
-from estimators.retlo.chain import evaluate_chain, predict_chain
-from estimators.retlo.models import Heuristic2X, ModelConfig, RetloNet, TorchPredictor
+from estimators.retlo.chain import predict_chain, tracks_from_world, window
+from estimators.retlo.files import pixels_to_world, read_world, world_to_pixels
+from estimators.retlo.frames import FrameEstimate, history_features
+from estimators.retlo.heuristic import Heuristic2X
+from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
+from estimators.retlo.report import evaluate_chain
 from estimators.retlo.synthetic import synthetic_chains
 from estimators.retlo.train import (
     FORMAT,
@@ -21,36 +25,40 @@ from estimators.retlo.train import (
 )
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.frames import from_frame, to_frame
-from macrostate_mj.formats.thymioloc import from_world, to_world, write_csv
+from macrostate_mj.formats.thymioloc import write_csv
 
 TINY = dict(k=16, m=16, d=16)
 
 
 def _rigid(n_robots: int, shape: str, n_inst: int = 2, n_steps: int = 26) -> np.ndarray:
-    """A rigid chain translating at constant velocity: a straight line (along its motion) or a
-    zigzag; headings constant. The answer is known at every step."""
-    v = np.array([4.0, 3.0])
-    offsets = np.stack([-31.0 * np.arange(n_robots) * 0.8, -31.0 * np.arange(n_robots) * 0.6], -1)
+    """A rigid chain (metres) translating at constant velocity: a straight line (along its
+    motion) or a zigzag; headings constant. The answer is known at every step."""
+    v = np.array([0.04, 0.03])
+    offsets = np.stack([-0.31 * np.arange(n_robots) * 0.8, -0.31 * np.arange(n_robots) * 0.6], -1)
     if shape == "zigzag":
-        offsets[1::2] += np.array([-12.0, 16.0])
+        offsets[1::2] += np.array([-0.12, 0.16])
     t = np.arange(n_steps)[:, None, None]
-    xy = np.array([100.0, 50.0]) + offsets[None] + v * t
+    xy = np.array([1.0, 0.5]) + offsets[None] + v * t
     theta = np.full((n_steps, n_robots, 1), np.arctan2(3.0, 4.0))
     one = np.concatenate([xy, theta], -1)
     world = np.repeat(one[None], n_inst, axis=0)
-    world[..., :2] += np.arange(n_inst)[:, None, None, None] * 7.0
+    world[..., :2] += np.arange(n_inst)[:, None, None, None] * 0.07
     return world
 
 
 class ConstantVelocity:
-    """Extrapolates the Head from the last two history steps: exact for a rigid translating chain
-    only if fed-back estimates and frame changes are handled right."""
+    """A chain `Module` that extrapolates the Head from the last two history steps: exact for a
+    rigid translating chain only if fed-back estimates and frame changes are handled right."""
 
-    history, cos_sin, mark_estimates, rotate = 10, False, False, True
+    history, rotate = 10, True
 
-    def predict(self, obs, hist):
-        pos = 2 * hist[:, -1, 0:2] - hist[:, -2, 0:2]
-        return pos, np.stack([hist[:, -1, 5], hist[:, -1, 2], hist[:, -1, 5]], -1)
+    def features(self, win):
+        return history_features(win, cos_sin=False, mark_estimates=False)
+
+    def estimate(self, x):
+        _, hist = x
+        return FrameEstimate(2 * hist[:, -1, 0:2] - hist[:, -2, 0:2], head_theta=hist[:, -1, 2],
+                             fol_theta=hist[:, -1, 5])
 
 
 def test_frame_round_trip():
@@ -82,7 +90,7 @@ def test_fed_back_estimates_and_frames_are_exact_on_a_translating_zigzag(n_robot
     assert seen.sum() > 0 and np.allclose(est[seen], world[seen], atol=1e-8)
     # truth after τ is never read: scrambling it changes nothing
     scrambled = world.copy()
-    scrambled[:, 10:, :-2] += 1000.0  # every robot but the Tail and its neighbour
+    scrambled[:, 10:, :-2] += 10.0  # every robot but the Tail and its neighbour
     scrambled[:, 10:, -2, 2] += 1.0  # the neighbour's heading is not observed either
     assert np.allclose(predict_chain(pred, scrambled)[seen], est[seen])
 
@@ -136,9 +144,9 @@ def test_same_seed_same_checkpoint_bytes(tmp_path):
 
 
 def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, capsys):
-    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(30, 3, 1), 3.0))
-    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(8, 3, 2), 3.0))
-    five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(6, 5, 3), 3.0))
+    train_csv = write_csv(tmp_path / "train.csv", world_to_pixels(synthetic_chains(30, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(8, 3, 2), 3.0))
+    five = write_csv(tmp_path / "five.csv", world_to_pixels(synthetic_chains(6, 5, 3), 3.0))
     model = tmp_path / "fc.pt"
     code, out, err = _cli(capsys, "train", "retlo", "--model", "fc", "--train",
                           str(train_csv), "--val", str(val_csv), "--out", str(model),
@@ -161,9 +169,9 @@ def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, capsys):
 def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsys):
     import cv2
 
-    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(24, 3, 1), 3.0))
-    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(6, 3, 2), 3.0))
-    five = write_csv(tmp_path / "five.csv", from_world(synthetic_chains(4, 5, 3), 3.0))
+    train_csv = write_csv(tmp_path / "train.csv", world_to_pixels(synthetic_chains(24, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(6, 3, 2), 3.0))
+    five = write_csv(tmp_path / "five.csv", world_to_pixels(synthetic_chains(4, 5, 3), 3.0))
     for out in (tmp_path / "exp", tmp_path / "again"):
         code, stdout, err = _cli(capsys, "experiment", "retlo", "--train",
                                  str(train_csv), "--val", str(val_csv), "--test", str(five),
@@ -186,7 +194,7 @@ def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsy
 
 
 def _data(tmp_path):
-    return str(write_csv(tmp_path / "d.csv", from_world(_rigid(3, "straight"), 3.0)))
+    return str(write_csv(tmp_path / "d.csv", world_to_pixels(_rigid(3, "straight"), 3.0)))
 
 
 def _bad_checkpoint(tmp_path):
@@ -197,10 +205,11 @@ def _bad_checkpoint(tmp_path):
 
 BAD_RUNS = {
     "two robots": (lambda p: ["evaluate", "retlo", "--model", "heuristic2x", "--data",
-                              str(write_csv(p / "d.csv", from_world(_rigid(2, "straight"), 3.0))),
+                              str(write_csv(p / "d.csv",
+                                            world_to_pixels(_rigid(2, "straight"), 3.0))),
                               "--out", str(p / "r.json")], "at least 3"),
     "too few steps": (lambda p: ["evaluate", "retlo", "--model", "heuristic2x", "--data",
-                                 str(write_csv(p / "d.csv", from_world(
+                                 str(write_csv(p / "d.csv", world_to_pixels(
                                      _rigid(3, "straight", n_steps=8), 3.0))),
                                  "--out", str(p / "r.json")], "steps"),
     "other checkpoint": (lambda p: ["evaluate", "retlo", "--model", str(_bad_checkpoint(p)),
@@ -226,9 +235,27 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, case):
     assert not (tmp_path / "m.pt").exists() and not (tmp_path / "q.json").exists()
 
 
-def test_to_world_matches_synthetic_units():
+def test_files_are_read_in_metres():
     world = synthetic_chains(2, 3, seed=0)
-    assert np.allclose(to_world(from_world(world, 3.0), 3.0), world)
+    assert np.allclose(pixels_to_world(world_to_pixels(world, 3.0), 3.0), world)
+    assert 0.25 < np.linalg.norm(world[0, 0, 0, :2] - world[0, 0, 1, :2]) < 0.4   # 31 cm
+
+
+def test_the_networks_see_the_inputs_of_the_cm_pipeline():
+    """The chain runs in metres; a network's float32 inputs equal those the same chains in cm
+    gave it (the unit its checkpoints and figures were made in), but for the rounding residue of
+    the Follower's y at t, exactly 0 in the rotated frame (about 1e-15 cm in either unit)."""
+    world = synthetic_chains(4, 4, seed=5)[:, :, ::-1]
+    cfg = ModelConfig(cos_sin=True)
+    cm = world.copy()
+    cm[..., :2] *= 100.0
+    for k, t in ((0, 10), (1, 17)):
+        ours = net_features(window(tracks_from_world(world, 26), k, t, 10, True), cfg)
+        theirs = history_features(window(tracks_from_world(cm, 26), k, t, 10, True), True, True)
+        for a, b in zip(ours, theirs, strict=True):
+            zero = np.abs(b) < 1e-9
+            assert np.array_equal(a.astype(np.float32)[~zero], b.astype(np.float32)[~zero])
+            assert np.all(np.abs(a[zero]) < 1e-12)
 
 
 @pytest.mark.parametrize("cos_sin", [False, True])
@@ -246,18 +273,16 @@ def test_mirror_signs_reflect_samples_like_a_reflected_chain(cos_sin):
 
 
 def test_heuristic_on_the_real_data_matches_the_dissertation(reference_data):
-    from macrostate_mj.formats.thymioloc import read_csv
-
     train_csv = reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
-    report = evaluate_chain(Heuristic2X(), to_world(read_csv(train_csv).poses, 3.0))
+    report = evaluate_chain(Heuristic2X(), read_world(train_csv, 3.0))
     assert 23.0 < report["per_robot_cm"]["H"] < 26.0  # "about 24 cm" (§2.6.3.1, Fig 2.7)
 
 
 def test_ctrl_c_during_training_keeps_the_best_checkpoint(tmp_path, capsys, monkeypatch):
     import estimators.retlo.train as train_module
 
-    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(30, 3, 1), 3.0))
-    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(8, 3, 2), 3.0))
+    train_csv = write_csv(tmp_path / "train.csv", world_to_pixels(synthetic_chains(30, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(8, 3, 2), 3.0))
     calls = []
 
     def validate_then_interrupt(pred, world):
@@ -278,8 +303,8 @@ def test_ctrl_c_during_training_keeps_the_best_checkpoint(tmp_path, capsys, monk
 
 def test_chapter_three_predictor_from_the_command_line(tmp_path, capsys):
     """§3.3's variant: a unidirectional LSTM, angles as cos/sin, and the history ℓ chosen."""
-    train_csv = write_csv(tmp_path / "train.csv", from_world(synthetic_chains(20, 3, 1), 3.0))
-    val_csv = write_csv(tmp_path / "val.csv", from_world(synthetic_chains(6, 3, 2), 3.0))
+    train_csv = write_csv(tmp_path / "train.csv", world_to_pixels(synthetic_chains(20, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(6, 3, 2), 3.0))
     model = tmp_path / "ch3.pt"
     code, _, err = _cli(capsys, "train", "retlo", "--model", "lstm", "--train", str(train_csv),
                         "--val", str(val_csv), "--out", str(model), "--epochs", "1",

@@ -14,15 +14,18 @@ from collectors.robotarium import (
     twists_of,
 )
 from collectors.robotarium_cases import tail_view
-from estimators.retlo_sim.estimate import (
-    chain_errors,
-    estimate_chain,
-    estimate_heuristic,
-    one_step_errors,
-    sync_steps,
+from estimators.retlo.chain import estimate_chain, sync_steps
+from estimators.retlo.heuristic import estimate_heuristic
+from estimators.retlo.mlp import (
+    OneStepModule,
+    init_mlp,
+    mse,
+    standardize,
+    train_mlp,
+    training_pairs,
 )
-from estimators.retlo_sim.frames import training_pairs
-from estimators.retlo_sim.mlp import init_mlp, mse, standardize, train_mlp
+from estimators.retlo.online import OnlineChain
+from estimators.retlo.report import chain_errors, one_step_errors
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.frames import frame_of, from_frame, to_frame
@@ -65,9 +68,11 @@ def test_frame_round_trip_and_rigid_features():
     assert np.allclose(targets, [0.16, 0.0, 0.0])
 
 
-def _exact_straight(base: np.ndarray) -> np.ndarray:
+class ExactStraight(OneStepModule):
     """The known answer on a rigid straight chain: Head at twice the Follower, heading kept."""
-    return np.column_stack([2 * base[:, 0], 2 * base[:, 1], base[:, 2]])
+
+    def predict(self, base: np.ndarray) -> np.ndarray:
+        return np.column_stack([2 * base[:, 0], 2 * base[:, 1], base[:, 2]])
 
 
 @pytest.mark.parametrize("n", [3, 4, 6])
@@ -75,14 +80,14 @@ def test_modular_estimation_is_exact_with_the_known_module(n):
     poses = rigid_straight(n, 40, 0.7, 0.08)
     sync = sync_steps(40, None)
     sensed, synced, truth = tail_view(poses, sync, 0.0, None)
-    err = chain_errors(estimate_chain(_exact_straight, sensed, synced, sync), truth)
+    err = chain_errors(estimate_chain(ExactStraight(), sensed, synced, sync), truth)
     assert err.shape == (40, n - 2)
     assert np.nanmax(err) < 1e-12
     # Module k stops k steps before the end: far robots lag (§2.5.1.2), nothing is invented.
     assert np.isfinite(err[1:40 - (n - 2), -1]).all() and np.isnan(err[40 - (n - 2):, -1]).all()
     h_err = chain_errors(estimate_heuristic(sensed, synced, sync), truth)
     assert np.nanmax(h_err) < 1e-12
-    assert one_step_errors(_exact_straight, truth).max() < 1e-12
+    assert one_step_errors(ExactStraight(), truth).max() < 1e-12
 
 
 def _rigid_training(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -104,7 +109,7 @@ def test_training_lowers_the_error_and_the_trained_chain_is_accurate():
     poses = rigid_straight(6, 200, 1.234, 0.095)
     sync = sync_steps(200, None)
     sensed, synced, truth = tail_view(poses, sync, 0.0, None)
-    err = chain_errors(estimate_chain(model.predict, sensed, synced, sync), truth)
+    err = chain_errors(estimate_chain(model, sensed, synced, sync), truth)
     assert np.nanmax(err) < 0.01, np.nanmax(err, axis=0)
 
 
@@ -162,18 +167,17 @@ def test_the_online_chain_estimates_what_the_offline_one_does(comm_every):
     """The Tail's live estimator (one observation a step, the team's poses shared at the sync
     steps) equals `estimate_chain` on the same observations, for any module function, and its
     Head lags n - 2 steps."""
-    from estimators.retlo_sim.estimate import OnlineChain, estimate_chain, sync_steps
-
     rng = np.random.default_rng(3)
     steps, n = 40, 6
     truth = np.cumsum(rng.normal(0, 0.01, (steps, n, 3)), axis=0)
 
-    def predict(base: np.ndarray) -> np.ndarray:      # any deterministic module will do
-        return np.column_stack([np.tanh(base.sum(1)), 0.3 * base[:, 0], np.sin(base[:, 1])])
+    class AnyModule(OneStepModule):                    # any deterministic module will do
+        def predict(self, base: np.ndarray) -> np.ndarray:
+            return np.column_stack([np.tanh(base.sum(1)), 0.3 * base[:, 0], np.sin(base[:, 1])])
 
     sync = sync_steps(steps, comm_every)
-    offline = estimate_chain(predict, truth[:, :2, :2], truth[sync], sync)
-    live = OnlineChain(predict, n, steps)
+    offline = estimate_chain(AnyModule(), truth[:, :2, :2], truth[sync], sync)
+    live = OnlineChain(AnyModule(), n, steps)
     live.start(truth[0])
     for s in range(1, steps):
         live.observe(truth[s, :2, :2])

@@ -6,16 +6,17 @@ import numpy as np
 import pytest
 from clitools import cli_inprocess as _cli
 
+from estimators.retlo.files import world_to_pixels
 from estimators.retlo.synthetic import synthetic_chains
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.formats import motion_stats
-from macrostate_mj.formats.thymioloc import from_world, write_csv
+from macrostate_mj.formats.thymioloc import write_csv
 
 
 def _file(tmp_path, name, n_robots=3, seed=0, n_inst=20, jitter=0.0):
     world = synthetic_chains(n_inst, n_robots, seed)
     world[..., :2] += np.random.default_rng(seed).normal(0, jitter, world[..., :2].shape)
-    return write_csv(tmp_path / name, from_world(world, 3.0))
+    return write_csv(tmp_path / name, world_to_pixels(world, 3.0))
 
 
 def test_a_file_against_itself_has_zero_distance_everywhere(tmp_path, capsys):
@@ -31,7 +32,7 @@ def test_a_file_against_itself_has_zero_distance_everywhere(tmp_path, capsys):
 
 def test_tracker_jitter_is_what_separates_a_noisy_copy(tmp_path, capsys):
     """The same chains with 1 cm of position noise: jitter differs most, spacing barely."""
-    clean, noisy = _file(tmp_path, "c.csv"), _file(tmp_path, "n.csv", jitter=1.0)
+    clean, noisy = _file(tmp_path, "c.csv"), _file(tmp_path, "n.csv", jitter=0.01)
     code, out, _ = _cli(capsys, "stats", "--compare", str(clean), str(noisy), "--json",
                         "--plot", str(tmp_path / "cmp.png"))
     assert code == 0

@@ -14,15 +14,12 @@ from macrostate_mj.app.bench import figure
 
 
 def _data() -> tuple[str, list, object]:
+    from estimators.retlo.files import read_world
     from macrostate_mj.core.paths import real_thymioloc
-    from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
     root = real_thymioloc("Train.csv").parent
     if (root / "Train.csv").is_file() and (root / "Val.csv").is_file():
-        def world(name: str) -> object:
-            return to_world(read_csv(root / name).poses, DEFAULT_PX_PER_CM)
-
-        return "real 3-robot Train", [world("Train.csv")], world("Val.csv")
+        return "real 3-robot Train", [read_world(root / "Train.csv")], read_world(root / "Val.csv")
     from estimators.retlo.synthetic import synthetic_chains
 
     return "synthetic, real Train's size", [synthetic_chains(280, 3, 0)], synthetic_chains(45, 3, 1)
@@ -35,7 +32,7 @@ def _bare_batch_seconds(cfg, n_hist_features: int, repeats: int = 30) -> float:
     from estimators.retlo.models import RetloNet
     from estimators.retlo.train import _loss
 
-    net = RetloNet(cfg.model, 31.0)
+    net = RetloNet(cfg.model, 31.0)   # a typical spacing in cm, the networks' unit
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     gen = torch.Generator().manual_seed(0)
     batch = {"obs": torch.randn(cfg.batch, 4, generator=gen),
@@ -56,13 +53,14 @@ def bench_retlo() -> list[dict]:
     """Figures: LSTM training wall time (limit: bare network steps), per-batch cost, accuracy."""
     import torch
 
+    from estimators.retlo.api import fit
     from estimators.retlo.models import ModelConfig
-    from estimators.retlo.train import TrainConfig, make_samples, train
+    from estimators.retlo.train import TrainConfig, make_samples
 
     label, trains, val = _data()
     cfg = TrainConfig(seed=0, model=ModelConfig(kind="lstm"))
     start = time.perf_counter()
-    _, info = train(trains, val, cfg, progress=False)
+    _, info = fit(trains, val, cfg)
     seconds = time.perf_counter() - start
     n_feat = make_samples([trains[0][:1]], cfg.model)["hist"].shape[-1]
     torch.set_num_threads(cfg.threads)

@@ -112,21 +112,21 @@ def train_retlo(
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
     """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint."""
+    from estimators.retlo.api import fit
+    from estimators.retlo.files import read_world
     from estimators.retlo.models import ModelConfig
     from estimators.retlo.train import TrainConfig, save_checkpoint
-    from estimators.retlo.train import train as fit
     from macrostate_mj.core.io import check_writable_file, write_manifest
-    from macrostate_mj.formats.thymioloc import read_csv, to_world
 
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained,
                       model=ModelConfig(kind=model, bidirectional=not unidirectional,
                                         cos_sin=cos_sin, rotate=not compass_frame,
                                         history=history))
     check_writable_file(out, overwrite, "--out")
-    worlds = [to_world(read_csv(p).poses, px_per_cm) for p in train]
-    val_world = to_world(read_csv(val).poses, px_per_cm)
+    worlds = [read_world(p, px_per_cm) for p in train]
+    val_world = read_world(val, px_per_cm)
     start = time.perf_counter()
-    net, info = fit(worlds, val_world, cfg)
+    net, info = fit(worlds, val_world, cfg, progress=True)
     save_checkpoint(out, net, px_per_cm, cfg, info)
     write_manifest(out.parent, "train retlo", cfg, seed, {"train": time.perf_counter() - start},
                    name=out.name + ".manifest.json", inputs=[str(p) for p in [*train, val]])
@@ -147,17 +147,14 @@ def evaluate_retlo(
     overwrite: bool = Switch(False, "Replace an existing report."),
 ) -> None:
     """Errors (cm) of every robot the Tail cannot see, per robot and per step."""
+    from estimators.retlo.api import evaluate
     from macrostate_mj.app.experiments.retlo import load_predictor
     from macrostate_mj.core.io import check_writable_file, write_json_atomic
-    from macrostate_mj.formats.thymioloc import read_csv, to_world
 
-    px = px_per_cm
     check_writable_file(out, overwrite, "--out")
     pred, name = load_predictor(model)
-    from estimators.retlo.chain import evaluate_chain
-
-    report = {"model": name, "data": str(data), "px_per_cm": px,
-              **evaluate_chain(pred, to_world(read_csv(data).poses, px))}
+    report = {"model": name, "data": str(data), "px_per_cm": px_per_cm,
+              **evaluate(pred, data, px_per_cm)}
     write_json_atomic(out, report)
     robots = ", ".join(f"{r} {v:.2f}" if r == report["csv_robot"][r] else
                        f"{r} (CSV {report['csv_robot'][r]}) {v:.2f}"

@@ -14,19 +14,22 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.retlo.chain import evaluate_chain, predict_chain
-from estimators.retlo.models import Heuristic2X, ModelConfig, Predictor, TorchPredictor
-from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint, train
+from estimators.retlo.api import evaluate, fit
+from estimators.retlo.chain import Module, predict_chain
+from estimators.retlo.files import read_world, world_to_pixels
+from estimators.retlo.heuristic import Heuristic2X
+from estimators.retlo.models import ModelConfig, TorchPredictor
+from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
-from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, from_world, read_csv, to_world
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models", "manifest.json"]
 HEURISTIC = "heuristic2x"
 LEARNED = ("fc", "lstm")
 
 
-def load_predictor(model: str) -> tuple[Predictor, str]:
+def load_predictor(model: str) -> tuple[Module, str]:
     """A `--model` value (a checkpoint path or heuristic2x) → predictor and display name."""
     if model == HEURISTIC:
         return Heuristic2X(), HEURISTIC
@@ -143,15 +146,14 @@ def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
     px = cfg.px_per_cm
     trains, tests = [], []
     for path in cfg.train:
-        kept, held = _split(to_world(read_csv(path).poses, px), cfg.holdout)
+        kept, held = _split(read_world(path, px), cfg.holdout)
         trains.append(kept)
         if len(held):
             tests.append({"name": f"holdout of {Path(path).name}", "world": held})
-    tests += [{"name": Path(p).name, "world": to_world(read_csv(p).poses, px)} for p in cfg.test]
-    val = to_world(read_csv(cfg.val).poses, px)
+    tests += [{"name": Path(p).name, "world": read_world(p, px)} for p in cfg.test]
+    val = read_world(cfg.val, px)
     models_dir = check_writable_dir(out / "models")
-    reports = {t["name"]: {HEURISTIC: [evaluate_chain(Heuristic2X(), t["world"])]}
-               for t in tests}
+    reports = {t["name"]: {HEURISTIC: [evaluate(Heuristic2X(), t["world"])]} for t in tests}
     timings: dict[str, float] = {}
     runs = [(kind, seed) for seed in range(cfg.seeds) for kind in LEARNED]
     with LoggedProgress(transient=True) as bar:
@@ -160,13 +162,13 @@ def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
             epoch_task = bar.add_task(f"{kind} seed {seed}", total=cfg.epochs)
             tcfg = TrainConfig(epochs=cfg.epochs, seed=seed, model=replace(cfg.model, kind=kind))
             start = time.perf_counter()
-            net, info = train(trains, val, tcfg, progress=False, on_epoch=lambda e, v, t=epoch_task:
-                              bar.update(t, completed=e + 1, description=f"val {v:.2f} cm"))
+            net, info = fit(trains, val, tcfg, on_epoch=lambda e, v, t=epoch_task:
+                            bar.update(t, completed=e + 1, description=f"val {v:.2f} cm"))
             timings[f"train_{kind}_seed{seed}"] = time.perf_counter() - start
             save_checkpoint(models_dir / f"{kind}_seed{seed}.pt", net, px, tcfg, info)
             for t in tests:
                 reports[t["name"]].setdefault(kind, []).append(
-                    evaluate_chain(TorchPredictor(net), t["world"]))
+                    evaluate(TorchPredictor(net), t["world"]))
             bar.remove_task(epoch_task)
             bar.advance(overall)
     results = {
@@ -183,10 +185,10 @@ def run_experiment(cfg: ExperimentConfig, out: Path) -> list[str]:
     lstm0, _ = load_checkpoint(models_dir / "lstm_seed0.pt")
     shown = big["world"][:cfg.video_instances]
     est = predict_chain(TorchPredictor(lstm0), shown)
-    true_px = from_world(shown, px)
+    true_px = world_to_pixels(shown, px)
     with LabBackdrop(true_px.shape[2], px) as backdrop:
         fits = backdrop.fits(true_px)
-        write_video(out / "fig2_9.mp4", true_px, from_world(est, px), px,
+        write_video(out / "fig2_9.mp4", true_px, world_to_pixels(est, px), px,
                     backdrop=backdrop if fits else None, frame_size=backdrop.size,
                     colours=backdrop.colours_bgr if fits else None)
     write_manifest(out, "experiment retlo", cfg, None, timings,

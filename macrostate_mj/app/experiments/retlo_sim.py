@@ -25,17 +25,10 @@ from collectors.robotarium import (
     treatments,
 )
 from collectors.robotarium_cases import CASES, case_run, schedule, tail_view
-from estimators.retlo_sim.estimate import (
-    chain_errors,
-    estimate_chain,
-    estimate_heuristic,
-    one_step_errors,
-    summarize,
-    sync_steps,
-    unseen_names,
-)
-from estimators.retlo_sim.frames import training_pairs
-from estimators.retlo_sim.mlp import mse, train_mlp
+from estimators.retlo.chain import estimate_chain, sync_steps
+from estimators.retlo.heuristic import estimate_heuristic
+from estimators.retlo.mlp import mse, train_mlp, training_pairs
+from estimators.retlo.report import chain_errors, one_step_errors, summarize, unseen_names
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
@@ -123,7 +116,7 @@ def run_experiment(cfg: SimExperimentConfig, out: Path, progress: Progress | Non
         sync = sync_steps(cfg.test_steps, cfg.comm_every if case.comm else None)
         sensed, synced, truth = tail_view(poses, sync, cfg.noise if case.noisy else 0.0, rng)
         names = unseen_names(case.n_robots)
-        err = chain_errors(estimate_chain(model.predict, sensed, synced, sync), truth)
+        err = chain_errors(estimate_chain(model, sensed, synced, sync), truth)
         h_err = chain_errors(estimate_heuristic(sensed, synced, sync), truth)
         title = case.title.format(comm=cfg.comm_every)
         summary = summarize(err, names, THRESHOLD)
@@ -132,7 +125,7 @@ def run_experiment(cfg: SimExperimentConfig, out: Path, progress: Progress | Non
             "head_schedule": [list(s) for s in schedule(case.path, cfg.test_steps)],
             "comm_every": cfg.comm_every if case.comm else None, "noisy": case.noisy,
             **summary, "heuristic2x": summarize(h_err, names, THRESHOLD),
-            "F2_one_step_mean_error": float(one_step_errors(model.predict, truth).mean())}
+            "F2_one_step_mean_error": float(one_step_errors(model, truth).mean())}
         per_step[case.key] = {nm: [None if not np.isfinite(e) else round(float(e), 6)
                                    for e in err[:, j]] for j, nm in enumerate(names)}
         plot_case(err, names, sync[1:], THRESHOLD, f"({case.key}) {title}",

@@ -33,7 +33,7 @@ from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, claim_run, write_json_atomic, write_manifest
 from macrostate_mj.core.parallel import runner_for
-from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png", "manifest.json"]
 ARMS = ("sim", "real", "finetune")
@@ -82,13 +82,15 @@ def _require_splits(folder: Path, flag: str, hint: str) -> None:
 
 
 def read_real(folder: Path) -> np.ndarray:
-    """The pooled real instances (world units), Train then Val; one-line errors otherwise."""
+    """The pooled real instances (metres), Train then Val; one-line errors otherwise."""
+    from estimators.retlo.files import pixels_to_world
+
     _require_splits(folder, "--real", "the folder of the real ThymioLoc Train.csv and Val.csv")
     parts = [read_csv(folder / f).poses for f in REAL_FILES]
     if len({p.shape[1:] for p in parts}) != 1 or parts[0].shape[2] != 3:
         raise UserError(f"--real {folder}: Train.csv and Val.csv must both hold 3-robot "
                         "instances of the same length")
-    return to_world(np.concatenate(parts), DEFAULT_PX_PER_CM)
+    return pixels_to_world(np.concatenate(parts), DEFAULT_PX_PER_CM)
 
 
 def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, randomize: str | None,
@@ -110,26 +112,23 @@ def _train_task(task: dict) -> dict:
     path = Path(task["report"])
     if _cached(task):
         return json.loads(path.read_text())
-    from estimators.retlo.chain import evaluate_chain
+    from estimators.retlo.api import evaluate, fit
     from estimators.retlo.models import ModelConfig, TorchPredictor
-    from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint, train
+    from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint
 
-    px = DEFAULT_PX_PER_CM
     real = np.load(task["real"])
     cfg = TrainConfig(epochs=task["epochs"], seed=task["seed"], model=ModelConfig(kind="lstm"))
     if task["arm"] == "sim":
-        world = [to_world(read_csv(Path(task["sim"]) / "Train.csv").poses, px)]
-        val = to_world(read_csv(Path(task["sim"]) / "Val.csv").poses, px)
-        net, info = train(world, val, cfg, progress=False)
-        save_checkpoint(task["checkpoint"], net, px, cfg, info)
+        sim = Path(task["sim"])
+        net, info = fit([sim / "Train.csv"], sim / "Val.csv", cfg)
+        save_checkpoint(task["checkpoint"], net, DEFAULT_PX_PER_CM, cfg, info)
     else:
         init = None
         if task["arm"] == "finetune":
             init, _ = load_checkpoint(task["checkpoint"])
             cfg = replace(cfg, lr=task["lr"])
-        net, info = train([real["train"][:task["count"]]], real["val"], cfg, progress=False,
-                          init=init)
-    report = evaluate_chain(TorchPredictor(net), real["test"])
+        net, info = fit([real["train"][:task["count"]]], real["val"], cfg, init=init)
+    report = evaluate(TorchPredictor(net), real["test"])
     report = {"task": task["name"], "arm": task["arm"], "fraction": task["fraction"],
               "count": task["count"], "seed": task["seed"], "head_cm": report["per_robot_cm"]["H"],
               "mean_cm": report["mean_error_cm"], "best_val_cm": info["best_val_cm"],

@@ -130,16 +130,15 @@ def _train_task(task: dict) -> dict:
     path = Path(task["report"])
     if path.exists():
         return json.loads(path.read_text())
-    from estimators.retlo.chain import evaluate_chain
+    from estimators.retlo.api import evaluate, fit
+    from estimators.retlo.files import read_world
     from estimators.retlo.models import ModelConfig, TorchPredictor
-    from estimators.retlo.train import TrainConfig, train
+    from estimators.retlo.train import TrainConfig
 
-    px = DEFAULT_PX_PER_CM
-    world = to_world(read_csv(task["train"]).poses[:task["count"]], px)
     model = ModelConfig(history=10, bidirectional=False, cos_sin=True)
     cfg = TrainConfig(epochs=task["epochs"], seed=task["seed"], model=model)
-    net, info = train([world], to_world(read_csv(task["val"]).poses, px), cfg, progress=False)
-    report = evaluate_chain(TorchPredictor(net), to_world(read_csv(task["test"]).poses, px))
+    net, info = fit([read_world(task["train"])[:task["count"]]], task["val"], cfg)
+    report = evaluate(TorchPredictor(net), task["test"])
     report = {**report, "best_val_cm": info["best_val_cm"], "task": task["name"]}
     write_json_atomic(path, report)
     return report

@@ -1,10 +1,11 @@
 """The three chained networks of §2.5.1.1, {ANN_x, ANN_y, ANN_θ}, in plain numpy.
 
 Each is a 3-layer perceptron: inputs, 12 logistic-sigmoid hidden units, one linear output.
-ANN_x sees the 5 base features (frames.py) plus a bias, ANN_y also x_H, ANN_θ also x_H and y_H.
-In training, ANN_y and ANN_θ get the true x_H, y_H (the three are trained independently, as the
-seed trains them); in use they get the chained estimates. The three are stored as one stack
-whose input weights are masked, so one matrix product trains all three at once.
+ANN_x sees the 5 one-step features (`frames.one_step_features`) plus a bias, ANN_y also x_H,
+ANN_θ also x_H and y_H. In training, ANN_y and ANN_θ get the true x_H, y_H (the three are
+trained independently, as the seed trains them); in use they get the chained estimates. The
+three are stored as one stack whose input weights are masked, so one matrix product trains all
+three at once. `OneStepModule` makes them (or any one-step function) a chain `Module`.
 
 Inputs and targets are standardized with training statistics (the seed's tool, Weka, scales
 them too): positions differ by millimetres while the chain is 8 cm long. Training is SGD with
@@ -15,10 +16,16 @@ weights each, and at that size numpy's per-step overhead is several times smalle
 
 from __future__ import annotations
 
+import io
+import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
+
+from estimators.retlo.chain import Features, true_windows
+from estimators.retlo.frames import FrameEstimate, Window, module_targets, one_step_features
 
 HIDDEN = 12
 N_IN = 7                                   # base (5) + x_H + y_H
@@ -29,8 +36,37 @@ def sigmoid(z: np.ndarray) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * z))   # = 1 / (1 + e^-z) without overflow warnings
 
 
+class OneStepModule:
+    """§2.5's module as a chain `Module`: any `predict(base (B, 5)) -> (B, 3)` = x_H, y_H,
+    θ_F@t+1 in the frame, from the Follower's pose at t and position at t+1 alone."""
+
+    history: ClassVar[int] = 0
+    rotate: ClassVar[bool] = True
+
+    def predict(self, base: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def features(self, win: Window) -> Features:
+        return (one_step_features(win),)
+
+    def estimate(self, x: Features) -> FrameEstimate:
+        out = self.predict(x[0])
+        return FrameEstimate(out[:, :2], fol_theta_next=out[:, 2])
+
+
+def training_pairs(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(base, targets) of every step pair of 3-robot runs: poses (..., S, 3, 3) in the pose
+    log's order (H, F1, T), metres → base (M, 5), targets (M, 3) = x_H, y_H, θ_F@t+1 with
+    M = runs · (S - 1), run-major."""
+    p = np.asarray(poses, np.float64).reshape(-1, *poses.shape[-3:])[:, :, ::-1]   # Tail first
+    win = true_windows(p, 0, 0, OneStepModule.rotate)
+    pos, ang = module_targets(win.head[:, 0], win.fol[:, 0], win.fol[:, 1], win.origin,
+                              win.alpha)
+    return one_step_features(win), np.concatenate([pos, ang[:, 2:]], axis=-1)
+
+
 @dataclass
-class ChainedMLP:
+class ChainedMLP(OneStepModule):
     """Weights of the three nets (stacked on axis 0) and the standardization they expect."""
 
     w1: np.ndarray      # (3, 7, 12), zero where MASK is 0
@@ -54,6 +90,17 @@ class ChainedMLP:
             if k < 2:   # feed the estimate to the next net, scaled as that input was in training
                 x[:, 5 + k] = (out[:, k] - self.x_mean[5 + k]) / self.x_std[5 + k]
         return out
+
+    def to_npz(self) -> bytes:
+        """Its arrays as .npz bytes: `from_npz` rebuilds it without unpickling anything."""
+        buf = io.BytesIO()
+        np.savez(buf, **{f.name: getattr(self, f.name) for f in fields(self)})
+        return buf.getvalue()
+
+    @classmethod
+    def from_npz(cls, path: str | os.PathLike) -> ChainedMLP:
+        with np.load(path, allow_pickle=False) as z:
+            return cls(**{k: z[k] for k in z.files})
 
 
 def init_mlp(x: np.ndarray, y: np.ndarray, rng: np.random.Generator) -> ChainedMLP:
@@ -119,3 +166,11 @@ def train_mlp(base: np.ndarray, targets: np.ndarray, rng: np.random.Generator, e
 def mse(m: ChainedMLP, base: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Mean squared error per output (3,) of the chained prediction, in the targets' units."""
     return ((m.predict(base) - targets) ** 2).mean(0)
+
+
+def fit_runs(runs: list[np.ndarray], rng: np.random.Generator, epochs: int) -> ChainedMLP:
+    """The three MLPs trained on pose runs (each (R, steps, 3, 3), Head first), with the
+    hyper-parameters of §2.5.2.1 (learning rate 0.05, 20 % held out, batches of 128)."""
+    base, targets = (np.concatenate(a) for a in zip(*map(training_pairs, runs), strict=True))
+    model, _ = train_mlp(base, targets, rng, epochs, 0.05, 0.2, 128)
+    return model
