@@ -121,9 +121,9 @@ def test_the_retlo_tail_receives_the_shared_poses():
 def test_a_passive_tail_never_cages_and_the_oracle_does():
     """Over 3 seeds: the dissertation's claim that Head and Followers alone cannot cage, and
     that a Tail which encircles against the Head, once it knows the Head circles, can."""
-    from macrostate_mj.app.experiments.caging import CagingExperiment, run_episode
+    from macrostate_mj.app.experiments.caging import Config, run_episode
 
-    cfg = CagingExperiment(time_limit=45.0)
+    cfg = Config(time_limit=45.0)
     passive = [run_episode("passive", s, cfg)["caged"] for s in range(3)]
     oracle = [run_episode("oracle", s, cfg) for s in range(3)]
     assert not any(passive)

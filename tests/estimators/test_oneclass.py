@@ -365,22 +365,19 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     assert "split and seed" in tables
     assert "| IO-GEN | " in tables and "| 0.786 ± 0.009 |" in tables     # the text's beside ours
     before = (out / "results.json").read_bytes()
-    shutil.rmtree(out / "stages")
+    for stage in (out / "cache").iterdir():       # keep only the runs' reports
+        if stage.name != "oc-run":
+            shutil.rmtree(stage)
     run = _cli(*args, "--overwrite")
     assert run.returncode == 0, run.stderr
     assert (out / "results.json").read_bytes() == before
-    assert {p.name for p in (out / "stages").iterdir()} == {"m2_split2_s5"}   # the figures' model
-    # runs are keyed by their seed: another first seed shares the folder; figures come from the
-    # first run whose stages are kept, reloaded rather than retrained
+    assert json.loads((out / "manifest.json").read_text())["status"] == "finished"
+    # a report is keyed by its seed: another first seed trains only its own run
     run = _cli(*base, "--seed", "6", "--seeds", "1", "--overwrite")
     assert run.returncode == 0, run.stderr
-    assert json.loads((out / "results.json").read_text())["figures_run"] == "m2_split2_s6"
-    shutil.rmtree(out / "stages" / "m2_split2_s5")
-    run = _cli(*args, "--overwrite")
-    assert run.returncode == 0, run.stderr
     rerun = json.loads((out / "results.json").read_text())
-    assert rerun["figures_run"] == "m2_split2_s6" and rerun["runs"] == results["runs"]
-    assert not (out / "stages" / "m2_split2_s5").exists()
+    assert rerun["figures_run"] == "m2_split2_s6"
+    assert rerun["runs"]["m2_split2_s6"] == results["runs"]["m2_split2_s6"]
     # the research probe: same honest figures, plus what choosing epochs on test would score
     run = _cli(*base, "--seeds", "1", "--probe-test", "--overwrite")
     assert run.returncode == 0, run.stderr
@@ -389,11 +386,11 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     picks = probed["selection_on_test"]["iogen"]
     assert picks["best_auc"]["mean"] >= picks["kept_auc"]["mean"]
     assert "chosen on test data" in (out / "tables.md").read_text()
-    # another recipe into the same folder would mix two runs' reports: refused, nothing changed
-    before = (out / "results.json").read_bytes()
+    # another recipe keys other reports: nothing of the earlier runs is reused
+    reports = set((out / "cache" / "oc-run").iterdir())
     run = _cli(*base, "--set", "dsvdd_epochs=2", "--overwrite")
-    assert run.returncode == 2 and "other inputs" in run.stderr, run.stderr
-    assert (out / "results.json").read_bytes() == before
+    assert run.returncode == 0, run.stderr
+    assert len(set((out / "cache" / "oc-run").iterdir()) - reports) == 1     # trained anew
 
 
 def test_a_probe_watches_every_epoch_and_never_chooses(fitted):

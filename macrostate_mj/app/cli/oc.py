@@ -230,7 +230,9 @@ def experiment_oc(
     recipe: str = Choice("short", "Epoch and step counts: short (for a 2-core CPU) or "
                          "published (the published code's; hours on a CPU).",
                          ("short", "published")),
-    quick: bool = Switch(False, "Smoke run: epoch scale x0.03, 200 train samples."),
+    profile: str = Choice("full", "full: the recipe's counts on every train sample; quick: a "
+                          "smoke run (epoch scale x0.03, 200 train samples).", ("full", "quick")),
+    quick: bool = Switch(False, "Shorthand for --profile quick."),
     settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
                                        "recipe (e.g. cls_epochs=40); repeatable."),
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
@@ -250,25 +252,18 @@ def experiment_oc(
     except ValueError:
         raise UserError("--splits and --ms take comma-separated integers, e.g. 1,2,3") from None
     from estimators.oneclass.train import OCConfig
-    from macrostate_mj.app.experiments.oneclass import PRODUCTS, OCExperiment, run_experiment
-    from macrostate_mj.core.io import prepare_out_dir, write_json_atomic, write_manifest
+    from macrostate_mj.app.cli.experiments import launch
+    from macrostate_mj.app.experiments.oneclass import Config
     from macrostate_mj.formats.hsants import open_dataset
 
-    prepare_out_dir(out, PRODUCTS, overwrite)
     d = open_dataset(data)
     for k in split_list:
         d.split(k)
     for m in m_list:
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
+    quick = quick or profile == "quick"
     cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device).scaled(
         epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
-    exp = OCExperiment(data, split_list, m_list, cfg, 200 if quick else None,
-                       unstable=unstable, seeds=seeds, probe=probe_test)
-    out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    with stage_progress() as tick:
-        results = run_experiment(exp, out, tick)
-    write_json_atomic(out / "results.json", results)
-    write_manifest(out, "experiment oc", exp, seed, {"total": time.perf_counter() - t0})
-    typer.echo((out / "tables.md").read_text())
+    launch("oc", Config(data, split_list, m_list, cfg, 200 if quick else None,
+                        unstable=unstable, seeds=seeds, probe=probe_test), out, overwrite)

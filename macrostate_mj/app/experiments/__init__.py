@@ -1,8 +1,105 @@
-"""Experiments that reproduce the dissertation's figures: data, estimators and figures together."""
+"""The experiments that reproduce the dissertation's figures, as one registry.
 
-import numpy as np
+Each module here is one experiment and exports:
+
+- `Config`: a frozen dataclass of everything its results depend on (a seed included);
+- `PROFILES`: named configs, at least `full` (the dissertation's sizes) and `quick` (a smoke run
+  the test suite can afford);
+- `PRODUCTS`: the files it writes into its output folder (a finished run refuses to be
+  overwritten without `--overwrite`);
+- `run(config, out, progress) -> list[str]`: writes the products, returns summary lines.
+
+`execute` wraps `run` in the one run lifecycle (`core.run.Run`: the folder claimed, the manifest
+with the config, its hash, stage timings and how the run ended). Adding an experiment is one
+new module here (found by `registry()`) and its test.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import pkgutil
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from macrostate_mj.core.cache import TaskCache
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.run import Run
+
+CACHE = "cache"          # an experiment's cached tasks, inside its output folder
 
 
-def mean_std(values: list[float]) -> dict:
-    """A figure over seeds or datasets as the results files give it: mean, std and count."""
-    return {"mean": float(np.mean(values)), "std": float(np.std(values)), "n": len(values)}
+@dataclass
+class Progress:
+    """What an experiment's `run` reports to: stage timings into the manifest, bars on the
+    terminal, the task cache of its folder, and where its tasks run."""
+
+    run: Run
+    report: Callable[..., None] = lambda stage, done, total=1.0: None
+    workers: int = 1
+    ray: str | None = None
+    cache: TaskCache = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.cache = TaskCache(self.run.out / CACHE)
+
+    @contextlib.contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        with self.run.stage(name):
+            yield
+
+    def record(self, **extra: Any) -> None:
+        self.run.record(**extra)
+
+
+def registry() -> dict[str, ModuleType]:
+    """Every experiment module of this package by its command name (`retlo_sim` ->
+    `retlo-sim`)."""
+    found = {}
+    for info in pkgutil.iter_modules(__path__):
+        if not info.name.startswith("_"):
+            module = importlib.import_module(f"{__name__}.{info.name}")
+            found[getattr(module, "NAME", info.name.replace("_", "-"))] = module
+    return dict(sorted(found.items()))
+
+
+def experiment(name: str) -> ModuleType:
+    found = registry()
+    if name not in found:
+        raise UserError(f"unknown experiment {name!r}; choose from {', '.join(found)} "
+                        "(`macrostate-mj experiment list`)")
+    return found[name]
+
+
+def profile(name: str, chosen: str) -> Any:
+    profiles = experiment(name).PROFILES
+    if chosen not in profiles:
+        raise UserError(f"experiment {name} has no profile {chosen!r}; choose from "
+                        f"{', '.join(profiles)}")
+    return profiles[chosen]
+
+
+def execute(name: str, config: Any, out: Path, overwrite: bool = False, workers: int = 1,
+            ray: str | None = None, report: Callable[..., None] | None = None) -> list[str]:
+    """Run experiment `name` with `config` into `out` under the run lifecycle."""
+    module = experiment(name)
+    with Run(out, f"experiment {name}", config, getattr(config, "seed", None), module.PRODUCTS,
+             overwrite) as run:
+        progress = Progress(run, report or Progress.report, workers, ray)
+        lines = module.run(config, Path(out), progress)
+        run.record(products=module.PRODUCTS, workers=workers, ray=ray)
+    return lines
+
+
+def mean_std(values: list[float | None]) -> dict[str, float | int | None]:
+    """A figure over seeds, splits or datasets as every results file gives it: mean, std
+    (population) and count of the values present; None where there are none."""
+    import numpy as np
+
+    present = [v for v in values if v is not None]
+    if not present:
+        return {"mean": None, "std": None, "n": 0}
+    return {"mean": float(np.mean(present)), "std": float(np.std(present)), "n": len(present)}

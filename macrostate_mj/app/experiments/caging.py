@@ -21,15 +21,16 @@ live head source and the estimator's runs `collectors.caging`'s, the recordings
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
+from macrostate_mj.app.experiments import Progress
+from macrostate_mj.core.cache import task_key
+from macrostate_mj.core.io import write_json_atomic
 
 if TYPE_CHECKING:
     import gymnasium
@@ -39,11 +40,11 @@ if TYPE_CHECKING:
 
 POLICIES = ("passive", "retlo", "oracle", "random")
 PRODUCTS = ["results.json", "snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp4",
-            "retlo_seed0.rrd", "manifest.json"]
+            "retlo_seed0.rrd"]
 
 
 @dataclass(frozen=True)
-class CagingExperiment:
+class Config:
     seeds: int = 20
     time_limit: float = 90.0
     epochs: int = 200          # the three MLPs (retlo-sim trains 500; 200 converge here)
@@ -53,7 +54,11 @@ class CagingExperiment:
     seed: int = 0
 
 
-def run_episode(policy: str, seed: int, cfg: CagingExperiment, model: ChainedMLP | None = None,
+PROFILES = {"full": Config(),
+            "quick": Config(seeds=2, time_limit=60.0, epochs=20, train_steps=300, rehearsals=2)}
+
+
+def run_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None = None,
                 frames_every: float | None = None, video: Path | None = None,
                 rerun: Path | None = None) -> dict:
     """One seeded episode of one Tail; its outcome (and snapshots, a video with the object and
@@ -74,7 +79,7 @@ def run_episode(policy: str, seed: int, cfg: CagingExperiment, model: ChainedMLP
     return {"policy": policy, "seed": seed, **outcome}
 
 
-def _tail(policy: str, env: gymnasium.Env, info: dict, seed: int, cfg: CagingExperiment,
+def _tail(policy: str, env: gymnasium.Env, info: dict, seed: int, cfg: Config,
           model: ChainedMLP | None
           ) -> tuple[CagingPolicy, Callable[[], tuple[int, np.ndarray]] | None]:
     """The Tail of `policy` on the reset `env`, and what scores its estimates of the Head (the
@@ -102,54 +107,45 @@ def _tail(policy: str, env: gymnasium.Env, info: dict, seed: int, cfg: CagingExp
     return tail, scored
 
 
-def train_caging_estimator(epochs: int, train_steps: int, rehearsals: int, seconds: float,
-                           stride: int, seed: int) -> ChainedMLP:
-    """The three MLPs of §2.5 on `collectors.caging.estimator_runs`."""
-    from collectors.caging import estimator_runs
-    from estimators.retlo.mlp import train_mlp, training_pairs
+class EstimatorTask:
+    """The ReTLo Tail's three MLPs as a cached task, keyed by everything its training reads
+    (a `quick` estimator is never reused by a full run)."""
 
-    rng = np.random.default_rng(seed)
-    runs = estimator_runs(train_steps, rehearsals, seconds, stride, rng)
-    base, targets = (np.concatenate(a) for a in zip(*map(training_pairs, runs), strict=True))
-    model, _ = train_mlp(base, targets, rng, epochs, 0.05, 0.2, 128)
-    return model
+    stage: ClassVar[str] = "caging-estimator"
+    version: ClassVar[int] = 1
+
+    def __init__(self, cfg: Config):
+        self.training = {"epochs": cfg.epochs, "train_steps": cfg.train_steps,
+                         "rehearsals": cfg.rehearsals, "seconds": cfg.time_limit,
+                         "stride": cfg.stride, "seed": cfg.seed}
+
+    def key(self) -> str:
+        return task_key(self.stage, self.version, self.training)
+
+    def compute(self) -> dict[str, bytes]:
+        from collectors.caging import estimator_runs
+        from estimators.retlo.mlp import fit_runs
+
+        t = self.training
+        rng = np.random.default_rng(t["seed"])
+        runs = estimator_runs(t["train_steps"], t["rehearsals"], t["seconds"], t["stride"], rng)
+        return {"mlp.npz": fit_runs(runs, rng, t["epochs"]).to_npz()}
 
 
-def load_estimator(path: Path) -> ChainedMLP | None:
-    """The estimator saved at `path` (its arrays, .npz), or None when there is none."""
+def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
+    """Every policy on every seed; results.json, snapshots.png, videos; summary lines."""
     from estimators.retlo.mlp import ChainedMLP
-
-    if not path.exists():
-        return None
-    with np.load(path) as z:
-        return ChainedMLP(**{k: z[k] for k in z.files})
-
-
-def save_estimator(model: ChainedMLP, path: Path) -> None:
-    """Its arrays as .npz: `load_estimator` rebuilds it without pickling code."""
-    np.savez(path, **asdict(model))
-
-
-def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
-    """Every policy on every seed; results.json, snapshots.png, manifest; summary lines."""
     from macrostate_mj.chain.caging import CagingConfig
-    from macrostate_mj.core.progress import LoggedProgress
     from viz.caging_figures import plot_snapshots
 
-    t0 = time.perf_counter()
-    models = check_writable_dir(out / "models")
-    path = models / f"retlo_mlp_stride{cfg.stride}.npz"
-    model = load_estimator(path)
-    if model is None:
-        model = train_caging_estimator(cfg.epochs, cfg.train_steps, cfg.rehearsals,
-                                       cfg.time_limit, cfg.stride, cfg.seed)
-        save_estimator(model, path)
-    timings = {"train_retlo": time.perf_counter() - t0}
+    with progress.stage("train_retlo"):
+        task = EstimatorTask(cfg)
+        model = ChainedMLP.from_npz(progress.cache.cached(task.stage, task.key(), task.compute)
+                                    / "mlp.npz")
     episodes, snapshots = [], {}
-    with LoggedProgress(transient=True) as bar:
-        task = bar.add_task("experiment caging", total=len(POLICIES) * cfg.seeds)
-        for policy in POLICIES:
-            t1 = time.perf_counter()
+    done, total = 0, len(POLICIES) * cfg.seeds
+    for policy in POLICIES:
+        with progress.stage(f"episodes_{policy}"):
             for seed in range(cfg.seeds):
                 first = seed == 0 and policy in ("oracle", "retlo")
                 ep = run_episode(policy, seed, cfg, model, 5.0 if seed == 0 else None,
@@ -159,8 +155,8 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
                 if "frames" in ep:
                     snapshots[policy] = ep.pop("frames")
                 episodes.append(ep)
-                bar.advance(task)
-            timings[f"episodes_{policy}"] = time.perf_counter() - t1
+                done += 1
+                progress.report("episodes", done, total)
     table = {p: _summary([e for e in episodes if e["policy"] == p]) for p in POLICIES}
     oracle = table["oracle"]["success_rate"]
     results = {"config": asdict(cfg), "caging": asdict(CagingConfig()), "table": table,
@@ -172,8 +168,6 @@ def run_caging(cfg: CagingExperiment, out: Path) -> list[str]:
     plot_snapshots(picked, CagingConfig(), (1.2, 0.7), out / "snapshots.png",
                    "seed 0, every 5 s: oracle Tail (top), ReTLo Tail (middle; circle: its "
                    "estimate of the Head), passive Tail (bottom)", zoom=0.25)
-    write_manifest(out, "experiment caging", asdict(cfg), cfg.seed, timings,
-                   products=PRODUCTS)
     return [f"{p:<8} caged {t['success_rate'] * 100:.0f} % of {t['seeds']} seeds, time "
             f"{_fmt(t['time_to_cage_s'])} s, spacing CV {_fmt(t['spacing_cv'], 3)}"
             for p, t in table.items()]

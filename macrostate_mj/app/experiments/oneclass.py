@@ -1,13 +1,17 @@
 """`experiment oc`: Table 4.1 (m = 1, 2, 4), Table 4.2 and Fig 4.8 (mean ± std over the splits
 and seeds), Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM overlays (Fig
-4.11–4.13)."""
+4.11–4.13).
+
+Each (m, split, seed) is a cached task (`OUT/cache/oc-run/<key>/report.json`) keyed by the
+config, the run's coordinates and the bytes of its inputs; its training stages are cached beside
+it (`oc-dcae`, `oc-dsvdd`, ...), so a killed run resumes from its last finished stage and a rerun
+with more seeds or splits trains only the new runs."""
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -15,17 +19,23 @@ import numpy as np
 
 from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
-from estimators.oneclass.train import OCConfig, Tick
-from macrostate_mj.core.io import claim_run, write_json_atomic
+from estimators.oneclass.train import OCConfig
+from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.core.cache import task_key
+from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.paths import reference_data
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
 PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",
-            "fig4_9_flows.png", "fig4_10_distances.png", "gradcam", "manifest.json"]
+            "fig4_9_flows.png", "fig4_10_distances.png", "gradcam"]
+
+
+NAME = "oc"
 
 
 @dataclass(frozen=True)
-class OCExperiment:
-    data: Path
+class Config:
+    data: Path = field(default_factory=lambda: reference_data() / "OpticalFlows_HsAnts")
     splits: tuple[int, ...] = (1, 2, 3)
     ms: tuple[int, ...] = (1, 2, 4)
     config: OCConfig = OCConfig()
@@ -35,6 +45,15 @@ class OCExperiment:
     seeds: int = 1                 # training seeds per (m, split): config.seed, config.seed + 1 ...
     probe: bool = False            # research: score test data every epoch (`selection_on_test`)
 
+    @property
+    def seed(self) -> int:
+        return self.config.seed
+
+
+PROFILES = {"full": Config(),
+            "quick": Config(config=OCConfig().scaled(0.03), max_train=200)}
+RUN_VERSION = 1    # bump when a run's report changes for the same inputs
+
 
 def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int):
     train, test = d.split(split)
@@ -42,11 +61,6 @@ def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int
         train = sorted(np.random.default_rng(seed).choice(train, max_train, replace=False))
     return (d.load("Stable", train, m), d.load("Stable", test, m),
             d.load("Unstable", d.unstable_ids, m))
-
-
-def _mean_std(values: list[float | None]) -> dict[str, float | None]:
-    v = np.array([x for x in values if x is not None], float)
-    return {"mean": float(v.mean()) if len(v) else None, "std": float(v.std()) if len(v) else None}
 
 
 def significance_marks(tests: list[dict], names: tuple[str, ...], alpha: float = 0.05
@@ -70,29 +84,33 @@ def significance_marks(tests: list[dict], names: tuple[str, ...], alpha: float =
 Kept = tuple[OCModel, np.ndarray, np.ndarray, np.ndarray]   # a model and its x, xs, xu
 
 
-def _run(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, main_m: int,
-         out: Path, tick: Tick) -> tuple[dict, Kept | None]:
-    """One (m, split, seed): its AUC reports, cached in `out/runs/` (all a rerun needs), and,
-    when it was trained here, the model with its inputs."""
-    path = out / "runs" / f"m{m}_split{split}_s{seed}.json"
-    if path.exists():
-        report = json.loads(path.read_text())
-        if not exp.probe or "selection_on_test" in report:
-            return report, None
-    return _train(d, exp, m, split, seed, main_m, out, tick)
+def _run(d: AntFlowData, exp: Config, m: int, split: int, seed: int, main_m: int,
+         progress: Progress) -> tuple[dict, Kept | None]:
+    """One (m, split, seed): its AUC reports (a cached task: all a rerun needs), and, when it
+    was trained here, the model with its inputs."""
+    inputs = _inputs(d, split, m, exp.max_train, seed)
+    key = task_key("oc-run", RUN_VERSION, {"config": replace(exp.config, m=m, seed=seed),
+                                           "split": split, "probe": exp.probe,
+                                           "main": m == main_m}, inputs)
+    folder = progress.cache.get("oc-run", key)
+    if folder is not None:
+        return json.loads((folder / "report.json").read_text()), None
+    report, kept = _train(d, exp, inputs, m, split, seed, main_m, progress)
+    progress.cache.put("oc-run", key, {"report.json": json.dumps(report).encode()})
+    return report, kept
 
 
-def _train(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, main_m: int,
-           out: Path, tick: Tick) -> tuple[dict, Kept]:
-    key = f"m{m}_split{split}_s{seed}"
+def _train(d: AntFlowData, exp: Config, inputs: tuple[np.ndarray, ...], m: int, split: int,
+           seed: int, main_m: int, progress: Progress) -> tuple[dict, Kept]:
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
-    x, xs, xu = _inputs(d, split, m, exp.max_train, seed)
+    x, xs, xu = inputs
     methods = METHODS if m == main_m else ("iogen",)
     cfg = replace(exp.config, m=m, seed=seed)
     probe = Probe(np.concatenate([xs, xu])) if exp.probe else None
-    model = fit(x, methods, cfg, lambda st, f: tick(f"m={m} split {split} seed {seed} {st}", f),
-                stages_dir=None if probe else out / "stages" / key,  # resumes from its last stage
-                probe=probe)                                          # (a probe watches them all)
+    model = fit(x, methods, cfg,
+                lambda st, f: progress.report(f"m={m} split {split} seed {seed} {st}", f),
+                stages_dir=None if probe else progress.cache.root,  # resumes from its last stage
+                probe=probe)                                         # (a probe watches them all)
     scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
     report = {meth: auc_report(*scores[meth], bins, names) for meth in methods}
     if probe is not None:
@@ -100,7 +118,6 @@ def _train(d: AntFlowData, exp: OCExperiment, m: int, split: int, seed: int, mai
     if m == main_m:   # Fig 4.8's marks: IO-GEN against DSVDD on the same samples
         report["iogen_vs_dsvdd"] = paired_report(*scores["iogen"], *scores["dsvdd"], bins,
                                                  names, seed=seed)
-    write_json_atomic(out / "runs" / f"{key}.json", report)
     return report, (model, x, xs, xu)
 
 
@@ -118,19 +135,15 @@ def selection_on_test(probe: Probe, history: dict[str, list[float]], n_stable: i
     return out
 
 
-def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
+def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     """Train and score every (m, split, seed); summarise over splits and seeds; draw the
-    figures into `out`. A rerun resumes from the finished runs' reports."""
+    figures and tables into `out`. A rerun resumes from the cached runs and stages."""
     from viz import oneclass_figures as figures
 
     d = open_dataset(exp.data)
     if exp.unstable is not None:
         d = d.with_unstable(exp.unstable)
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
-    config = {k: v for k, v in asdict(exp.config).items() if k != "seed"}  # runs are keyed by
-    claim_run(out, {"config": config, "max_train": exp.max_train,  # their seed, so a rerun from
-                    "unstable_ids": hashlib.sha256(str(d.unstable_ids).encode()).hexdigest()},
-              "experiment oc")                  # another first seed adds runs to the same folder
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
     runs: dict[str, dict] = {}
@@ -139,19 +152,23 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
         for split in exp.splits:
             for seed in seeds:
                 key = f"m{m}_split{split}_s{seed}"
-                runs[key], trained = _run(d, exp, m, split, seed, main_m, out, tick)
+                with progress.stage(f"run_{key}"):
+                    runs[key], trained = _run(d, exp, m, split, seed, main_m, progress)
                 if keep is None and trained is not None and m == main_m:
                     keep = key, trained
     if keep is None:       # every run came from its report: a model again, from its stages
-        keep = _figures_run(d, exp, main_m, seeds, out, tick)
+        split, seed = exp.splits[0], seeds[0]
+        inputs = _inputs(d, split, main_m, exp.max_train, seed)
+        keep = (f"m{main_m}_split{split}_s{seed}",
+                _train(d, exp, inputs, main_m, split, seed, main_m, progress)[1])
 
     def over(m: int, get: Callable[[dict], Any]) -> list:
         return [get(runs[f"m{m}_split{k}_s{s}"]) for k in exp.splits for s in seeds]
 
-    table41 = {m: _mean_std(over(m, lambda r: r["iogen"]["auc_all"])) for m in exp.ms}
-    table42 = {meth: _mean_std(over(main_m, lambda r, meth=meth: r[meth]["auc_all"]))
+    table41 = {m: mean_std(over(m, lambda r: r["iogen"]["auc_all"])) for m in exp.ms}
+    table42 = {meth: mean_std(over(main_m, lambda r, meth=meth: r[meth]["auc_all"]))
                for meth in METHODS}
-    fig48 = {meth: {b: _mean_std(over(main_m, lambda r, meth=meth, b=b: r[meth]["auc_bins"][b]))
+    fig48 = {meth: {b: mean_std(over(main_m, lambda r, meth=meth, b=b: r[meth]["auc_bins"][b]))
                     for b in names} for meth in METHODS}
     marks = significance_marks(over(main_m, lambda r: r["iogen_vs_dsvdd"]), names)
     results = {"table4_1_iogen_auc_by_m": table41, "fig4_8_iogen_vs_dsvdd_marks": marks,
@@ -161,7 +178,7 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
                    {b: bins.count(b) for b in names}}
     if exp.probe:
         results["selection_on_test"] = {
-            meth: {k: _mean_std(over(main_m, lambda r, meth=meth, k=k:
+            meth: {k: mean_std(over(main_m, lambda r, meth=meth, k=k:
                                      r["selection_on_test"][meth][k]))
                    for k in ("kept_auc", "best_auc")}
             for meth in ("dsvdd", "gen", "ngen", "iogen")}
@@ -176,18 +193,8 @@ def run_experiment(exp: OCExperiment, out: Path, tick: Tick) -> dict:
                                                  exp.gradcam_samples, main_m)
     figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks,
                          results.get("selection_on_test"))
-    return results
-
-
-def _figures_run(d: AntFlowData, exp: OCExperiment, main_m: int, seeds: range, out: Path,
-                 tick: Tick) -> tuple[str, Kept]:
-    """The first run whose stages are kept in `out/stages/` (reloaded, not retrained), else the
-    first run, trained again."""
-    runs = [(split, seed) for split in exp.splits for seed in seeds]
-    split, seed = next((r for r in runs if (out / "stages" / f"m{main_m}_split{r[0]}_s{r[1]}")
-                        .is_dir()), runs[0])
-    return f"m{main_m}_split{split}_s{seed}", _train(d, exp, main_m, split, seed, main_m, out,
-                                                     tick)[1]
+    write_json_atomic(out / "results.json", results)
+    return [(out / PRODUCTS[1]).read_text()]
 
 
 def _flow_weights(d: AntFlowData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,0 +1,46 @@
+"""The experiment registry: every experiment in one shape, listed by `experiment list`."""
+
+from dataclasses import is_dataclass, replace
+
+from clitools import cli
+
+from macrostate_mj.app.experiments import registry
+from macrostate_mj.core.cache import TaskCache
+
+
+def test_every_experiment_has_the_one_shape():
+    found = registry()
+    assert {"caging", "oc", "retlo", "retlo-sim", "sim2real", "srs"} <= set(found)
+    for name, module in found.items():
+        assert {"full", "quick"} <= set(module.PROFILES), name
+        assert all(is_dataclass(c) and type(c) is module.Config
+                   for c in module.PROFILES.values()), name
+        assert callable(module.run) and "manifest.json" not in module.PRODUCTS, name
+
+
+def test_experiment_list_names_each_with_its_profiles():
+    res = cli("experiment", "list")
+    assert res.returncode == 0, res.stderr
+    for name, module in registry().items():
+        line = next(x for x in res.stdout.splitlines() if x.startswith(name + " "))
+        assert all(p in line for p in module.PROFILES)
+
+
+def test_a_quick_caging_estimator_is_not_reused_by_a_full_run(tmp_path, monkeypatch):
+    """The estimator was once cached by its stride alone: a `--quick` one (20 epochs) served a
+    later full run. Its key now holds every training setting."""
+    from macrostate_mj.app.experiments import caging
+
+    trained = []
+
+    def compute(self):
+        trained.append(self.training["epochs"])
+        return {"mlp.npz": b""}
+
+    monkeypatch.setattr(caging.EstimatorTask, "compute", compute)
+    cache = TaskCache(tmp_path)
+    quick = caging.PROFILES["quick"]
+    for cfg in (quick, replace(quick, seeds=5), replace(quick, epochs=200)):
+        task = caging.EstimatorTask(cfg)
+        cache.cached(task.stage, task.key(), task.compute)
+    assert trained == [20, 200]       # more seeds reuse it; more epochs retrain

@@ -1,0 +1,108 @@
+"""The one run lifecycle and the one task cache: claims, statuses, keys by content, atomic
+outputs, one computation per key whatever the worker count."""
+
+import json
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.run import Run, run_finished
+
+
+def _manifest(out):
+    return json.loads((out / "manifest.json").read_text())
+
+
+def test_a_run_records_its_stages_and_how_it_ended(tmp_path):
+    with Run(tmp_path, "demo", {"a": 1}, 7, ["result.txt"]) as run:
+        assert _manifest(tmp_path)["status"] == "running"
+        with run.stage("work"):
+            (tmp_path / "result.txt").write_text("done")
+        run.record(items=3)
+    m = _manifest(tmp_path)
+    assert m["status"] == "finished" and m["seed"] == 7 and m["items"] == 3
+    assert set(m["timings_s"]) == {"work", "total"} and run_finished(tmp_path, {"a": 1})
+    assert not run_finished(tmp_path, {"a": 2})
+
+
+def test_a_finished_run_is_not_overwritten_without_asking(tmp_path):
+    with Run(tmp_path, "demo", {"a": 1}, None):
+        pass
+    with pytest.raises(UserError, match="--overwrite"), Run(tmp_path, "demo", {"a": 1}, None):
+        pass
+    with Run(tmp_path, "demo", {"a": 2}, None, overwrite=True):
+        pass
+    assert _manifest(tmp_path)["config"] == {"a": 2}
+
+
+def test_failed_and_interrupted_runs_say_so_and_resume_with_the_same_config_only(tmp_path):
+    with pytest.raises(RuntimeError), Run(tmp_path, "demo", {"a": 1}, None):
+        raise RuntimeError("the physics\nfailed")
+    assert _manifest(tmp_path)["status"] == "failed"
+    assert _manifest(tmp_path)["failure"] == "the physics failed"
+    with pytest.raises(KeyboardInterrupt), Run(tmp_path, "demo", {"a": 1}, None):
+        raise KeyboardInterrupt
+    assert _manifest(tmp_path)["status"] == "interrupted"
+    with pytest.raises(UserError, match="another config"), Run(tmp_path, "demo", {"a": 9}, None):
+        pass
+    with Run(tmp_path, "demo", {"a": 1}, None):       # the same config resumes
+        pass
+    assert _manifest(tmp_path)["status"] == "finished"
+
+
+def test_bad_input_inside_a_run_leaves_nothing_behind(tmp_path):
+    out = tmp_path / "new"
+    with pytest.raises(UserError), Run(out, "demo", {}, None):
+        raise UserError("bad value")
+    assert not (out / "manifest.json").exists()
+
+
+def test_products_of_an_unknown_run_are_not_clobbered(tmp_path):
+    (tmp_path / "result.txt").write_text("someone's")
+    with pytest.raises(UserError, match="result.txt already exists"), \
+            Run(tmp_path, "demo", {}, None, ["result.txt"]):
+        pass
+
+
+def test_keys_follow_content_config_and_version(tmp_path):
+    f = tmp_path / "data.csv"
+    f.write_text("1,2")
+    key = task_key("stage", 1, {"epochs": 20}, [f, np.arange(3)])
+    assert key == task_key("stage", 1, {"epochs": 20}, [f, np.arange(3)])
+    assert key != task_key("stage", 1, {"epochs": 200}, [f, np.arange(3)])
+    assert key != task_key("stage", 2, {"epochs": 20}, [f, np.arange(3)])
+    assert key != task_key("stage", 1, {"epochs": 20}, [f, np.arange(3.0)])
+    f.write_text("1,3")
+    assert key != task_key("stage", 1, {"epochs": 20}, [f, np.arange(3)])
+
+
+@dataclass(frozen=True)
+class Square:
+    stage: ClassVar[str] = "square"
+    version: ClassVar[int] = 1
+    x: int
+
+    def key(self) -> str:
+        return task_key(self.stage, self.version, {"x": self.x})
+
+    def compute(self) -> dict[str, bytes]:
+        if self.x < 0:
+            raise TaskFailed(f"{self.x} is negative")
+        return {"y.json": json.dumps(self.x * self.x).encode()}
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_runner_computes_each_key_once_and_reports_failures(tmp_path, workers):
+    cache = TaskCache(tmp_path)
+    tasks = [Square(2), Square(3), Square(2), Square(-1)]
+    got = {(o.task.x, None if o.folder is None else json.loads((o.folder / "y.json").read_text()),
+            o.failure) for o in run_tasks(cache, tasks, workers)}
+    assert got == {(2, 4, None), (3, 9, None), (-1, None, "-1 is negative")}
+    assert sorted(p.name for p in (tmp_path / "square").iterdir()) == sorted(
+        {Square(2).key(), Square(3).key()})          # no partial folder left
+    again = list(run_tasks(cache, [Square(3)], workers))
+    assert again[0].folder is not None and Square(3).key() in cache.hits
