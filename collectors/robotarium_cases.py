@@ -10,6 +10,7 @@ The 1,600-step curve fits the 1.2 × 0.7 arena; the straight run does not (colle
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,3 +76,17 @@ def tail_view(poses: np.ndarray, sync: np.ndarray, sigma: float, rng: np.random.
         sensed += rng.normal(0.0, sigma, sensed.shape)
         synced += rng.normal(0.0, sigma, synced.shape)
     return sensed, synced, truth
+
+
+def case_runs(cfg: ScenarioConfig, steps: int,
+              progress: Callable[[int, int], None] | None = None
+              ) -> dict[tuple[int, str], tuple[np.ndarray, str]]:
+    """Every test chain the cases need, once each, keyed (robots, path) in sorted order:
+    `case_run`'s poses and floor (cases sharing a chain share its run)."""
+    needed = sorted({(c.n_robots, c.path) for c in CASES})
+    runs = {}
+    for i, (n, path) in enumerate(needed):
+        runs[(n, path)] = case_run(cfg, n, path, steps)
+        if progress:
+            progress(i + 1, len(needed))
+    return runs

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from estimators.retlo import MODEL_KINDS
 from macrostate_mj.app.cli.app import app, evaluate_app, experiment_app, train_app
+from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
     Choice,
     Count,
@@ -23,6 +24,10 @@ from macrostate_mj.app.cli.params import (
 )
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
+if TYPE_CHECKING:
+    from estimators.retlo.chain import Module
+
+HEURISTIC = "heuristic2x"
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
 PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
 Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
@@ -116,26 +121,28 @@ def train_retlo(
     from estimators.retlo.files import read_world
     from estimators.retlo.models import ModelConfig
     from estimators.retlo.train import TrainConfig, save_checkpoint
-    from macrostate_mj.core.io import check_writable_file, write_manifest
+    from macrostate_mj.core.io import check_writable_file
+    from macrostate_mj.core.run import Run
 
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained,
                       model=ModelConfig(kind=model, bidirectional=not unidirectional,
                                         cos_sin=cos_sin, rotate=not compass_frame,
                                         history=history))
     check_writable_file(out, overwrite, "--out")
-    worlds = [read_world(p, px_per_cm) for p in train]
-    val_world = read_world(val, px_per_cm)
-    start = time.perf_counter()
-    net, info = fit(worlds, val_world, cfg, progress=True)
-    save_checkpoint(out, net, px_per_cm, cfg, info)
-    write_manifest(out.parent, "train retlo", cfg, seed, {"train": time.perf_counter() - start},
-                   name=out.name + ".manifest.json", inputs=[str(p) for p in [*train, val]])
-    typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
-               f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
-    if info["interrupted"]:     # the best checkpoint so far is saved; say so and stop as Ctrl-C
-        typer.echo(f"interrupted after epoch {info['epochs_run']}; kept the best checkpoint",
-                   err=True)
-        raise KeyboardInterrupt
+    with Run(out.parent, "train retlo", cfg, seed, [out.name], overwrite,
+             manifest=out.name + ".manifest.json") as run:
+        worlds = [read_world(p, px_per_cm) for p in train]
+        val_world = read_world(val, px_per_cm)
+        with run.stage("train"):
+            net, info = fit(worlds, val_world, cfg, progress=True)
+        save_checkpoint(out, net, px_per_cm, cfg, info)
+        run.record(inputs=[str(p) for p in [*train, val]])
+        typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
+                   f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
+        if info["interrupted"]:  # the best checkpoint so far is saved; say so and stop as Ctrl-C
+            typer.echo(f"interrupted after epoch {info['epochs_run']}; kept the best checkpoint",
+                       err=True)
+            raise KeyboardInterrupt
 
 
 @evaluate_app.command("retlo")
@@ -148,11 +155,10 @@ def evaluate_retlo(
 ) -> None:
     """Errors (cm) of every robot the Tail cannot see, per robot and per step."""
     from estimators.retlo.api import evaluate
-    from macrostate_mj.app.experiments.retlo import load_predictor
     from macrostate_mj.core.io import check_writable_file, write_json_atomic
 
     check_writable_file(out, overwrite, "--out")
-    pred, name = load_predictor(model)
+    pred, name = _load_predictor(model)
     report = {"model": name, "data": str(data), "px_per_cm": px_per_cm,
               **evaluate(pred, data, px_per_cm)}
     write_json_atomic(out, report)
@@ -165,15 +171,22 @@ def evaluate_retlo(
 
 @experiment_app.command("retlo")
 def experiment_retlo(
-    train: list[Path] = InputFile(..., "Training ThymioLoc CSV (repeatable).", CSV,
-                                  flag="--train"),
-    val: Path = InputFile(..., "Validation CSV.", CSV),
+    profile: str = Choice("full", "full: the published 3-robot files, a quarter of Train.csv "
+                          "held out, 5 seeds of 60 epochs; quick: a smoke run (1 seed, 1 "
+                          "epoch).", ("full", "quick")),
+    quick: bool = Switch(False, "Shorthand for --profile quick."),
+    train: list[Path] = InputFile(None, "Training ThymioLoc CSV (repeatable); default: the "
+                                  "published Train.csv.", CSV, flag="--train"),
+    val: Path = InputFile(None, "Validation CSV; default: the published Val.csv.", CSV),
     test: list[Path] = InputFile(None, "Test CSV, any team size (repeatable).", CSV,
                                  flag="--test"),
-    holdout: float = Fraction(0.0, "Also hold out this fraction of the training instances as "
-                              "a test set (when no test file exists)."),
-    seeds: int = Count(5, "Training seeds per model (0..seeds-1)."),
-    epochs: int = Count(60, "Number of epochs per training (cosine schedule, early stop)."),
+    holdout: float = Fraction(None, "Also hold out this fraction of the training instances as "
+                              "a test set; default: 0 with --test, else the profile's (0.25)."),
+    seeds: int = Count(None, "Training seeds per model (seed..seed+seeds-1); default: the "
+                       "profile's (5)."),
+    epochs: int = Count(None, "Number of epochs per training (cosine schedule, early stop); "
+                        "default: the profile's (60)."),
+    seed: int = Seed(0, "The first training seed."),
     history: int = History,
     unidirectional: bool = Switch(False, "A unidirectional LSTM (chapter 3's predictor, with "
                                   "--cos-sin)."),
@@ -184,20 +197,37 @@ def experiment_retlo(
     overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
-    from estimators.retlo.models import ModelConfig
-    from macrostate_mj.app.experiments.retlo import PRODUCTS, ExperimentConfig, run_experiment
-    from macrostate_mj.core.io import prepare_out_dir
+    from dataclasses import replace
 
-    cfg = ExperimentConfig(train=[str(p) for p in train], val=str(val),
-                           test=[str(p) for p in test or []], holdout=holdout, seeds=seeds,
-                           epochs=epochs, px_per_cm=px_per_cm,
-                           model=ModelConfig(history=history, bidirectional=not unidirectional,
-                                             cos_sin=cos_sin))
-    cfg.validate()
-    prepare_out_dir(out, PRODUCTS, overwrite)
-    summary = run_experiment(cfg, out)
-    for line in summary:
-        typer.echo(line)
+    from estimators.retlo.models import ModelConfig
+    from macrostate_mj.app.experiments import profile as chosen
+
+    given = {"train": tuple(str(p) for p in train) if train else None,
+             "val": None if val is None else str(val), "test": tuple(str(p) for p in test or ()),
+             "holdout": 0.0 if holdout is None and test else holdout, "seeds": seeds,
+             "epochs": epochs}
+    config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
+                     px_per_cm=px_per_cm,
+                     model=ModelConfig(history=history, bidirectional=not unidirectional,
+                                       cos_sin=cos_sin),
+                     **{k: v for k, v in given.items() if v is not None})
+    launch("retlo", config, out, overwrite)
+
+
+def _load_predictor(model: str) -> tuple[Module, str]:
+    """A `--model` value (a checkpoint path or heuristic2x) → predictor and display name."""
+    from estimators.retlo.heuristic import Heuristic2X
+    from estimators.retlo.models import TorchPredictor
+    from estimators.retlo.train import load_checkpoint
+    from macrostate_mj.core.errors import UserError
+
+    if model == HEURISTIC:
+        return Heuristic2X(), HEURISTIC
+    if not model.endswith(".pt") and not Path(model).exists():
+        raise UserError(f"unknown model {model!r}; pass a checkpoint .pt from `train retlo` "
+                        f"or {HEURISTIC}")
+    net, ckpt = load_checkpoint(model)
+    return TorchPredictor(net), str(ckpt["kind"])
 
 
 def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bool,

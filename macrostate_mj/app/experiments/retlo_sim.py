@@ -7,42 +7,40 @@ with noisy inputs), estimated modularly. F2_one_step_mean_error is module 0 fed 
 (no recursion), to tell network error from accumulated error. per_step_errors.json holds every
 case's error per robot and step. Both hold only deterministic numbers
 (timings go to the manifest), so the same command gives the same file.
+
+This module composes: the runs are `collectors.robotarium`'s and `collectors.robotarium_cases`',
+the networks, their training and the chain estimates `estimators.retlo`'s, the figures
+`viz.retlo_sim_figures`'.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from collectors.robotarium import (
-    K_T_FACTORS,
-    noisy_replicas,
-    training_runs,
-    treatments,
-)
-from collectors.robotarium_cases import CASES, case_run, schedule, tail_view
+from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs, treatments
+from collectors.robotarium_cases import CASES, case_runs, schedule, tail_view
 from estimators.retlo.chain import estimate_chain, sync_steps
 from estimators.retlo.heuristic import estimate_heuristic
-from estimators.retlo.mlp import mse, train_mlp, training_pairs
+from estimators.retlo.mlp import ChainedMLP, mse, train_mlp, training_pairs
 from estimators.retlo.report import chain_errors, one_step_errors, summarize, unseen_names
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
-from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.scenarios import ScenarioConfig, get_scenario
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic, write_manifest
+from macrostate_mj.core.io import write_json_atomic
 
 THRESHOLD = 0.03   # the robot diameter: estimates closer than this are accurate (§2.5.3)
-PRODUCTS = ["results.json", "per_step_errors.json", "manifest.json", "trajectories.png",
+PRODUCTS = ["results.json", "per_step_errors.json", "trajectories.png",
             *(f"case_{c.key}.png" for c in CASES)]
-Progress = Callable[[str, int, int], None]     # (stage, done, total)
 
 
 @dataclass(frozen=True)
-class SimExperimentConfig:
-    """What `experiment retlo-sim` runs; recorded in the manifest and in results.json."""
+class Config:
+    """What `experiment retlo-sim` runs; recorded in the manifest and in results.json. An
+    invalid one cannot be built, so a bad flag fails before the output folder is touched."""
 
     seed: int = 0
     epochs: int = 500
@@ -58,7 +56,7 @@ class SimExperimentConfig:
     k_t_factors: tuple[float, ...] = K_T_FACTORS
     scenario: str = "robotarium"
 
-    def validate(self) -> None:
+    def __post_init__(self) -> None:
         for name in ("epochs", "batch", "replicas", "comm_every"):
             if getattr(self, name) < 1:
                 raise UserError(f"--{name.replace('_', '-')} must be at least 1, got "
@@ -71,76 +69,75 @@ class SimExperimentConfig:
             raise UserError(f"retlo-sim runs on the robotarium scenario, not {self.scenario!r}")
 
 
-def run_experiment(cfg: SimExperimentConfig, out: Path, progress: Progress | None = None
-                   ) -> list[str]:
-    """Generate, train, estimate, write results.json, figures and manifest; summary lines."""
+PROFILES = {"full": Config(), "quick": Config(epochs=1, train_steps=20, test_steps=40)}
+
+
+def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
+    """Generate, train, estimate, write results.json and the figures; summary lines."""
     from viz.retlo_sim_figures import plot_case, plot_trajectories
 
-    cfg.validate()
     scen = get_scenario(cfg.scenario)
     rng = np.random.default_rng(cfg.seed)
-    timings: dict[str, float] = {}
-    tick = time.perf_counter()
-    runs = training_runs(scen, cfg.train_steps, cfg.k_t_factors,
-                         lambda i, n: progress and progress("simulate training", i, n))
-    base, targets = training_pairs(noisy_replicas(runs, cfg.replicas, cfg.noise, rng))
-    timings["generate"], tick = time.perf_counter() - tick, time.perf_counter()
-    model, history = train_mlp(base, targets, rng, cfg.epochs, cfg.lr, cfg.momentum, cfg.batch,
-                               lambda i, n: progress and progress("train", i, n))
-    timings["train"], tick = time.perf_counter() - tick, time.perf_counter()
-    clean_base, clean_targets = training_pairs(runs)
-    results: dict = {
-        "config": asdict(cfg), "threshold": THRESHOLD,
-        "training": {
-            "samples": len(base),
-            "treatments": [{"preset": t.preset, "v": ROBOTARIUM_HEAD_PRESETS[t.preset][0],
-                            "omega": ROBOTARIUM_HEAD_PRESETS[t.preset][1], "k_t": t.k_t}
-                           for t in treatments(scen, cfg.k_t_factors)],
-            "final_loss_standardized": dict(zip(("x_H", "y_H", "theta_F"),
-                                                history[-1].tolist(), strict=True)),
-            "rmse_on_clean_runs": dict(zip(("x_H", "y_H", "theta_F"),
-                                           np.sqrt(mse(model, clean_base, clean_targets)).tolist(),
-                                           strict=True))},
-        "cases": {}}
+    with progress.stage("generate"):
+        runs = training_runs(scen, cfg.train_steps, cfg.k_t_factors,
+                             lambda i, n: progress.report("simulate training", i, n))
+        base, targets = training_pairs(noisy_replicas(runs, cfg.replicas, cfg.noise, rng))
+    with progress.stage("train"):
+        model, history = train_mlp(base, targets, rng, cfg.epochs, cfg.lr, cfg.momentum,
+                                   cfg.batch, lambda i, n: progress.report("train", i, n))
+    results: dict = {"config": asdict(cfg), "threshold": THRESHOLD,
+                     "training": _training(cfg, scen, runs, model, history, len(base)),
+                     "cases": {}}
+    with progress.stage("simulate_tests"):
+        paths = case_runs(scen, cfg.test_steps,
+                          lambda i, n: progress.report("simulate test runs", i, n))
     per_step: dict = {}
-    paths: dict[tuple[int, str], tuple[np.ndarray, str]] = {}
-    needed = sorted({(c.n_robots, c.path) for c in CASES})
-    for i, (n, path) in enumerate(needed):
-        paths[(n, path)] = case_run(scen, n, path, cfg.test_steps)
-        if progress:
-            progress("simulate test runs", i + 1, len(needed))
-    timings["simulate_tests"], tick = time.perf_counter() - tick, time.perf_counter()
     lines = []
-    for i, case in enumerate(CASES):
-        poses, floor = paths[(case.n_robots, case.path)]
-        sync = sync_steps(cfg.test_steps, cfg.comm_every if case.comm else None)
-        sensed, synced, truth = tail_view(poses, sync, cfg.noise if case.noisy else 0.0, rng)
-        names = unseen_names(case.n_robots)
-        err = chain_errors(estimate_chain(model, sensed, synced, sync), truth)
-        h_err = chain_errors(estimate_heuristic(sensed, synced, sync), truth)
-        title = case.title.format(comm=cfg.comm_every)
-        summary = summarize(err, names, THRESHOLD)
-        results["cases"][case.key] = {
-            "title": title, "n_robots": case.n_robots, "path": case.path, "floor": floor,
-            "head_schedule": [list(s) for s in schedule(case.path, cfg.test_steps)],
-            "comm_every": cfg.comm_every if case.comm else None, "noisy": case.noisy,
-            **summary, "heuristic2x": summarize(h_err, names, THRESHOLD),
-            "F2_one_step_mean_error": float(one_step_errors(model, truth).mean())}
-        per_step[case.key] = {nm: [None if not np.isfinite(e) else round(float(e), 6)
-                                   for e in err[:, j]] for j, nm in enumerate(names)}
-        plot_case(err, names, sync[1:], THRESHOLD, f"({case.key}) {title}",
-                  out / f"case_{case.key}.png")
-        per = ", ".join(f"{nm} {v['mean_error']:.4f}/{100 * v['share_under']:.0f}%"
-                        for nm, v in summary["per_robot"].items())
-        lines.append(f"({case.key}) {title}: {per}")
-        if progress:
-            progress("estimate cases", i + 1, len(CASES))
-    plot_trajectories({f"{p} ({n} robots)": paths[(n, p)] for n, p in needed}, scen.arena,
-                      out / "trajectories.png")
-    timings["estimate"] = time.perf_counter() - tick
+    with progress.stage("estimate"):
+        for i, case in enumerate(CASES):
+            poses, floor = paths[(case.n_robots, case.path)]
+            sync = sync_steps(cfg.test_steps, cfg.comm_every if case.comm else None)
+            sensed, synced, truth = tail_view(poses, sync, cfg.noise if case.noisy else 0.0, rng)
+            names = unseen_names(case.n_robots)
+            err = chain_errors(estimate_chain(model, sensed, synced, sync), truth)
+            h_err = chain_errors(estimate_heuristic(sensed, synced, sync), truth)
+            title = case.title.format(comm=cfg.comm_every)
+            summary = summarize(err, names, THRESHOLD)
+            results["cases"][case.key] = {
+                "title": title, "n_robots": case.n_robots, "path": case.path, "floor": floor,
+                "head_schedule": [list(s) for s in schedule(case.path, cfg.test_steps)],
+                "comm_every": cfg.comm_every if case.comm else None, "noisy": case.noisy,
+                **summary, "heuristic2x": summarize(h_err, names, THRESHOLD),
+                "F2_one_step_mean_error": float(one_step_errors(model, truth).mean())}
+            per_step[case.key] = {nm: [None if not np.isfinite(e) else round(float(e), 6)
+                                       for e in err[:, j]] for j, nm in enumerate(names)}
+            plot_case(err, names, sync[1:], THRESHOLD, f"({case.key}) {title}",
+                      out / f"case_{case.key}.png")
+            per = ", ".join(f"{nm} {v['mean_error']:.4f}/{100 * v['share_under']:.0f}%"
+                            for nm, v in summary["per_robot"].items())
+            lines.append(f"({case.key}) {title}: {per}")
+            progress.report("estimate cases", i + 1, len(CASES))
+        plot_trajectories({f"{p} ({n} robots)": run for (n, p), run in paths.items()},
+                          scen.arena, out / "trajectories.png")
     write_json_atomic(out / "results.json", results)
     write_json_atomic(out / "per_step_errors.json", per_step)
-    write_manifest(out, "experiment retlo-sim", cfg, cfg.seed, timings,
-                   products=PRODUCTS, floors={f"{n}-{p}": paths[(n, p)][1] for n, p in needed})
+    progress.record(floors={f"{n}-{p}": floor for (n, p), (_, floor) in paths.items()})
     lines.append(f"mean error / share of steps under {THRESHOLD} m; results in {out}")
     return lines
+
+
+def _training(cfg: Config, scen: ScenarioConfig, runs: np.ndarray, model: ChainedMLP,
+              history: np.ndarray, samples: int) -> dict:
+    """results.json's account of the training: its treatments, final loss, and RMSE on the
+    clean (noise-free) runs."""
+    clean_base, clean_targets = training_pairs(runs)
+    return {
+        "samples": samples,
+        "treatments": [{"preset": t.preset, "v": ROBOTARIUM_HEAD_PRESETS[t.preset][0],
+                        "omega": ROBOTARIUM_HEAD_PRESETS[t.preset][1], "k_t": t.k_t}
+                       for t in treatments(scen, cfg.k_t_factors)],
+        "final_loss_standardized": dict(zip(("x_H", "y_H", "theta_F"), history[-1].tolist(),
+                                            strict=True)),
+        "rmse_on_clean_runs": dict(zip(("x_H", "y_H", "theta_F"),
+                                       np.sqrt(mse(model, clean_base, clean_targets)).tolist(),
+                                       strict=True))}
