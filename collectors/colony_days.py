@@ -23,7 +23,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +31,9 @@ import numpy as np
 from macrostate_mj.colony.sim import Colony, ColonyConfig, aggression, day_name, parse_days
 from macrostate_mj.core import draw
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.run import Run
 
-PRODUCTS = ["flows", "labels.csv", "boxes.csv", "video", "frames", "manifest.json"]
+PRODUCTS = ["flows", "labels.csv", "boxes.csv", "video", "frames"]
 SAMPLE = 64  # side of the flow images (macrostate_mj.vision.flow.SIZE)
 
 
@@ -184,16 +185,20 @@ def _write_csv(path: Path, header: list[str] | None, rows: list) -> None:
 def simulate_colony(req: ColonyRequest, advance: Callable[[float], None] | None = None,
                     ) -> dict[str, Path]:
     """Run the colony over its days and write all products; return what was written."""
+    days = validate(req)
+    config = {k: v for k, v in asdict(req).items() if k not in ("out", "overwrite")}
+    with Run(req.out, "ants simulate", config, req.seed, PRODUCTS, req.overwrite) as run:
+        return _simulate_days(req, days, run, advance)
+
+
+def _simulate_days(req: ColonyRequest, days: list[float], run: Run,
+                   advance: Callable[[float], None] | None) -> dict[str, Path]:
     import mujoco
 
-    from macrostate_mj.core.io import Mp4Writer, prepare_out_dir, write_json_atomic, write_manifest
+    from macrostate_mj.core.io import Mp4Writer, write_json_atomic
     from macrostate_mj.vision.flow import extract_flow_samples, sample_frame_indices
 
-    t_start = time.perf_counter()
-    days = validate(req)
-    out = prepare_out_dir(req.out, PRODUCTS, req.overwrite)
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
+    out = Path(req.out)
     stage = Path(tempfile.mkdtemp(prefix=".colony-stage-", dir=out))
     cfg = ColonyConfig(n_ants=req.ants, n_prey=req.prey, fps=req.fps, size=req.size,
                        seed=req.seed)
@@ -276,20 +281,15 @@ def simulate_colony(req: ColonyRequest, advance: Callable[[float], None] | None 
             if (stage / name).exists():
                 os.replace(stage / name, out / name)
                 written[name] = out / name
-    except BaseException:
-        if created:  # a failed run into a new folder leaves no folder behind
-            shutil.rmtree(out, ignore_errors=True)
-        raise
     finally:
         if renderer is not None:
             renderer.close()
         shutil.rmtree(stage, ignore_errors=True)
-    timings["total_s"] = time.perf_counter() - t_start
     n_stable = len(stable_ids)
-    written["manifest.json"] = write_manifest(
-        out, "ants simulate", req, req.seed, timings, days=[day_name(d) for d in days],
-        samples={"Stable": n_stable, "Unstable": len(labels) - n_stable},
-        boxed_subframes=len(flow_boxes), frame_events=len(frame_rows),
-        timestep=colony.model.opt.timestep,
-        splits=len(stable_ids) >= 2)
+    run.timings.update(timings)
+    run.record(days=[day_name(d) for d in days],
+               samples={"Stable": n_stable, "Unstable": len(labels) - n_stable},
+               boxed_subframes=len(flow_boxes), frame_events=len(frame_rows),
+               timestep=colony.model.opt.timestep, splits=len(stable_ids) >= 2)
+    written["manifest.json"] = run.path
     return written

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
+from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.io import write_json_atomic, write_text_atomic
 from macrostate_mj.formats import motion_stats
 from macrostate_mj.formats.instances import INSTANCE_STEPS
@@ -33,6 +34,7 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 FITTED = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "wait_slack", "marker_jitter")
 LOW, HIGH = 0.6, 1.6
+SCORE_VERSION = 1          # bump when the motion features or the score change
 
 
 @dataclass(frozen=True)
@@ -81,24 +83,31 @@ def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray
     return np.clip(centre - half + pts * 2 * half, lo, hi)
 
 
-def evaluate(factors: dict[str, float], folder: Path, cfg: SysidConfig, real: dict
-             ) -> dict:
-    """Collect with these fixed factors (cached) and score against the real features."""
-    done = folder / "score.json"
-    if done.exists():
-        return json.loads(done.read_text())
-    folder.mkdir(parents=True, exist_ok=True)
-    profile = folder / "factors.json"
-    write_text_atomic(profile, json.dumps(factors, sort_keys=True))
-    req = CollectRequest(cfg.scenario, cfg.robots, cfg.minutes, cfg.seed, folder, "passive",
-                         workers=cfg.workers, episode_minutes=cfg.episode_minutes,
-                         randomize=str(profile))
-    if not finished(req):
-        collect(req)
-    rows = motion_stats.compare(_features(folder / "instances.csv"), real)
-    out = {"factors": factors, "score": score(rows), "folder": str(folder)}
-    write_json_atomic(done, out)
-    return out
+def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
+             train_csv: Path) -> dict:
+    """Collect with these fixed factors (a collection of its own, resumable, in a folder named
+    by what it is made from) and score it against the real features (a cached task keyed by
+    the collection's identity and the real file's content)."""
+    identity = {"factors": factors, "config": {k: v for k, v in asdict(cfg).items()
+                                               if k != "workers"}}
+    folder = out / "candidates" / task_key("sysid-collect", 1, identity)[:16]
+    cache = TaskCache(out / "cache")
+
+    def compute() -> dict[str, bytes]:
+        folder.mkdir(parents=True, exist_ok=True)
+        profile = folder / "factors.json"
+        write_text_atomic(profile, json.dumps(factors, sort_keys=True))
+        req = CollectRequest(cfg.scenario, cfg.robots, cfg.minutes, cfg.seed, folder,
+                             "passive", workers=cfg.workers,
+                             episode_minutes=cfg.episode_minutes, randomize=str(profile))
+        if not finished(req):
+            collect(req)
+        rows = motion_stats.compare(_features(folder / "instances.csv"), real)
+        return {"score.json": json.dumps({"factors": factors, "score": score(rows),
+                                          "folder": str(folder)}).encode()}
+
+    key = task_key("sysid-score", SCORE_VERSION, identity, [train_csv])
+    return json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
 
 
 def _features(path: Path, robots: int | None = None) -> dict:
@@ -120,7 +129,7 @@ def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
     def run(points: np.ndarray) -> None:
         for x in points:
             factors = {k: float(round(np.exp(v), 4)) for k, v in zip(FITTED, x, strict=True)}
-            tried.append(evaluate(factors, out / "candidates" / f"{len(tried):03d}", cfg, real))
+            tried.append(evaluate(factors, out, cfg, real, train_csv))
             if progress is not None:
                 progress(len(tried), total)
 

@@ -8,17 +8,17 @@ the extra health checks only cut the C stepping into shorter stretches, which ch
 from __future__ import annotations
 
 import json
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 from macrostate_mj.chain.health import Fault, PhysicsError
+from macrostate_mj.core.cache import TaskCache, run_tasks, task_key
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic
-from macrostate_mj.core.parallel import runner_for
 
 
 @dataclass(frozen=True)
@@ -82,46 +82,42 @@ def soak_tasks(scenario: str, robots: int, seeds: int, seconds: float, first_see
     return [SoakTask(scenario, robots, seconds, first_seed + k, check_hz) for k in range(seeds)]
 
 
+class SoakRunTask:
+    """One seed's soak as a cached task, keyed by its task and the scenario's constants (a
+    refit scenario is soaked again)."""
+
+    stage: ClassVar[str] = "soak-run"
+    version: ClassVar[int] = 1
+
+    def __init__(self, task: SoakTask):
+        self.task = task
+
+    def key(self) -> str:
+        from macrostate_mj.chain.scenarios import scenario_for
+
+        return task_key(self.stage, self.version,
+                        {"task": self.task, "scenario": scenario_for(self.task.scenario)})
+
+    def compute(self) -> dict[str, bytes]:
+        return {"run.json": json.dumps(asdict(soak_one(self.task))).encode()}
+
+
 def soak(tasks: list[SoakTask], workers: int = 1, ray: str | None = None,
-         progress: Callable[[int], None] | None = None, store: Path | None = None
+         progress: Callable[[int], None] | None = None, cache: TaskCache | None = None
          ) -> list[SoakRun]:
-    """Run every task; results in seed order whatever the number of workers. With `store`, each
-    finished run is kept there as `seed_NNNNNN.json` and a rerun skips the seeds it holds (an
-    interrupted soak resumes)."""
+    """Run every task; results in seed order whatever the number of workers. With `cache`,
+    each finished run is kept there and a rerun skips the seeds it holds (an interrupted soak
+    resumes); without, the runs are kept in a temporary folder for the call."""
     if workers < 1:
         raise UserError(f"--workers must be at least 1, got {workers}")
-    done = {} if store is None else _stored(store, tasks)
-    runs = list(done.values())
-    if progress:
-        progress(len(runs))
-    todo = [t for t in tasks if t.seed not in done]
-    for run in runner_for(ray)(soak_one, todo, workers):
-        runs.append(run)
-        if store is not None:
-            write_json_atomic(store / f"seed_{run.seed:06d}.json",
-                              {"task": asdict(tasks[0]) | {"seed": run.seed}, "run": asdict(run)})
-        if progress:
-            progress(len(runs))
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = []
+        for outcome in run_tasks(cache or TaskCache(tmp), [SoakRunTask(t) for t in tasks],
+                                 workers, ray):
+            runs.append(SoakRun(**json.loads((outcome.folder / "run.json").read_text())))
+            if progress:
+                progress(len(runs))
     return sorted(runs, key=lambda r: r.seed)
-
-
-def _stored(store: Path, tasks: list[SoakTask]) -> dict[int, SoakRun]:
-    """Runs already in `store` for these tasks; a run of another soak there is refused."""
-    wanted = {t.seed: asdict(t) for t in tasks}
-    out: dict[int, SoakRun] = {}
-    for path in sorted(store.glob("seed_*.json")) if store.is_dir() else []:
-        try:
-            rec = json.loads(path.read_text())
-            task, run = rec["task"], SoakRun(**rec["run"])
-        except (ValueError, KeyError, TypeError):
-            raise UserError(f"{path} is not a soak run record; remove it or pass --overwrite"
-                            ) from None
-        if run.seed in wanted and task != wanted[run.seed]:
-            raise UserError(f"{store} holds runs of another soak ({path.name}); pass --overwrite "
-                            "or choose another --out")
-        if run.seed in wanted:
-            out[run.seed] = run
-    return out
 
 
 def summary(runs: list[SoakRun], workers: int) -> dict[str, float | int | str]:

@@ -1,6 +1,7 @@
 """`soak --out` keeps every finished seed: an interrupted soak resumes where it stopped."""
 
 import json
+import shutil
 
 from clitools import cli_inprocess
 
@@ -13,7 +14,9 @@ def test_an_interrupted_soak_resumes_from_its_finished_seeds(monkeypatch, capsys
     first = json.loads((tmp_path / "soak.json").read_text())["runs"]
     (tmp_path / "soak.json").unlink()                 # as if killed before the end ...
     (tmp_path / "manifest.json").unlink()
-    (tmp_path / "runs" / "seed_000001.json").unlink()  # ... and before seed 1 finished
+    for run in (tmp_path / "cache" / "soak-run").glob("*/run.json"):
+        if json.loads(run.read_text())["seed"] == 1:  # ... and before seed 1 finished
+            shutil.rmtree(run.parent)
     ran = []
     real = soak_module.soak_one
     monkeypatch.setattr(soak_module, "soak_one", lambda task: ran.append(task.seed) or real(task))
@@ -25,6 +28,8 @@ def test_an_interrupted_soak_resumes_from_its_finished_seeds(monkeypatch, capsys
         [{k: v for k, v in r.items() if k not in drop} for r in first]
     for name in ("soak.json", "manifest.json"):
         (tmp_path / name).unlink()
+    ran.clear()          # another soak in the same folder: its own keys, nothing mixed
     code, _, err = cli_inprocess(capsys, "soak", "--robots", "4", "--seeds", "3",
                                  "--seconds", "4", "--out", str(tmp_path))
-    assert code == 2 and "runs of another soak" in err
+    assert code == 0, err and ran == [0, 1, 2]
+    assert json.loads((tmp_path / "soak.json").read_text())["summary"]["robots"] == 4

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
 
 import typer
@@ -64,7 +63,9 @@ def flow(
     if (video is None) == (frames is None):
         raise UserError("give exactly one of --video FILE or --frames DIR")
     box = _crop(crop)
-    from macrostate_mj.core.io import check_writable_dir, write_manifest
+    from macrostate_mj.core.io import check_writable_dir
+    from macrostate_mj.core.progress import LoggedProgress
+    from macrostate_mj.core.run import Run
     from macrostate_mj.formats.hsants import SAMPLE_NAME
     from macrostate_mj.vision.flow import (
         FlowComputer,
@@ -83,24 +84,23 @@ def flow(
         if taken:
             raise UserError(f"{target / sorted(taken)[0]} already exists; pass --overwrite or a "
                             "larger --start-id")
-    t0 = time.perf_counter()
-    stream, rate = read_video_frames(video, fps) if video else read_frame_folder(frames, fps)
-    from macrostate_mj.core.progress import LoggedProgress
-
-    with LoggedProgress(transient=True) as bar:
-        task = bar.add_task("reading frames", total=None)
-
-        def counted():
-            for f in stream:
-                bar.advance(task)
-                yield f
-
-        ids = extract_flow_samples(counted(), rate, out, every=every, gap=gap, m=m, method=method,
-                                   label=label, start_id=start_id, crop=box)
     config = {"video": video, "frames": frames, "every": every, "gap": gap, "m": m,
-              "method": method, "label": label, "start_id": start_id, "crop": box, "fps": rate}
-    write_manifest(target, "flow", config, None, {"total": time.perf_counter() - t0},
-                   samples=[ids[0], ids[-1]], n_samples=len(ids))
+              "method": method, "label": label, "start_id": start_id, "crop": box, "fps": fps}
+    # samples are added by id: a later call may add another label or ids to the same folder
+    with Run(target, "flow", config, None, overwrite=True) as run:
+        stream, rate = (read_video_frames(video, fps) if video
+                        else read_frame_folder(frames, fps))
+        with LoggedProgress(transient=True) as bar:
+            task = bar.add_task("reading frames", total=None)
+
+            def counted():
+                for f in stream:
+                    bar.advance(task)
+                    yield f
+
+            ids = extract_flow_samples(counted(), rate, out, every=every, gap=gap, m=m,
+                                       method=method, label=label, start_id=start_id, crop=box)
+        run.record(fps=rate, samples=[ids[0], ids[-1]], n_samples=len(ids))
     typer.echo(f"wrote {len(ids)} samples ({ids[0]:05d}..{ids[-1]:05d}) to {target}")
 
 
@@ -129,25 +129,22 @@ def oc_train(
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
     methods = tuple(METHODS) if "all" in method else tuple(dict.fromkeys(method))
-    from macrostate_mj.core.io import prepare_out_dir, write_manifest
-
-    prepare_out_dir(out, ["weights.pt", "model.json"], overwrite)
     from estimators.oneclass import OCConfig, fit
+    from macrostate_mj.core.run import Run
     from macrostate_mj.formats.hsants import open_dataset
 
     cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device).scaled(
         epoch_scale).overridden(settings)
-    d = open_dataset(data)
-    train, _ = d.split(split)
-    x = d.load("Stable", train, m)
-    t0 = time.perf_counter()
-    with stage_progress() as tick:     # finished stages wait in OUT/stages: a rerun resumes
-        model = fit(x, methods, cfg, tick, stages_dir=out / "stages")
-    out.mkdir(parents=True, exist_ok=True)
-    model.save(out)
-    write_manifest(out, "oc train", cfg, seed, {"train": time.perf_counter() - t0},
-                   methods=list(methods), data=data, split=split, n_train=len(x), recipe=recipe,
-                   resumed_stages=model.resumed)
+    config = {"oc": cfg, "methods": list(methods), "data": data, "split": split,
+              "recipe": recipe}
+    with Run(out, "oc train", config, seed, ["weights.pt", "model.json"], overwrite) as run:
+        d = open_dataset(data)
+        train, _ = d.split(split)
+        x = d.load("Stable", train, m)
+        with run.stage("train"), stage_progress() as tick:  # stages wait in OUT/stages
+            model = fit(x, methods, cfg, tick, stages_dir=out / "stages")
+        model.save(out)
+        run.record(n_train=len(x), resumed_stages=model.resumed)
     typer.echo(f"trained {', '.join(methods)} on {len(x)} stable samples -> {out}")
 
 

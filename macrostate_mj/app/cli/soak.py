@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -43,33 +44,29 @@ def soak(
     overwrite: bool = Switch(False, "Replace an existing soak.json."),
 ) -> None:
     """Run many seeds and count tips, NaNs, escapes and climbing; exit 1 if any run faulted."""
-    import shutil
-    import time
-
     from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
     from macrostate_mj.chain.soak import run_records, soak_tasks, summary
     from macrostate_mj.chain.soak import soak as run_soak
+    from macrostate_mj.core.cache import TaskCache
     from macrostate_mj.core.errors import RunFailure
-    from macrostate_mj.core.io import prepare_out_dir, write_json_atomic, write_manifest
+    from macrostate_mj.core.io import write_json_atomic
     from macrostate_mj.core.progress import sim_progress
+    from macrostate_mj.core.run import Run
 
     tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
-    store = None
-    if out is not None:
-        prepare_out_dir(out, ["soak.json", "manifest.json"], overwrite)
-        store = out / "runs"
-        if overwrite and store.exists():
-            shutil.rmtree(store)
-    t0 = time.perf_counter()
-    with sim_progress(seeds, f"soak {scenario} {robots} robots", unit="runs") as bar:
-        runs = run_soak(tasks, workers, ray, bar, store)
-    row = {"scenario": scenario, "robots": robots, "seconds": seconds, **summary(runs, workers)}
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(out / "soak.json", {"summary": row, "runs": run_records(runs)})
-        write_manifest(out, "soak", {"tasks": tasks[0], "seeds": seeds}, first_seed,
-                       {"total": time.perf_counter() - t0},
-                       outputs={"soak": str(out / "soak.json")})
+    with contextlib.ExitStack() as stack:
+        run = None if out is None else stack.enter_context(
+            Run(out, "soak", {"tasks": tasks[0], "seeds": seeds}, first_seed, ["soak.json"],
+                overwrite))
+        bar = stack.enter_context(sim_progress(seeds, f"soak {scenario} {robots} robots",
+                                               unit="runs"))
+        runs = run_soak(tasks, workers, ray, bar, None if out is None
+                        else TaskCache(out / "cache"))
+        row = {"scenario": scenario, "robots": robots, "seconds": seconds,
+               **summary(runs, workers)}
+        if run is not None:
+            write_json_atomic(out / "soak.json", {"summary": row, "runs": run_records(runs)})
+            run.record(workers=workers, outputs={"soak": str(out / "soak.json")})
     if as_json:
         print(json.dumps(row), flush=True)
     else:

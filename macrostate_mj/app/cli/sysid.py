@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import time
+from dataclasses import asdict
 from pathlib import Path
 
 import typer
@@ -38,19 +38,20 @@ def sysid(
     """System identification of `lab`: gains, speed caps and the wait rule's slack that make
     the motion distributions match the real Train file (checked on Val)."""
     from collectors.sysid import SysidConfig, fit
-    from macrostate_mj.core.io import prepare_out_dir, write_manifest
     from macrostate_mj.core.progress import LoggedProgress
+    from macrostate_mj.core.run import Run
 
-    prepare_out_dir(out, ["fit.json", "fitted.json", "manifest.json"], overwrite)
     cfg = SysidConfig(robots=robots, minutes=minutes, seed=seed, first=first, refine=refine,
                       workers=workers)
-    t0 = time.perf_counter()
-    with LoggedProgress(transient=True) as bar:
+    identity = {**{k: v for k, v in asdict(cfg).items() if k != "workers"},
+                "train": str(train), "val": str(val)}
+    with Run(out, "sysid", identity, seed, ["fit.json", "fitted.json"], overwrite) as run, \
+            LoggedProgress(transient=True) as bar:
         task = bar.add_task("sysid", total=first + refine)
-        report = fit(cfg, train, val, out, lambda done, total: bar.update(task, completed=done))
-    write_manifest(out, "sysid", {**report["config"], "train": str(train), "val": str(val)},
-                   seed, {"total": time.perf_counter() - t0},
-                   products=["fit.json", "fitted.json"])
+        with run.stage("fit"):
+            report = fit(cfg, train, val, out,
+                         lambda done, total: bar.update(task, completed=done))
+        run.record(workers=workers)
     typer.echo(f"summed KS on {train.name}: {report['train']['before']:.3f} -> "
                f"{report['train']['after']:.3f}; on {val.name}: {report['val']['before']:.3f} "
                f"-> {report['val']['after']:.3f}")
