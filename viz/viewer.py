@@ -1,4 +1,4 @@
-"""`macrostate-mj view`: MuJoCo's interactive viewer on a running chain.
+"""MuJoCo's interactive viewer on a running chain (`macrostate-mj view`).
 
 The same world and controllers as `simulate` (planner, motion rules, unicycle tracking), paced
 to real time (or `speed` times it) while the window is open. The viewer needs a display: on a

@@ -1,23 +1,23 @@
 """Library API of `macrostate-mj simulate`: validate everything, run, write atomically.
 
-This is the top of the data flow (it may call into `viz`), like the CLI that wraps it.
+This is the top of the data flow: the run is `collectors.simulate`'s, the recorders that draw
+it `viz`'s; here they are wired together and the outputs written.
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from macrostate_mj.chain.health import PhysicsError
 from macrostate_mj.chain.scenarios import ScenarioConfig, scenario_for
-from macrostate_mj.chain.sim import ChainSim, Every, Hook, PoseLog
-from macrostate_mj.chain.world import build_world, validate_chain
+from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import check_writable_file, prepare_out_dir, write_manifest
-from macrostate_mj.formats.poses import poses_table, write_poses
+from macrostate_mj.formats.poses import write_poses
+
+if TYPE_CHECKING:
+    from macrostate_mj.chain.sim import ChainSim, Hook, Tracker
 
 
 @dataclass(frozen=True)
@@ -34,11 +34,6 @@ class SimulateRequest:
     head_speed: float | None = None
     track: bool = False
     overlays: str = "all"
-
-
-def imaging_rng(seed: int) -> np.random.Generator:
-    """The camera chain's own stream: tracking never changes the simulated trajectory."""
-    return np.random.default_rng([seed, 1])
 
 
 def parse_overlays(text: str) -> tuple[str, ...]:
@@ -70,6 +65,8 @@ def check_request(req: SimulateRequest) -> ScenarioConfig:
 
 def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     """Run one simulation; returns the written paths. Nothing is written if validation fails."""
+    from collectors.simulate import simulate_chain
+
     cfg = check_request(req)
     out = req.out
     try:
@@ -77,54 +74,20 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     except OSError as err:
         raise UserError(f"cannot create --out {out}: {err.strerror}; "
                         "choose a writable folder") from None
-
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    world = build_world(cfg, req.robots)
-    sim = ChainSim(world)
-    sim.reset(np.random.default_rng(req.seed))
-    timings["build"] = time.perf_counter() - t0
-
-    hooks: list[Hook] = []
-    chain = None
-    if req.track:
-        from macrostate_mj.vision.camera_chain import CameraChain
-
-        chain = CameraChain(sim, rng=imaging_rng(req.seed))
-        hooks.append(chain)
-    log = PoseLog(world.names, tracker=chain)
-    hooks.append(Every(1 / cfg.log_hz, log.append, sim.log_phase))
-    if req.video is not None:
-        from viz.video import VideoRecorder
-
-        hooks.append(VideoRecorder(req.video, sim, fps=req.video_fps,
-                                   overlays=parse_overlays(req.overlays), tracker=chain))
-    if req.rerun is not None:
-        from viz.rerun_log import RerunRecorder
-
-        hooks.append(RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz, phase=sim.log_phase,
-                                   tracker=chain))
-    t0 = time.perf_counter()
-    failure: PhysicsError | None = None
-    try:
-        sim.episode(req.seconds, hooks, progress)
-    except PhysicsError as err:
-        failure = err           # the hooks kept what was simulated: poses and video up to it
-    timings["run"] = time.perf_counter() - t0
-
-    times, poses, waypoints = log.arrays()
-    write_poses(out / "poses.parquet",
-                poses_table(world.names, times, poses, waypoints, log.tracked_arrays()))
+    ran = simulate_chain(cfg, req.robots, req.seconds, req.seed, req.track,
+                         lambda sim, tracker: _recorders(req, cfg, sim, tracker), progress)
+    sim, chain, failure = ran.sim, ran.tracker, ran.failure
+    write_poses(out / "poses.parquet", ran.poses())
     written = {"poses": out / "poses.parquet"}
     if req.video is not None:
         written["video"] = req.video
     if req.rerun is not None:
         written["rerun"] = req.rerun
     written["manifest"] = write_manifest(
-        out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, timings,
-        robots=world.names, outputs={k: str(v) for k, v in written.items()},
-        timestep=world.model.opt.timestep,
-        realtime_factor=sim.time / max(timings["run"], 1e-9),
+        out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, ran.timings,
+        robots=ran.world.names, outputs={k: str(v) for k, v in written.items()},
+        timestep=ran.world.model.opt.timestep,
+        realtime_factor=sim.time / max(ran.timings["run"], 1e-9),
         status="ok" if failure is None else "failed",
         failure=None if failure is None else {**asdict(failure.fault),
                                               "fault": failure.fault.fault.name,
@@ -136,6 +99,23 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up to "
                          f"then are in {out}; reproduce: {reproduce_command(req)}")
     return written
+
+
+def _recorders(req: SimulateRequest, cfg: ScenarioConfig, sim: ChainSim,
+               tracker: Tracker | None) -> list[Hook]:
+    """The drawing hooks the request asks for: an overhead video, a rerun recording."""
+    hooks: list[Hook] = []
+    if req.video is not None:
+        from viz.video import VideoRecorder
+
+        hooks.append(VideoRecorder(req.video, sim, fps=req.video_fps,
+                                   overlays=parse_overlays(req.overlays), tracker=tracker))
+    if req.rerun is not None:
+        from viz.rerun_log import RerunRecorder
+
+        hooks.append(RerunRecorder(req.rerun, sim, rate_hz=cfg.log_hz, phase=sim.log_phase,
+                                   tracker=tracker))
+    return hooks
 
 
 def reproduce_command(req: SimulateRequest) -> str:
