@@ -3,12 +3,15 @@
 1. RO (Rand-Only): `ro_instances` instances with the Tail's destination perturbed at random
    (`OUT/ro/`, an ordinary collection);
 2. the novelty models (φ, ψ, ζ) trained on the RO phase's ground-truth tracks, or its tracked
-   ones with `track` (`OUT/novelty.pt`);
+   ones with `track`: a cached task (`OUT/cache/srs-novelty/<key>/`) keyed by the training
+   settings and the bytes of the RO data, copied to `OUT/novelty.pt`;
 3. SR (Selective-Random): `instances - ro_instances` more with the SRS Tail (`OUT/sr/`, with
    `decisions.parquet`: per scored step the k candidates' offsets, e and the pick);
 4. the dataset in `OUT/`: the RO instances then the SR ones, in the ThymioLoc layout.
-Each stage is cached: a rerun after a kill resumes where it stopped (the collections episode by
-episode). SR episodes take indices after the RO ones, so no episode repeats another's seeds.
+The whole runs under the one run lifecycle (`core.run.Run`); each stage is cached, so a rerun
+after a kill resumes where it stopped (the collections episode by episode) and `finished_srs`
+tells a caller whether this very collection is done. SR episodes take indices after the RO
+ones, so no episode repeats another's seeds.
 The novelty models come through `NoveltyTrainer`, which the caller passes in: `collectors` and
 `estimators` are independent layers (pyproject's import contract).
 """
@@ -18,7 +21,7 @@ from __future__ import annotations
 import hashlib
 import math
 import shutil
-import time
+import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -27,11 +30,21 @@ from typing import Protocol
 import numpy as np
 
 from collectors.policies import PolicyConfig, PolicySpec
-from collectors.runner import SPLIT_NAMES, CollectRequest, collect, finished, parse_split, plan
+from collectors.runner import (
+    CACHE,
+    SPLIT_NAMES,
+    CollectRequest,
+    collect,
+    finished,
+    parse_split,
+    plan,
+)
 from collectors.srs_policy import SRSConfig, check_srs
 from macrostate_mj.chain.scenarios import scenario_for
+from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import atomic_path, prepare_out_dir, write_manifest
+from macrostate_mj.core.io import atomic_path
+from macrostate_mj.core.run import Run, run_finished
 from macrostate_mj.formats.instances import (
     INSTANCE_STEPS,
     from_thymioloc_pixels,
@@ -41,8 +54,10 @@ from macrostate_mj.formats.instances import (
 from macrostate_mj.formats.srs_windows import NoveltySource
 from macrostate_mj.formats.thymioloc import read_csv, write_csv
 
-PRODUCTS = ["instances.csv", "instances_truth.csv", "decisions.parquet",  # novelty.pt: a stage
-            "manifest.json", *(f"{s}{t}.csv" for s in SPLIT_NAMES for t in ("", "_truth"))]
+NOVELTY = "novelty.pt"
+NOVELTY_STAGE, NOVELTY_VERSION = "srs-novelty", 1   # bump when the models change for the same data
+PRODUCTS = ["instances.csv", "instances_truth.csv", "decisions.parquet", NOVELTY,
+            *(f"{s}{t}.csv" for s in SPLIT_NAMES for t in ("", "_truth"))]
 
 
 @dataclass(frozen=True)
@@ -61,10 +76,6 @@ class NoveltyTrainer(Protocol):
 
     def config(self, seed: int) -> object:
         """The training settings for a collection of `seed`; their repr keys the cached model."""
-        ...
-
-    def stored_key(self, path: Path, robots: int, scenario: str) -> str | None:
-        """The data key of the models stored at `path`; refuses another team's or scenario's."""
         ...
 
     def train(self, tracks: np.ndarray, config: object, scenario: str, path: Path,
@@ -109,54 +120,86 @@ def validate(req: SRSRequest) -> None:
         raise UserError(f"--policy srs needs a team of at least 3 robots, got {req.base.robots}")
 
 
+def run_config(req: SRSRequest, novelty: NoveltyTrainer) -> dict:
+    """What an SRS collection's outputs depend on (not where or how fast it runs): its run's
+    identity, so a resumed run may change --workers but not the collection."""
+    base = {k: v for k, v in asdict(req.base).items()
+            if k not in ("out", "workers", "ray", "overwrite")}
+    return {"request": base, "pick": req.pick, "instances": req.instances,
+            "ro_instances": req.ro_instances, "k": req.k, "track": req.track,
+            "scenario": asdict(scenario_for(req.base.scenario, req.base.head_speed)),
+            "novelty": repr(novelty.config(req.base.seed))}
+
+
+def finished_srs(req: SRSRequest, novelty: NoveltyTrainer) -> bool:
+    """Has this very collection (same request, scenario constants and novelty settings) run to
+    the end in `req.base.out`?"""
+    return run_finished(Path(req.base.out), run_config(req, novelty))
+
+
 def collect_srs(req: SRSRequest, novelty: NoveltyTrainer,
                 progress: Callable[[str, int, int], None] | None = None) -> dict[str, Path]:
     """Run (or resume) the four stages, the models made by `novelty`; returns the written
     paths."""
     validate(req)
     fractions = parse_split(req.base.split)
-    out = prepare_out_dir(req.base.out, PRODUCTS, req.base.overwrite)
-    model_path = out / "novelty.pt"
-    robots, scenario = req.base.robots, req.base.scenario
-    cached_key = None
-    if model_path.exists() and not req.base.overwrite:  # an earlier run's must fit this team
-        cached_key = novelty.stored_key(model_path, robots, scenario)
-    out.mkdir(parents=True, exist_ok=True)
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
+    out = Path(req.base.out)
     ro_req = _phase(req, "ro", req.ro_instances, 0, PolicyConfig("random", req.base.sigma))
-    n_ro = len(plan(ro_req))
-    if req.base.overwrite or not finished(ro_req):
-        collect(ro_req, _reporter(progress, "RO phase", n_ro))
-    timings["ro_phase"] = time.perf_counter() - t0
+    n_ro = len(plan(ro_req))                      # bad input: refused before anything is written
+    with Run(out, "collect --policy srs", run_config(req, novelty), req.base.seed, PRODUCTS,
+             req.base.overwrite) as run:
+        with run.stage("ro_phase"):               # the phases are this run's: never refused
+            if not finished(ro_req):
+                collect(replace(ro_req, overwrite=True), _reporter(progress, "RO phase", n_ro))
+        with run.stage("novelty_models"):
+            key, model_path = _novelty(req, ro_req, novelty, TaskCache(out / CACHE),
+                                       progress is not None)
+        with run.stage("sr_phase"):
+            sha = hashlib.sha256(model_path.read_bytes()).hexdigest()
+            srs = SRSConfig(novelty.source(model_path.resolve(), sha), req.pick, req.k,
+                            req.base.sigma, track=req.track)
+            sr_req = _phase(req, "sr", req.instances - req.ro_instances, n_ro, srs)
+            if not finished(sr_req):
+                collect(replace(sr_req, overwrite=True),
+                        _reporter(progress, f"SR phase (SRS-{req.pick})", len(plan(sr_req))))
+        with run.stage("assemble"):
+            with atomic_path(out / "decisions.parquet") as tmp:
+                shutil.copyfile(sr_req.out / "decisions.parquet", tmp)
+            written = _assemble(req, ro_req, sr_req, fractions) | {
+                "novelty": model_path, "decisions": out / "decisions.parquet"}
+        written["manifest"] = run.path
+        run.record(phases={"ro": str(ro_req.out), "sr": str(sr_req.out)}, novelty_sha256=sha,
+                   novelty_key=key, workers=req.base.workers, ray=req.base.ray,
+                   outputs={k: str(v) for k, v in written.items()})
+    return written
 
-    t0 = time.perf_counter()
+
+def _novelty(req: SRSRequest, ro_req: CollectRequest, novelty: NoveltyTrainer,
+             cache: TaskCache, show: bool) -> tuple[str, Path]:
+    """The novelty models as a cached task keyed by their settings and the RO data's bytes
+    (the same RO phase and settings train once), copied to `OUT/novelty.pt` when it differs
+    (so an unchanged model keeps its file, and the SR episodes their keys)."""
     cfg = novelty.config(req.base.seed)
     data = ro_req.out / ("instances.csv" if req.track else "instances_truth.csv")
-    key = hashlib.sha256(data.read_bytes() + repr((cfg, req.ro_instances)).encode()).hexdigest()
-    if cached_key != key:     # else: the cached stage
+    scenario = scenario_for(req.base.scenario, req.base.head_speed)
+    key = task_key(NOVELTY_STAGE, NOVELTY_VERSION,
+                   {"config": repr(cfg), "ro_instances": req.ro_instances,
+                    "scenario": req.base.scenario, "constants": scenario,
+                    "px_per_cm": req.base.px_per_cm}, [data])
+
+    def compute() -> dict[str, bytes]:
         tracks = _tracks(data, ro_req, req.ro_instances)
-        novelty.train(tracks, cfg, scenario, model_path, key, progress is not None)
-    timings["novelty_models"] = time.perf_counter() - t0
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / NOVELTY
+            novelty.train(tracks, cfg, req.base.scenario, path, key, show)
+            return {NOVELTY: path.read_bytes()}
 
-    t0 = time.perf_counter()
-    sha = hashlib.sha256(model_path.read_bytes()).hexdigest()
-    srs = SRSConfig(novelty.source(model_path.resolve(), sha), req.pick, req.k, req.base.sigma,
-                    track=req.track)
-    sr_req = _phase(req, "sr", req.instances - req.ro_instances, n_ro, srs)
-    if req.base.overwrite or not finished(sr_req):
-        collect(sr_req, _reporter(progress, f"SR phase (SRS-{req.pick})", len(plan(sr_req))))
-    timings["sr_phase"] = time.perf_counter() - t0
-
-    with atomic_path(out / "decisions.parquet") as tmp:
-        shutil.copyfile(sr_req.out / "decisions.parquet", tmp)
-    written = _assemble(req, ro_req, sr_req, fractions) | {
-        "novelty": model_path, "decisions": out / "decisions.parquet"}
-    written["manifest"] = write_manifest(
-        out, "collect --policy srs", {"request": asdict(req)}, req.base.seed, timings,
-        phases={"ro": str(ro_req.out), "sr": str(sr_req.out)}, novelty_sha256=sha,
-        outputs={k: str(v) for k, v in written.items()})
-    return written
+    model = (cache.cached(NOVELTY_STAGE, key, compute) / NOVELTY).read_bytes()
+    final = Path(req.base.out) / NOVELTY
+    if not final.is_file() or final.read_bytes() != model:
+        with atomic_path(final) as tmp:
+            tmp.write_bytes(model)
+    return key, final
 
 
 def _reporter(progress: Callable[[str, int, int], None] | None, stage: str, total: int

@@ -4,17 +4,14 @@ test needs no reference data)."""
 
 import json
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from clitools import assert_clean_error, cli
 
-from macrostate_mj.app.experiments.sim2real import (
-    PROFILES,
-    cv_blocks,
-    equivalent_fraction,
-    run_sim2real,
-)
+from macrostate_mj.app.experiments import execute, sim2real
+from macrostate_mj.app.experiments.sim2real import PROFILES, cv_blocks, equivalent_fraction
 from macrostate_mj.chain import scenarios
 from macrostate_mj.core.errors import UserError
 
@@ -57,34 +54,46 @@ def test_experiment_sim2real_quick(tmp_path, monkeypatch):
                    for c in results["arms"][arm].values())
     assert results["sim_over_real"] > 0
     assert (out / "sim2real.png").stat().st_size > 1000
-    assert json.loads((out / "manifest.json").read_text())["models_trained"] == 2 + 2 * 2 * 2
-    # a rerun resumes from the cached models and writes the same results
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["models"] == manifest["models_trained"] == 2 + 2 * 2 * 2
+    models = sorted((out / "cache" / "sim2real-model").iterdir())
+    assert len(models) == 10 and sum((m / "model.pt").is_file() for m in models) == 2
+    # a rerun takes every model from the cache and writes the same results
     before = (out / "results.json").read_bytes()
     res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),
               "--overwrite")
     assert res.returncode == 0, res.stderr
     assert (out / "results.json").read_bytes() == before
-    # the small files alone suffice (what a fresh machine has from a copy kept in git): the
-    # lab data is not collected again
-    shutil.rmtree(out / "data")
-    for split in (out / "models").glob("real_seed*.npz"):
-        split.unlink()
-    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),
-              "--overwrite")
+    assert json.loads((out / "manifest.json").read_text())["models_trained"] == 0
+    # killed while training: the manifest says so, one real-data model is missing; the same
+    # command resumes (no --overwrite) and trains that model alone
+    manifest = json.loads((out / "manifest.json").read_text())
+    (out / "manifest.json").write_text(json.dumps({**manifest, "status": "interrupted"}))
+    shutil.rmtree(next(m for m in models if not (m / "model.pt").exists()))
+    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out))
     assert res.returncode == 0, res.stderr
     assert (out / "results.json").read_bytes() == before
-    assert not list((out / "data" / "sim").iterdir())
-    # other inputs into the same cache are refused, before any work
-    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),
-              "--overwrite", "--randomize", "wide")
-    assert res.returncode == 2 and "other inputs" in res.stderr
-    assert (out / "results.json").read_bytes() == before
-    # so is the same command once the lab's values have changed (a new fit): its sim models
-    # were trained on the old lab
+    assert json.loads((out / "manifest.json").read_text())["models_trained"] == 1
+    # new inputs make new data, never reuse the old: a refit lab (or a randomized one) is
+    # collected again, and its CSVs' bytes key the sim models
+    collected = []
+
+    class Stop(Exception):
+        pass
+
+    def collect(req):
+        collected.append(req)
+        raise Stop
+
+    monkeypatch.setattr(sim2real, "collect", collect)
+    config = replace(PROFILES["quick"], real=stand_in)
+    with pytest.raises(Stop):
+        execute("sim2real", replace(config, randomize="wide"), out, overwrite=True)
     refit = scenarios.SCENARIOS["lab"].with_overrides(marker_jitter=0.004)
     monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
-    with pytest.raises(UserError, match="other inputs"):
-        run_sim2real(PROFILES["quick"], stand_in, out)
+    with pytest.raises(Stop):
+        execute("sim2real", config, out, overwrite=True)
+    assert [r.randomize for r in collected] == ["wide", None]
     assert (out / "results.json").read_bytes() == before
 
 

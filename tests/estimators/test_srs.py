@@ -1,6 +1,9 @@
 """Chapter 3's SR phase (§3.3.1): novelty windows, the (φ, ψ, ζ) models, the Tail's candidate
 motion, the pick policies, and `collect --policy srs` end to end."""
 
+import json
+import shutil
+
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -185,15 +188,21 @@ def test_collect_srs_end_to_end_and_resumes(tmp_path):
     assert np.array_equal(es[np.arange(len(es)), dec["pick"].to_numpy()], np.sort(es)[:, 2])
     first = {p.name: p.read_bytes() for p in out.glob("*.csv")}
     model = (out / "novelty.pt").stat().st_mtime_ns
-    # killed during the SR phase: the final files and one SR episode gone; a rerun resumes
-    for path in [*out.glob("*.*"), *(out / "sr").glob("*.*"),
-                 *(out / "sr" / "shards").glob("*_00003.parquet")]:
-        if path.name != "novelty.pt":
-            path.unlink()
+    assert len(list((out / "cache" / "srs-novelty").iterdir())) == 1   # the models' task
+    # killed during the SR phase: the run's manifest says so, the final files, the SR phase's
+    # and one SR episode are gone; a rerun (no --overwrite) resumes
+    manifest = json.loads((out / "manifest.json").read_text())
+    (out / "manifest.json").write_text(json.dumps({**manifest, "status": "interrupted"}))
+    for path in [*out.glob("*.csv"), *out.glob("*.parquet"), *(out / "sr").glob("*.*")]:
+        path.unlink()
+    shutil.rmtree(sorted((out / "sr" / "cache" / "collect-episode").iterdir())[-1])
     res = cli(*SRS, "--split", "50/25/25", "--out", str(out))
     assert res.returncode == 0, res.stderr
     assert first == {p.name: p.read_bytes() for p in out.glob("*.csv")}
     assert (out / "novelty.pt").stat().st_mtime_ns == model          # not trained again
+    assert json.loads((out / "manifest.json").read_text())["status"] == "finished"
+    res = cli(*SRS, "--split", "50/25/25", "--out", str(out))       # finished: not unasked
+    assert_clean_error(res, "--overwrite")
     res = cli(*SRS, "--split", "50/25/25", "--out", str(out), "--overwrite")
     assert res.returncode == 0, res.stderr
     assert first == {p.name: p.read_bytes() for p in out.glob("*.csv")}
@@ -218,25 +227,24 @@ def test_collect_srs_bad_input(tmp_path, args, names):
     assert not (tmp_path / "bad").exists()
 
 
-def test_collect_srs_refuses_a_novelty_model_of_another_team(tmp_path, trained):
+def test_collect_srs_does_not_replace_a_novelty_model_unasked(tmp_path, trained):
+    """A folder holding novelty models (an earlier run's, with its manifest gone) is refused
+    before any work, as any output of the run would be."""
     model, info, _ = trained
     out = tmp_path / "other"
     out.mkdir()
     save_novelty(out / "novelty.pt", model, info)
-    args = [a if a != "3" else "4" for a in SRS]          # --robots 4 (and seed 4)
-    res = cli(*args, "--out", str(out))
-    assert_clean_error(res, "3-robot team")
+    res = cli(*SRS, "--out", str(out))
+    assert_clean_error(res, "novelty.pt", "--overwrite")
     assert not (out / "ro").exists()
 
 
 def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
     """The chapter's task graph on the quick profile: every figure, and what must hold on any
     machine: Rand-Only with σ = 0 is Passive, and an SRS dataset begins with its RO phase, the
-    same instances as the Rand-Only dataset of the same seed. A rerun resumes from the task
-    reports alone, without the datasets."""
-    import json
-    import shutil
-
+    same instances as the Rand-Only dataset of the same seed. Models are keyed by their data, so
+    those identical training sets train once; a rerun takes every model from the cache, and a
+    run killed while training trains only the models it had not finished."""
     out = tmp_path / "chapter3"
     res = cli("experiment", "srs", "--quick", "--out", str(out))
     assert res.returncode == 0, res.stderr
@@ -250,15 +258,28 @@ def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
     m = results["profile"]["ro_instances"]
     assert np.array_equal(ro[:m], srs[:m]) and not np.array_equal(ro[m:2 * m], srs[m:2 * m])
     assert set(results["distances"]) == {"srs_max", "ro_0.75"}
+    # 9 models; ro_0 at 100 % is passive's, SRS-Max and -Med at 50 % (6 = m instances) are
+    # ro_0.75's: 6 trained
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (manifest["models"], manifest["models_distinct"], manifest["models_trained"]) == (
+        9, 6, 6)
+    assert len(list((out / "cache" / "srs-model").iterdir())) == 6
+    assert cfg["srs_max"]["0.5000"] == cfg["ro_0.75"]["0.5000"]
     before = (out / "results.json").read_bytes()
     res = cli("experiment", "srs", "--profile", "quick", "--out", str(out), "--overwrite")
     assert res.returncode == 0, res.stderr
     assert (out / "results.json").read_bytes() == before      # every task from its cache
-    shutil.rmtree(out / "data")       # what a fresh machine has from a copy kept in git
-    res = cli("experiment", "srs", "--profile", "quick", "--out", str(out), "--overwrite")
+    assert json.loads((out / "manifest.json").read_text())["models_trained"] == 0
+    # killed while training: the manifest says so and one model's task is missing; the same
+    # command resumes (no --overwrite) and trains that model alone
+    manifest = json.loads((out / "manifest.json").read_text())
+    (out / "manifest.json").write_text(json.dumps({**manifest, "status": "interrupted"}))
+    shutil.rmtree(sorted((out / "cache" / "srs-model").iterdir())[0])
+    res = cli("experiment", "srs", "--profile", "quick", "--out", str(out))
     assert res.returncode == 0, res.stderr
-    assert (out / "results.json").read_bytes() == before      # the small files were enough
-    assert not list((out / "data").iterdir())                 # and nothing was collected
+    assert (out / "results.json").read_bytes() == before
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["models_trained"] == 1 and manifest["status"] == "finished"
 
 
 def test_experiment_srs_profiles_are_the_cli_choices():

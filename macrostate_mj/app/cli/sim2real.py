@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
+from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
     MAX_SECONDS,
     MAX_WORKERS,
@@ -16,6 +17,7 @@ from macrostate_mj.app.cli.params import (
     InputDir,
     OutputDir,
     Positive,
+    Seed,
     Switch,
 )
 
@@ -34,25 +36,27 @@ def experiment_sim2real(
     profile: str = Choice("full", "full: 5 seeds, 10/25/50/100 % of the real pool; quick: a "
                           "smoke run.", ("full", "quick")),
     quick: bool = Switch(False, "Shorthand for --profile quick."),
+    seed: int = Seed(0, "The first model seed: model i trains with seed+i and is tested on real "
+                     "fold i mod 5."),
     workers: int = Count(1, "Local worker processes (collection and trainings).",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
     out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
-    overwrite: bool = Switch(False, "Replace the figure and results (cached models are kept; "
-                             "delete the folder to start over)."),
+    overwrite: bool = Switch(False, "Replace the figure and results of a finished run (cached "
+                             "models and lab data are kept; delete the folder to start over)."),
 ) -> None:
     """Sim only, real only and sim pre-trained then fine-tuned, on 10-100 % of the real data:
     Head error on held-out real folds (one per seed), the curve and the real data saved."""
-    from macrostate_mj.app.experiments.sim2real import PRODUCTS, PROFILES, run_sim2real
+    from macrostate_mj.app.experiments import profile as chosen
+    from macrostate_mj.app.experiments.sim2real import validate
     from macrostate_mj.core.errors import UserError
-    from macrostate_mj.core.io import prepare_out_dir
 
-    chosen = PROFILES["quick" if quick else profile]
+    config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
+                     randomize=randomize, seed=seed)
     if sim_minutes is not None:
         if sim is not None:
             raise UserError("--sim-minutes sizes the lab collection this command makes; drop "
                             "it or --sim")
-        chosen = replace(chosen, sim_minutes=sim_minutes)
-    prepare_out_dir(out, PRODUCTS, overwrite)
-    for line in run_sim2real(chosen, real, out, sim, randomize, workers, ray):
-        typer.echo(line)
+        config = replace(config, sim_minutes=sim_minutes)
+    validate(config)                     # bad input: refused before the folder is claimed
+    launch("sim2real", config, out, overwrite, workers, ray)

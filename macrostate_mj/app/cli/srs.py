@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
+from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Seed, Switch
 
 PROFILE_NAMES = ("full", "fig3.5b", "quick")
@@ -24,15 +26,13 @@ def experiment_srs(
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
     out: Path = OutputDir(..., "Output folder (datasets and models are cached in it)."),
-    overwrite: bool = Switch(False, "Replace the figures and results (cached tasks are kept; "
-                             "delete the folder to start over)."),
+    overwrite: bool = Switch(False, "Replace the figures and results of a finished run (cached "
+                             "datasets and models are kept; delete the folder to start "
+                             "over)."),
 ) -> None:
     """Table 3.1, Fig 3.4 (σ sweep), Fig 3.5a/b (policies over budgets), Fig 3.6 (step-wise,
     5 robots) and Fig 3.7 (distance histograms); resumes after an interruption."""
-    from macrostate_mj.app.experiments.srs import PRODUCTS, PROFILES, run_srs_experiment
-    from macrostate_mj.core.io import prepare_out_dir
+    from macrostate_mj.app.experiments import profile as chosen
 
-    prepare_out_dir(out, PRODUCTS, overwrite)
-    chosen = PROFILES["quick" if quick else profile]
-    for line in run_srs_experiment(chosen, out, seed, workers, ray):
-        typer.echo(line)
+    config = replace(chosen("srs", "quick" if quick else profile), seed=seed)
+    launch("srs", config, out, overwrite, workers, ray)

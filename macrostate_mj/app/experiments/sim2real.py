@@ -3,45 +3,46 @@ data sim pre-training saves (issue 13's data-efficiency curve).
 
 Real data: a folder of ThymioLoc 3-robot files, `Train.csv` then `Val.csv`, pooled in that order
 and cut into `folds` contiguous blocks (instances overlap in time, so a random split would leak).
-Model seed s is tested on block s mod `folds`, never used by any model of that seed; of the
-other blocks, the last `val_share` selects the real-trained checkpoints and the rest is the real
-training pool, of which the first 10 / 25 / 50 / 100 % are used. Three arms per seed:
+Model i (seed `seed + i`) is tested on block i mod `folds`, never used by any model of that
+seed; of the other blocks, the last `val_share` selects the real-trained checkpoints and the rest
+is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Three arms per seed:
 - sim: trained and selected on a lab collection only (`collect --scenario lab --robots 3
-  --split 80/20/0 [--randomize PROFILE]`, cached in `data/sim`, or `--sim DIR` with Train.csv
-  and Val.csv);
+  --split 80/20/0 [--randomize PROFILE]`, a `collect` run in `data/sim`, or `--sim DIR` with
+  Train.csv and Val.csv);
 - real: trained on a fraction of the pool, selected on the real validation block;
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`).
-Every model is the LSTM of `train retlo --model lstm`; each is a task cached as JSON (and the
-sim models as checkpoints), so a rerun after a kill resumes; `run.json` records what the cache
-was made from (the lab scenario's constants among it), and a rerun with other inputs into the
-same folder is refused.
+Every model is the LSTM of `train retlo --model lstm`, a cached task
+(`cache/sim2real-model/<key>/`: its report, and a sim model's checkpoint) keyed by its training
+settings and the bytes of its data (the lab CSVs, the real blocks, a fine-tuned model's sim
+checkpoint): a rerun after a kill trains only what is missing, and new inputs (a refit lab, other
+real files) train new models instead of mixing with the old.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
-import time
-from dataclasses import asdict, dataclass, replace
+import tempfile
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.app.experiments import mean_std
-from macrostate_mj.chain.scenarios import get_scenario
-from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import check_writable_dir, claim_run, write_json_atomic, write_manifest
-from macrostate_mj.core.parallel import runner_for
+from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.core.cache import Outcome, run_tasks, task_key
+from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.paths import reference_data
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
-PRODUCTS = ["results.json", "sim2real.png", "manifest.json"]
+PRODUCTS = ["results.json", "sim2real.png"]
 ARMS = ("sim", "real", "finetune")
 REAL_FILES = ("Train.csv", "Val.csv")
 
 
 @dataclass(frozen=True)
-class Sim2RealProfile:
+class Config:
     seeds: int = 5
     folds: int = 5
     fractions: tuple[float, ...] = (0.1, 0.25, 0.5, 1.0)
@@ -52,12 +53,17 @@ class Sim2RealProfile:
     sim_minutes: float = 100.0
     sim_seed: int = 31
     episode_minutes: float = 5.0
+    seed: int = 0              # model i trains with seed + i
+    real: Path = field(default_factory=lambda: reference_data() / "ReTLo" / "Datasets"
+                       / "3Robots")
+    sim: Path | None = None    # a lab collection's folder, instead of collecting one
+    randomize: str | None = None   # the lab collection's domain randomization
 
 
 PROFILES = {
-    "full": Sim2RealProfile(),
-    "quick": Sim2RealProfile(seeds=2, fractions=(0.5, 1.0), epochs=2, finetune_epochs=1,
-                             sim_minutes=6.0, episode_minutes=3.0),
+    "full": Config(),
+    "quick": Config(seeds=2, fractions=(0.5, 1.0), epochs=2, finetune_epochs=1,
+                    sim_minutes=6.0, episode_minutes=3.0),
 }
 
 
@@ -93,125 +99,149 @@ def read_real(folder: Path) -> np.ndarray:
     return pixels_to_world(np.concatenate(parts), DEFAULT_PX_PER_CM)
 
 
-def _sim_data(out: Path, sim: Path | None, profile: Sim2RealProfile, randomize: str | None,
-              workers: int, ray: str | None) -> Path:
-    """The folder of the lab Train.csv / Val.csv: `--sim`, or a cached lab collection."""
-    if sim is not None:
-        _require_splits(sim, "--sim", "a `collect --split` folder")
-        return sim
-    req = CollectRequest("lab", 3, profile.sim_minutes, profile.sim_seed, out, "passive",
-                         workers=workers, ray=ray, split="80/20/0",
-                         episode_minutes=profile.episode_minutes, randomize=randomize)
+def validate(config: Config) -> np.ndarray:
+    """Refuse bad inputs in one line before anything is written; the pooled real instances."""
+    from collectors.randomize import Randomization
+
+    pooled = read_real(config.real)
+    if config.folds > len(pooled):
+        raise UserError(f"--real {config.real} holds {len(pooled)} instances, fewer than "
+                        f"{config.folds} folds")
+    if config.sim is not None:
+        _require_splits(config.sim, "--sim", "a `collect --split` folder")
+        if config.randomize is not None:
+            raise UserError("--randomize applies to the lab collection this command makes; "
+                            "drop it or --sim")
+    if config.randomize is not None:
+        Randomization.parse(config.randomize)
+    return pooled
+
+
+def _sim_data(config: Config, out: Path, workers: int, ray: str | None) -> Path:
+    """The folder of the lab Train.csv / Val.csv: `--sim`, or a lab collection in `out` (a
+    `collect` run: resumed, and replaced when another config made it, its episodes kept)."""
+    if config.sim is not None:
+        return config.sim
+    req = CollectRequest("lab", 3, config.sim_minutes, config.sim_seed, out, "passive",
+                         workers=workers, ray=ray, split="80/20/0", overwrite=True,
+                         episode_minutes=config.episode_minutes, randomize=config.randomize)
     if not finished(req):
         collect(req)
     return out
 
 
-def _train_task(task: dict) -> dict:
-    """One model: train (or fine-tune the sim model), select, test on its real fold; cached."""
-    path = Path(task["report"])
-    if _cached(task):
-        return json.loads(path.read_text())
-    from estimators.retlo.api import evaluate, fit
-    from estimators.retlo.models import ModelConfig, TorchPredictor
-    from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint
-
-    real = np.load(task["real"])
-    cfg = TrainConfig(epochs=task["epochs"], seed=task["seed"], model=ModelConfig(kind="lstm"))
-    if task["arm"] == "sim":
-        sim = Path(task["sim"])
-        net, info = fit([sim / "Train.csv"], sim / "Val.csv", cfg)
-        save_checkpoint(task["checkpoint"], net, DEFAULT_PX_PER_CM, cfg, info)
-    else:
-        init = None
-        if task["arm"] == "finetune":
-            init, _ = load_checkpoint(task["checkpoint"])
-            cfg = replace(cfg, lr=task["lr"])
-        net, info = fit([real["train"][:task["count"]]], real["val"], cfg, init=init)
-    report = evaluate(TorchPredictor(net), real["test"])
-    report = {"task": task["name"], "arm": task["arm"], "fraction": task["fraction"],
-              "count": task["count"], "seed": task["seed"], "head_cm": report["per_robot_cm"]["H"],
-              "mean_cm": report["mean_error_cm"], "best_val_cm": info["best_val_cm"],
-              "epochs_run": info["epochs_run"]}
-    write_json_atomic(path, report)
-    return report
+Data = Path | np.ndarray
 
 
-def _cached(task: dict) -> bool:
-    """A task is done when its report is there, and a sim model's checkpoint too (fine-tuning
-    starts from it)."""
-    return Path(task["report"]).exists() and (
-        task["arm"] != "sim" or Path(task["checkpoint"]).exists())
+class ModelTask:
+    """One model of one arm: trained on `train` (or fine-tuned from the sim checkpoint `init`),
+    selected on `val`, tested on the real block `test`. Keyed by its training settings and the
+    bytes of its data; a sim model also outputs its checkpoint (`model.pt`)."""
+
+    stage: ClassVar[str] = "sim2real-model"
+    version: ClassVar[int] = 1
+
+    def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
+                 test: np.ndarray, lr: float | None = None, init: Path | None = None):
+        self.arm, self.seed, self.epochs, self.lr = arm, seed, epochs, lr
+        self.train, self.val, self.test, self.init = train, val, test, init
+        self._key: str | None = None
+
+    def train_config(self) -> Any:
+        from estimators.retlo.models import ModelConfig
+        from estimators.retlo.train import TrainConfig
+
+        cfg = TrainConfig(epochs=self.epochs, seed=self.seed, model=ModelConfig(kind="lstm"))
+        return cfg if self.lr is None else replace(cfg, lr=self.lr)
+
+    def key(self) -> str:
+        if self._key is None:
+            inputs = [self.train, self.val, self.test, *([self.init] if self.init else [])]
+            self._key = task_key(self.stage, self.version,
+                                 {"arm": self.arm, "train": self.train_config()}, inputs)
+        return self._key
+
+    def compute(self) -> dict[str, bytes]:
+        from estimators.retlo.api import evaluate, fit
+        from estimators.retlo.models import TorchPredictor
+        from estimators.retlo.train import load_checkpoint, save_checkpoint
+
+        cfg = self.train_config()
+        init = None if self.init is None else load_checkpoint(self.init)[0]
+        net, info = fit([self.train], self.val, cfg, init=init)
+        report = evaluate(TorchPredictor(net), self.test)
+        files = {"report.json": json.dumps({
+            "head_cm": report["per_robot_cm"]["H"], "mean_cm": report["mean_error_cm"],
+            "best_val_cm": info["best_val_cm"], "epochs_run": info["epochs_run"]}).encode()}
+        if self.arm == "sim":            # fine-tuning starts from it
+            with tempfile.TemporaryDirectory() as tmp:
+                path = save_checkpoint(Path(tmp) / "model.pt", net, DEFAULT_PX_PER_CM, cfg,
+                                       info)
+                files["model.pt"] = path.read_bytes()
+        return files
 
 
-def run_sim2real(profile: Sim2RealProfile, real_dir: Path, out: Path, sim: Path | None = None,
-                 randomize: str | None = None, workers: int = 1, ray: str | None = None
-                 ) -> list[str]:
+def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect (or take) the lab data, train every arm and fraction, plot; summary lines."""
-    from collectors.randomize import Randomization
     from viz.sim2real_figures import plot_curve
 
-    t0 = time.perf_counter()
-    pooled = read_real(real_dir)
-    if profile.folds > len(pooled):
-        raise UserError(f"--real {real_dir} holds {len(pooled)} instances, fewer than "
-                        f"{profile.folds} folds")
-    if randomize is not None:
-        if sim is not None:
-            raise UserError("--randomize applies to the lab collection this command makes; "
-                            "drop it or --sim")
-        Randomization.parse(randomize)
-    check_writable_dir(out)
-    # The real data by content, not by path: the same run resumes from another checkout.
-    claim_run(out, {"profile": asdict(profile),
-                    "real_sha256": hashlib.sha256(np.ascontiguousarray(pooled)).hexdigest(),
-                    "sim": None if sim is None else str(sim.resolve()), "randomize": randomize,
-                    "lab": None if sim is not None else asdict(get_scenario("lab"))},
-              "experiment sim2real")
-    sim_dir = sim if sim is not None else check_writable_dir(out / "data" / "sim")
-    models = check_writable_dir(out / "models")
-    first, second = [], []
-    for s in range(profile.seeds):
-        pool, val, test = cv_blocks(len(pooled), profile.folds, s % profile.folds,
-                                    profile.val_share)
-        split = models / f"real_seed{s}.npz"
-        if not split.exists():
-            np.savez(split, train=pooled[pool], val=pooled[val], test=pooled[test])
-        common = {"seed": s, "real": str(split), "sim": str(sim_dir),
-                  "checkpoint": str(models / f"sim_seed{s}.pt")}
-        first.append({**common, "name": f"sim_s{s}", "arm": "sim", "fraction": 0.0, "count": 0,
-                      "epochs": profile.epochs, "report": str(models / f"sim_s{s}.json")})
-        for f in profile.fractions:
-            count = max(1, int(np.ceil(f * len(pool))))
-            for arm, epochs in (("real", profile.epochs), ("finetune", profile.finetune_epochs)):
-                name = f"{arm}_f{round(100 * f)}_s{s}"
-                second.append({**common, "name": name, "arm": arm, "fraction": f,
-                               "count": count, "epochs": epochs, "lr": profile.finetune_lr,
-                               "report": str(models / f"{name}.json")})
-    if not all(_cached(t) for t in first):      # the lab data only while a sim model needs it
-        _sim_data(sim_dir, sim, profile, randomize, workers, ray)
-    t_data = time.perf_counter() - t0
-    run = runner_for(ray)
-    t1 = time.perf_counter()
-    reports = [*run(_train_task, first, workers), *run(_train_task, second, workers)]
-    t_models = time.perf_counter() - t1
-    results = summarize(reports, profile, len(pooled))
+    with progress.stage("data"):
+        pooled = validate(config)
+        sim = _sim_data(config, out / "data" / "sim", progress.workers, progress.ray)
+    first: list[tuple[dict, ModelTask]] = []
+    blocks = []
+    total = config.seeds * (1 + 2 * len(config.fractions))
+    for i in range(config.seeds):
+        s = config.seed + i
+        pool, val, test = cv_blocks(len(pooled), config.folds, i % config.folds,
+                                    config.val_share)
+        blocks.append((s, pooled[pool], pooled[val], pooled[test]))
+        first.append(({"arm": "sim", "fraction": 0.0, "count": 0, "seed": s},
+                      ModelTask("sim", s, config.epochs, sim / "Train.csv", sim / "Val.csv",
+                                pooled[test])))
+    with progress.stage("models"):
+        done = _train(first, progress, total)
+        second: list[tuple[dict, ModelTask]] = []
+        for (s, pool, val, test), (_, sim_task) in zip(blocks, first, strict=True):
+            checkpoint = done[id(sim_task)].folder / "model.pt"
+            for f in config.fractions:
+                count = max(1, int(np.ceil(f * len(pool))))
+                for arm, epochs, lr, init in (
+                        ("real", config.epochs, None, None),
+                        ("finetune", config.finetune_epochs, config.finetune_lr, checkpoint)):
+                    second.append(({"arm": arm, "fraction": f, "count": count, "seed": s},
+                                   ModelTask(arm, s, epochs, pool[:count], val, test, lr, init)))
+        done |= _train(second, progress, total, len(first))
+    reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
+               for meta, task in [*first, *second]]
+    results = summarize(reports, config, len(pooled))
     write_json_atomic(out / "results.json", results)
     plot_curve(results, out / "sim2real.png")
-    timings = {"data": t_data, "models": t_models, "total": time.perf_counter() - t0}
-    write_manifest(out, "experiment sim2real", {"profile": asdict(profile),
-                                                "real": str(real_dir), "sim": str(sim_dir),
-                                                "randomize": randomize},
-                   None, timings, products=PRODUCTS, workers=workers, models_trained=len(reports))
+    hits = set(progress.cache.hits)
+    progress.record(models=len(reports), sim_data=str(sim),
+                    models_trained=len({t.key() for _, t in [*first, *second]} - hits))
     return summary_lines(results)
 
 
-def summarize(reports: list[dict], profile: Sim2RealProfile, n_real: int) -> dict:
+def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
+           before: int = 0) -> dict[int, Outcome]:
+    """Run the tasks (cached ones are read back); their outcomes by id(task)."""
+    done: dict[int, Outcome] = {}
+    for outcome in run_tasks(progress.cache, [t for _, t in tasks], progress.workers,
+                             progress.ray):
+        if outcome.folder is None:
+            raise RunFailure(f"a {outcome.task.arm} model failed: {outcome.failure}")
+        done[id(outcome.task)] = outcome
+        progress.report("models", before + len(done), total)
+    return done
+
+
+def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
     """Head and mean error (cm) per arm and fraction over seeds; the sim-only / real-only
     ratio; and, per fraction, the real-only data the fine-tuned model's error is worth."""
-    out: dict = {"profile": asdict(profile), "real_instances": n_real, "arms": {}}
+    out: dict = {"profile": asdict(config), "real_instances": n_real, "arms": {}}
     for arm in ARMS:
-        fracs = (0.0,) if arm == "sim" else profile.fractions
+        fracs = (0.0,) if arm == "sim" else config.fractions
         out["arms"][arm] = {f"{f:g}": {
             "head_cm": mean_std([r["head_cm"] for r in reports
                                if r["arm"] == arm and r["fraction"] == f]),
@@ -220,11 +250,11 @@ def summarize(reports: list[dict], profile: Sim2RealProfile, n_real: int) -> dic
             "count": max([r["count"] for r in reports if r["arm"] == arm and r["fraction"] == f])}
             for f in fracs}
     real = out["arms"]["real"]
-    full = real[f"{max(profile.fractions):g}"]["head_cm"]["mean"]
+    full = real[f"{max(config.fractions):g}"]["head_cm"]["mean"]
     out["sim_over_real"] = out["arms"]["sim"]["0"]["head_cm"]["mean"] / full
     out["equivalent_real_fraction"] = {
-        f: equivalent_fraction(v["head_cm"]["mean"], profile.fractions,
-                               [real[f"{g:g}"]["head_cm"]["mean"] for g in profile.fractions])
+        f: equivalent_fraction(v["head_cm"]["mean"], config.fractions,
+                               [real[f"{g:g}"]["head_cm"]["mean"] for g in config.fractions])
         for f, v in out["arms"]["finetune"].items()}
     return out
 

@@ -1,14 +1,19 @@
 """`experiment srs`: chapter 3 (§3.4–3.5) on our `webots` scenario, as a cached task graph.
 
-Datasets (3-robot teams, `profile.train` instances each, Table 3.1): Passive, Rand-Only at every σ
+Datasets (3-robot teams, `config.train` instances each, Table 3.1): Passive, Rand-Only at every σ
 of Fig 3.4, and SRS with each pick policy (its first `ro_instances` are its RO phase). Dataset j
 of every configuration uses the collection seed `seed * 1000 + j`: the same starts and Head
 routes across configurations (common random numbers), so their differences are the Tail's.
 One 3-robot validation set and one 5-robot test set (passive) serve every model, so the models
 are compared on the same instances. Models: chapter 3's predictor (unidirectional LSTM, cos/sin
 angles, ℓ = 10), trained on the first 33 / 66 / 100 % of a dataset with `models` seeds, selected
-on the validation set, tested on the 5-robot set. Every dataset and model is a task whose output
-is kept (`data/`, `models/`): a rerun after a kill resumes; models run on `--workers` or Ray.
+on the validation set, tested on the 5-robot set.
+
+Every dataset is a `collect` (or `collect --policy srs`) run in its own folder (`data/<name>/`,
+resumed episode by episode); every model a cached task (`cache/srs-model/<key>/report.json`)
+keyed by its training settings and the content of its data, so a rerun after a kill trains
+only what is missing, and identical training data trains once (Rand-Only at σ = 0 is Passive;
+an SRS dataset's first `ro_instances` are Rand-Only's). Models run on `--workers` or Ray.
 """
 
 from __future__ import annotations
@@ -17,24 +22,26 @@ import json
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from collectors.srs import SRSRequest, collect_srs, episodes_for
-from macrostate_mj.app.experiments import mean_std
-from macrostate_mj.core.io import check_writable_dir, write_json_atomic, write_manifest
-from macrostate_mj.core.parallel import runner_for
+from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
+from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.core.cache import run_tasks, task_key
+from macrostate_mj.core.errors import RunFailure
+from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
 PRODUCTS = ["results.json", "fig3_4.png", "fig3_5a.png", "fig3_5b.png", "fig3_6.png",
-            "fig3_7.png", "manifest.json"]
+            "fig3_7.png"]
 SCENARIO = "webots"
 RO_SIGMA = 0.75        # the Rand-Only baseline of Fig 3.5 (the best σ of §3.5.1)
 
 
 @dataclass(frozen=True)
-class SRSProfile:
+class Config:
     """How much of the chapter to run: `full` is Table 3.1's sizes, `quick` a smoke run."""
 
     train: int = 300
@@ -50,22 +57,22 @@ class SRSProfile:
     k: int = 30
     epochs: int = 60
     episode_minutes: float = 5.0
-
+    seed: int = 0          # dataset j of every configuration is collected with seed*1000 + j
 
 
 PROFILES = {
-    "full": SRSProfile(),
+    "full": Config(),
     # Fig 3.5b alone at Table 3.1's sizes: Passive, Rand-Only and SRS-Med, 3 datasets, 1 model
-    "fig3.5b": SRSProfile(sigmas=(0.75,), picks=("med",), models=1),
-    "quick": SRSProfile(train=12, val=6, test=6, datasets=1, models=1, sigmas=(0.0, 0.75),
-                        budgets=(0.5, 1.0), picks=("max", "med"), ro_instances=6, k=8,
-                        epochs=3, episode_minutes=1.0),
+    "fig3.5b": Config(sigmas=(0.75,), picks=("med",), models=1),
+    "quick": Config(train=12, val=6, test=6, datasets=1, models=1, sigmas=(0.0, 0.75),
+                    budgets=(0.5, 1.0), picks=("max", "med"), ro_instances=6, k=8,
+                    epochs=3, episode_minutes=1.0),
 }
 
 
 @dataclass(frozen=True)
 class _Dataset:
-    """One collection of the chapter; collected only when a task still needs it."""
+    """One collection of the chapter, a `collect` run in its own folder."""
 
     out: Path
     robots: int
@@ -78,14 +85,18 @@ class _Dataset:
     def csv(self) -> Path:
         return self.out / "instances.csv"
 
-    def request(self, workers: int, ray: str | None, profile: SRSProfile) -> CollectRequest:
+    def request(self, config: Config, workers: int, ray: str | None) -> CollectRequest:
+        # overwrite: the folder is this experiment's; a collection of another config there
+        # (another profile) is replaced, its episodes kept in its cache
         return CollectRequest(SCENARIO, self.robots, 0.0, self.seed, self.out, self.policy,
-                              self.sigma, workers, ray, episode_minutes=profile.episode_minutes)
+                              self.sigma, workers, ray, overwrite=True,
+                              episode_minutes=config.episode_minutes)
 
-    def ensure(self, profile: SRSProfile, workers: int, ray: str | None) -> Path:
-        """Collect unless done (each collection resumes shard by shard); the instances file."""
-        req = self.request(workers, ray, profile)
-        req = replace(req, minutes=episodes_for(req, self.instances) * profile.episode_minutes)
+    def ensure(self, config: Config, workers: int, ray: str | None) -> Path:
+        """Collect unless this very collection finished (it resumes episode by episode); the
+        instances file."""
+        req = self.request(config, workers, ray)
+        req = replace(req, minutes=episodes_for(req, self.instances) * config.episode_minutes)
         if not finished(req):
             collect(req)
         return self.csv
@@ -99,135 +110,157 @@ class _SRSDataset(_Dataset):
     sigma: float = RO_SIGMA
     pick: str = "med"
 
-    def ensure(self, profile: SRSProfile, workers: int, ray: str | None) -> Path:
-        if not (self.out / "manifest.json").exists():
-            from estimators.srs.novelty import NoveltyTraining  # torch, only when collecting
+    def ensure(self, config: Config, workers: int, ray: str | None) -> Path:
+        from estimators.srs.novelty import NoveltyTraining  # torch, only when collecting
 
-            collect_srs(SRSRequest(self.request(workers, ray, profile), self.pick,
-                                   self.instances, profile.ro_instances, profile.k),
-                        NoveltyTraining())
+        req = SRSRequest(self.request(config, workers, ray), self.pick, self.instances,
+                         config.ro_instances, config.k)
+        novelty = NoveltyTraining()
+        if not finished_srs(req, novelty):
+            collect_srs(req, novelty)
         return self.csv
 
 
-def _datasets(profile: SRSProfile, data: Path, seed: int) -> dict[str, list[_Dataset]]:
+def _datasets(config: Config, data: Path) -> dict[str, list[_Dataset]]:
     """Every configuration's training datasets; dataset j of each uses seed*1000 + j."""
     configs: dict[str, list[_Dataset]] = {}
-    for j in range(profile.datasets):
-        s = seed * 1000 + j
+    for j in range(config.datasets):
+        s = config.seed * 1000 + j
         configs.setdefault("passive", []).append(
-            _Dataset(data / f"passive_d{j}", 3, profile.train, s, "passive"))
-        for sigma in profile.sigmas:
+            _Dataset(data / f"passive_d{j}", 3, config.train, s, "passive"))
+        for sigma in config.sigmas:
             configs.setdefault(f"ro_{sigma:g}", []).append(
-                _Dataset(data / f"ro_{sigma:g}_d{j}", 3, profile.train, s, "random", sigma))
-        for pick in profile.picks:
+                _Dataset(data / f"ro_{sigma:g}_d{j}", 3, config.train, s, "random", sigma))
+        for pick in config.picks:
             configs.setdefault(f"srs_{pick}", []).append(
-                _SRSDataset(data / f"srs_{pick}_d{j}", 3, profile.train, s, pick=pick))
+                _SRSDataset(data / f"srs_{pick}_d{j}", 3, config.train, s, pick=pick))
     return configs
 
 
-def _train_task(task: dict) -> dict:
-    """One model: train on the first `count` instances, select on val, test; cached as JSON."""
-    path = Path(task["report"])
-    if path.exists():
-        return json.loads(path.read_text())
-    from estimators.retlo.api import evaluate, fit
+class ModelTask:
+    """One model: chapter 3's predictor trained on `train` (the first instances of a dataset,
+    metres), selected on `val`, tested on `test`. Keyed by its training settings and the content
+    of its data (the instances it trains on, the bytes of the two CSVs), not by their names:
+    identical data trains once (an SRS dataset's first `ro_instances` are the Rand-Only
+    dataset's, Rand-Only at σ = 0 is Passive)."""
+
+    stage: ClassVar[str] = "srs-model"
+    version: ClassVar[int] = 1
+
+    def __init__(self, train: np.ndarray, val: Path, test: Path, epochs: int, seed: int):
+        self.train, self.val, self.test = train, val, test
+        self.epochs, self.seed = epochs, seed
+        self._key: str | None = None
+
+    def train_config(self) -> Any:
+        from estimators.retlo.models import ModelConfig
+        from estimators.retlo.train import TrainConfig
+
+        model = ModelConfig(history=10, bidirectional=False, cos_sin=True)
+        return TrainConfig(epochs=self.epochs, seed=self.seed, model=model)
+
+    def key(self) -> str:
+        if self._key is None:
+            self._key = task_key(self.stage, self.version, self.train_config(),
+                                 [self.train, self.val, self.test])
+        return self._key
+
+    def compute(self) -> dict[str, bytes]:
+        from estimators.retlo.api import evaluate, fit
+        from estimators.retlo.models import TorchPredictor
+
+        net, info = fit([self.train], self.val, self.train_config())
+        report = {**evaluate(TorchPredictor(net), self.test), "best_val_cm": info["best_val_cm"]}
+        return {"report.json": json.dumps(report).encode()}
+
+
+@dataclass(frozen=True)
+class _Cell:
+    """A model's report and where it goes: its configuration and budget."""
+
+    config: str
+    budget: float
+    key: str
+    report: dict
+
+
+def run(config: Config, out: Path, progress: Progress) -> list[str]:
+    """Collect, train, test and plot; returns summary lines.
+
+    Configurations run one after another (their datasets, then their models), Fig 3.5b's
+    first, so a run cut short leaves whole configurations done."""
     from estimators.retlo.files import read_world
-    from estimators.retlo.models import ModelConfig, TorchPredictor
-    from estimators.retlo.train import TrainConfig
-
-    model = ModelConfig(history=10, bidirectional=False, cos_sin=True)
-    cfg = TrainConfig(epochs=task["epochs"], seed=task["seed"], model=model)
-    net, info = fit([read_world(task["train"])[:task["count"]]], task["val"], cfg)
-    report = evaluate(TorchPredictor(net), task["test"])
-    report = {**report, "best_val_cm": info["best_val_cm"], "task": task["name"]}
-    write_json_atomic(path, report)
-    return report
-
-
-def run_srs_experiment(profile: SRSProfile, out: Path, seed: int = 0, workers: int = 1,
-                       ray: str | None = None) -> list[str]:
-    """Collect, train, test and plot; returns summary lines. `out` has been checked.
-
-    What a task leaves is small (`models/*.json`, `distances/*.json`) and is all a rerun
-    needs: a dataset is collected (again) only while a model or a histogram still needs it, so
-    a run resumes from those files alone, e.g. on a fresh machine from a copy kept in git.
-    Configurations run one after another (datasets, then their models), Fig 3.5b's first, so
-    a run cut short leaves whole configurations done and little to collect again."""
     from viz.srs_figures import plot_budgets, plot_distances, plot_sigma, plot_stepwise
 
-    t0, trained = time.perf_counter(), 0
-    data = check_writable_dir(out / "data")
-    models = check_writable_dir(out / "models")
-    hists = check_writable_dir(out / "distances")
-    val = _Dataset(data / "val", 3, profile.val, seed * 1000 + 500, "passive")
-    test = _Dataset(data / "test", profile.test_robots, profile.test, seed * 1000 + 900,
+    t0 = time.perf_counter()
+    data = out / "data"
+    val = _Dataset(data / "val", 3, config.val, config.seed * 1000 + 500, "passive")
+    test = _Dataset(data / "test", config.test_robots, config.test, config.seed * 1000 + 900,
                     "passive")
-    configs = _datasets(profile, data, seed)
+    configs = _datasets(config, data)
     first = ["passive", f"ro_{RO_SIGMA:g}", "srs_med"]
     configs = {c: configs[c] for c in sorted(configs, key=lambda c: c not in first)}
-    tasks = []
-    for name, sets in configs.items():
-        budgets = profile.budgets if name in _budgeted(profile) else (1.0,)
-        for b in budgets:
-            count = int(round(b * profile.train))
-            for j, ds in enumerate(sets):
-                for m in range(profile.models):
-                    tag = f"{name}_b{round(100 * b)}_d{j}_m{m}"
-                    tasks.append({"name": tag, "config": name, "budget": b, "train": str(ds.csv),
-                                  "count": count, "val": str(val.csv), "test": str(test.csv),
-                                  "seed": m, "epochs": profile.epochs, "dataset": ds,
-                                  "report": str(models / f"{tag}.json")})
     shown = [c for c in ("srs_max", f"ro_{RO_SIGMA:g}") if c in configs]
-    run = runner_for(ray)
-    reports: dict[str, dict] = {}
+    cells: list[_Cell] = []
     distances: dict[str, dict] = {}
-    t_data = t_models = 0.0
+    trained: set[str] = set()
+    total = sum(len(sets) * config.models * len(_budgets(config, name))
+                for name, sets in configs.items())
     for name, sets in configs.items():       # one configuration at a time: see the docstring
-        mine = [t for t in tasks if t["config"] == name]
-        pending = [t for t in mine if not Path(t["report"]).exists()]
-        hist = hists / f"{name}.json"
-        needed = ([val, test] if pending else []) + [t["dataset"] for t in pending] + (
-            sets if name in shown and not hist.exists() else [])
-        t1 = time.perf_counter()
-        for ds in dict.fromkeys(needed):      # in order, once each
-            ds.ensure(profile, workers, ray)
-        t2 = time.perf_counter()
-        jobs = [{k: v for k, v in t.items() if k != "dataset"} for t in mine]
-        reports.update((r["task"], r) for r in run(_train_task, jobs, workers))
+        with progress.stage("datasets"):
+            for ds in dict.fromkeys([val, test, *sets]):      # in order, once each
+                ds.ensure(config, progress.workers, progress.ray)
+        worlds = [read_world(ds.csv) for ds in sets]
+        mine = [(b, ModelTask(w[:int(round(b * config.train))], val.csv, test.csv,
+                              config.epochs, m))
+                for b in _budgets(config, name) for w in worlds for m in range(config.models)]
+        reports: dict[int, dict] = {}         # id(task) -> its report
+        with progress.stage("models"):
+            for outcome in run_tasks(progress.cache, [t for _, t in mine], progress.workers,
+                                     progress.ray):
+                if outcome.folder is None:
+                    raise RunFailure(f"a model of {name} failed: {outcome.failure}")
+                if outcome.task.key() not in progress.cache.hits:
+                    trained.add(outcome.task.key())
+                reports[id(outcome.task)] = json.loads(
+                    (outcome.folder / "report.json").read_text())
+                progress.report("models", len(cells) + len(reports), total)
+        cells += [_Cell(name, b, t.key(), reports[id(t)]) for b, t in mine]   # in task order
         if name in shown:
-            distances[name] = _distances(sets, profile, hist)
-        t_data, t_models = t_data + t2 - t1, t_models + time.perf_counter() - t2
-        trained += len(pending)
+            distances[name] = _distances(sets, config)
 
-    results = _results(profile, tasks, reports)
+    results = _results(config, cells)
     results["distances"] = distances
     write_json_atomic(out / "results.json", results)
-    plot_sigma(results, out / "fig3_4.png")
-    plot_budgets(results, [f"srs_{p}" for p in profile.picks], out / "fig3_5a.png")
-    plot_budgets(results, ["passive", f"ro_{RO_SIGMA:g}", "srs_med"], out / "fig3_5b.png")
-    plot_stepwise(results, out / "fig3_6.png")
-    plot_distances(results, out / "fig3_7.png")
-    timings = {"datasets": t_data, "models": t_models, "total": time.perf_counter() - t0}
-    write_manifest(out, "experiment srs", {"profile": asdict(profile), "scenario": SCENARIO},
-                   seed, timings, products=PRODUCTS, workers=workers, models_trained=trained)
-    return _summary(results, timings)
+    with progress.stage("figures"):
+        plot_sigma(results, out / "fig3_4.png")
+        plot_budgets(results, [f"srs_{p}" for p in config.picks], out / "fig3_5a.png")
+        plot_budgets(results, ["passive", f"ro_{RO_SIGMA:g}", "srs_med"], out / "fig3_5b.png")
+        plot_stepwise(results, out / "fig3_6.png")
+        plot_distances(results, out / "fig3_7.png")
+    progress.record(scenario=SCENARIO, models=len(cells),
+                    models_distinct=len({c.key for c in cells}),
+                    models_trained=len(trained))
+    timings = {k: progress.run.timings.get(k, 0.0) for k in ("datasets", "models")}
+    return _summary(results, {**timings, "total": time.perf_counter() - t0})
 
 
-def _budgeted(profile: SRSProfile) -> set[str]:
+def _budgets(config: Config, name: str) -> tuple[float, ...]:
     """Configurations trained at every budget (Fig 3.5); the σ sweep only at 100 %."""
-    return {"passive", f"ro_{RO_SIGMA:g}", *(f"srs_{p}" for p in profile.picks)}
+    budgeted = {"passive", f"ro_{RO_SIGMA:g}", *(f"srs_{p}" for p in config.picks)}
+    return config.budgets if name in budgeted else (1.0,)
 
 
-def _results(profile: SRSProfile, tasks: list[dict], reports: dict[str, dict]) -> dict:
+def _results(config: Config, cells: list[_Cell]) -> dict:
     """Per configuration and budget: Head and mean error (cm) mean ± std over datasets and
     models, and the step-wise Head and F2 errors."""
-    cells: dict[str, dict[str, list[dict]]] = {}
-    for t in tasks:
-        cells.setdefault(t["config"], {}).setdefault(f"{t['budget']:.4f}",
-                                                     []).append(reports[t["name"]])
-    out: dict = {"profile": asdict(profile), "configs": {}}
-    for config, per_budget in cells.items():
-        out["configs"][config] = {}
+    grouped: dict[str, dict[str, list[dict]]] = {}
+    for c in cells:
+        grouped.setdefault(c.config, {}).setdefault(f"{c.budget:.4f}",
+                                                    []).append(c.report)
+    out: dict = {"profile": asdict(config), "configs": {}}
+    for name, per_budget in grouped.items():
+        out["configs"][name] = {}
         for budget, reps in sorted(per_budget.items()):
             steps = {}
             for robot in ("H", "F2"):
@@ -235,8 +268,8 @@ def _results(profile: SRSProfile, tasks: list[dict], reports: dict[str, dict]) -
                     cols = zip(*(rep["per_robot_step_cm"][robot] for rep in reps), strict=True)
                     vals = [[x for x in col if x is not None] for col in cols]
                     steps[robot] = [float(np.mean(v)) if v else None for v in vals]
-            out["configs"][config][budget] = {
-                "instances": int(round(float(budget) * profile.train)),
+            out["configs"][name][budget] = {
+                "instances": int(round(float(budget) * config.train)),
                 "head_cm": mean_std([r["per_robot_cm"]["H"] for r in reps]),
                 "mean_cm": mean_std([r["mean_error_cm"] for r in reps]),
                 "per_step_cm": steps,
@@ -244,28 +277,24 @@ def _results(profile: SRSProfile, tasks: list[dict], reports: dict[str, dict]) -
     return out
 
 
-def _distances(sets: list[_Dataset], profile: SRSProfile, cache: Path) -> dict:
+def _distances(sets: list[_Dataset], config: Config) -> dict[str, list[float]]:
     """Fig 3.7: H–F and F–T distances (cm) in the first 66 % of a configuration's datasets
-    (tracked instances); cached in `cache`."""
-    if cache.exists():
-        return json.loads(cache.read_text())
-    count = int(round(2 / 3 * profile.train))
+    (tracked instances)."""
+    count = int(round(2 / 3 * config.train))
     w = np.concatenate([to_world(read_csv(ds.csv).poses[:count], DEFAULT_PX_PER_CM)
                         for ds in sets])
-    out = {"H-F": np.linalg.norm(w[:, :, 0, :2] - w[:, :, 1, :2], axis=-1).ravel()
-           .round(2).tolist(),
-           "F-T": np.linalg.norm(w[:, :, 1, :2] - w[:, :, 2, :2], axis=-1).ravel()
-           .round(2).tolist()}
-    write_json_atomic(cache, out)
-    return out
+    return {"H-F": np.linalg.norm(w[:, :, 0, :2] - w[:, :, 1, :2], axis=-1).ravel()
+            .round(2).tolist(),
+            "F-T": np.linalg.norm(w[:, :, 1, :2] - w[:, :, 2, :2], axis=-1).ravel()
+            .round(2).tolist()}
 
 
 def _summary(results: dict, timings: dict[str, float]) -> list[str]:
     lines = []
-    for config, per_budget in results["configs"].items():
+    for name, per_budget in results["configs"].items():
         cells = [f"{c['instances']} inst. H {c['head_cm']['mean']:.1f} ± {c['head_cm']['std']:.1f}"
                  for c in per_budget.values()]
-        lines.append(f"{config:<10} " + "; ".join(cells) + " cm")
+        lines.append(f"{name:<10} " + "; ".join(cells) + " cm")
     lines.append(f"datasets {timings['datasets']:.0f} s, models {timings['models']:.0f} s, "
                  f"total {timings['total']:.0f} s")
     return lines
