@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 from macrostate_mj.chain.scenarios import ScenarioConfig, scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
-from macrostate_mj.core.io import check_writable_file, prepare_out_dir, write_manifest
+from macrostate_mj.core.io import check_writable_file
+from macrostate_mj.core.run import Run
 from macrostate_mj.formats.poses import write_poses
 
 if TYPE_CHECKING:
@@ -54,7 +55,7 @@ def check_request(req: SimulateRequest) -> ScenarioConfig:
     cfg = scenario_for(req.scenario, req.head_speed)
     parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
-    prepare_out_dir(req.out, ["poses.parquet", "manifest.json"], req.overwrite)
+    _run(req, cfg).claim()
     for path, flag, suffix in ((req.video, "--video", ".mp4"), (req.rerun, "--rerun", ".rrd")):
         if path is not None:
             if path.suffix != suffix:
@@ -74,31 +75,38 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     except OSError as err:
         raise UserError(f"cannot create --out {out}: {err.strerror}; "
                         "choose a writable folder") from None
-    ran = simulate_chain(cfg, req.robots, req.seconds, req.seed, req.track,
-                         lambda sim, tracker: _recorders(req, cfg, sim, tracker), progress)
-    sim, chain, failure = ran.sim, ran.tracker, ran.failure
-    write_poses(out / "poses.parquet", ran.poses())
-    written = {"poses": out / "poses.parquet"}
-    if req.video is not None:
-        written["video"] = req.video
-    if req.rerun is not None:
-        written["rerun"] = req.rerun
-    written["manifest"] = write_manifest(
-        out, "simulate", {"request": asdict(req), "scenario": asdict(cfg)}, req.seed, ran.timings,
-        robots=ran.world.names, outputs={k: str(v) for k, v in written.items()},
-        timestep=ran.world.model.opt.timestep,
-        realtime_factor=sim.time / max(ran.timings["run"], 1e-9),
-        status="ok" if failure is None else "failed",
-        failure=None if failure is None else {**asdict(failure.fault),
-                                              "fault": failure.fault.fault.name,
-                                              "reason": str(failure)},
-        simulated_seconds=sim.time, health=asdict(sim.monitor.stats),
-        tracking=None if chain is None else {"frames": chain.frames, "dropped": chain.dropped,
-                                             "noise": chain.noise})
-    if failure is not None:
-        raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up to "
-                         f"then are in {out}; reproduce: {reproduce_command(req)}")
+    with _run(req, cfg) as run:
+        ran = simulate_chain(cfg, req.robots, req.seconds, req.seed, req.track,
+                             lambda sim, tracker: _recorders(req, cfg, sim, tracker), progress)
+        sim, chain, failure = ran.sim, ran.tracker, ran.failure
+        write_poses(out / "poses.parquet", ran.poses())
+        written = {"poses": out / "poses.parquet"}
+        if req.video is not None:
+            written["video"] = req.video
+        if req.rerun is not None:
+            written["rerun"] = req.rerun
+        written["manifest"] = run.path
+        run.timings.update(ran.timings)
+        run.record(robots=ran.world.names, outputs={k: str(v) for k, v in written.items()},
+                   timestep=ran.world.model.opt.timestep,
+                   realtime_factor=sim.time / max(ran.timings["run"], 1e-9),
+                   fault=None if failure is None else {**asdict(failure.fault),
+                                                       "fault": failure.fault.fault.name,
+                                                       "reason": str(failure)},
+                   simulated_seconds=sim.time, health=asdict(sim.monitor.stats),
+                   tracking=None if chain is None else {
+                       "frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise})
+        if failure is not None:
+            raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up "
+                             f"to then are in {out}; reproduce: {reproduce_command(req)}")
     return written
+
+
+def _run(req: SimulateRequest, cfg: ScenarioConfig) -> Run:
+    """The run lifecycle of a request: what its outputs depend on, not where they go."""
+    identity = {k: v for k, v in asdict(req).items() if k not in ("out", "overwrite")}
+    return Run(req.out, "simulate", {"request": identity, "scenario": asdict(cfg)}, req.seed,
+               ["poses.parquet"], req.overwrite)
 
 
 def _recorders(req: SimulateRequest, cfg: ScenarioConfig, sim: ChainSim,

@@ -1,4 +1,5 @@
-"""Atomic outputs, output-folder checks and run manifests: one home for how runs write files.
+"""Atomic outputs and output-path checks: one home for how runs write files (the run lifecycle
+and its manifest are `core.run`'s).
 
 Every output goes to a temporary sibling first and is renamed into place, so an interrupted run
 never leaves a half-written file under its final name.
@@ -9,16 +10,12 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import platform
-import sys
 import tempfile
-import time
 from collections.abc import Iterator
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
 from typing import Any
 
-from macrostate_mj import __version__
 from macrostate_mj.core.errors import UserError
 
 
@@ -89,59 +86,6 @@ def check_writable_dir(path: str | os.PathLike, create: bool = True) -> Path:
     if create:
         path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-def prepare_out_dir(out: str | os.PathLike, products: list[str], overwrite: bool) -> Path:
-    """Check an output folder before a run: refuse to clobber `products` unless --overwrite."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} is a file, not a folder; choose a folder path")
-    existing = [p for p in products if (out / p).exists()]
-    if existing and not overwrite:
-        raise UserError(f"{out / existing[0]} already exists; pass --overwrite or choose "
-                        "another --out")
-    check_writable_dir(out, create=False)
-    return out
-
-
-def claim_run(out: Path, inputs: dict, command: str) -> None:
-    """Record in `out/run.json` what a resumable run's cache is made from; refuse a rerun with
-    other inputs in the same folder (it would mix two runs' finished tasks)."""
-    path, inputs = out / "run.json", json.loads(json.dumps(inputs))    # tuples as lists
-    if path.exists() and json.loads(path.read_text()) != inputs:
-        raise UserError(f"{out} holds a `{command}` run with other inputs ({path}); choose "
-                        "another --out or delete it")
-    write_json_atomic(path, inputs)
-
-
-def write_manifest(out_dir: str | os.PathLike, command: str, config: Any, seed: int | None,
-                   timings: dict[str, float], name: str = "manifest.json", **extra: Any) -> Path:
-    """Write `name` (manifest.json) beside a run's outputs: what ran, with which config, seed,
-    code and machine (float results repeat bit for bit only on the same CPU type)."""
-    path = Path(out_dir) / name
-    write_json_atomic(path, {
-        "command": command,
-        "config": config,
-        "seed": seed,
-        "version": __version__,
-        "versions": {"python": platform.python_version(),  # the numeric libraries this run loaded
-                     **{lib: sys.modules[lib].__version__ for lib in ("mujoco", "numpy", "torch")
-                        if lib in sys.modules}},
-        "machine": {"cpu": _cpu_model(), "arch": platform.machine(), "cores": os.cpu_count()},
-        "created_unix": round(time.time(), 3),
-        "timings_s": {k: round(v, 4) for k, v in timings.items()},
-        **extra,
-    })
-    return path
-
-
-def _cpu_model() -> str:
-    """The CPU's model name (Linux's /proc/cpuinfo), else what `platform` knows."""
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or "unknown"
 
 
 def jsonable(obj: Any) -> Any:

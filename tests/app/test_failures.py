@@ -49,7 +49,7 @@ def test_simulate_keeps_poses_and_video_up_to_the_fault(monkeypatch, capsys, tmp
     for words in ("tipped", "seed 4", "reproduce: macrostate-mj simulate", "--seed 4"):
         assert words in line
     manifest = json.loads((out / "manifest.json").read_text())
-    assert manifest["status"] == "failed" and manifest["failure"]["fault"] == "TIP"
+    assert manifest["status"] == "failed" and manifest["fault"]["fault"] == "TIP"
     t_fault = manifest["failure"]["time"]
     assert t_fault == pytest.approx(FAULT_AT) == manifest["simulated_seconds"]
     t = pq.read_table(out / "poses.parquet").column("t").to_numpy()
