@@ -235,9 +235,6 @@ class NoveltyTraining:
     def config(self, seed: int) -> NoveltyConfig:
         return self.cfg or NoveltyConfig(seed=seed)
 
-    def stored_key(self, path: Path, robots: int, scenario: str) -> str | None:
-        return load_novelty(path, robots, scenario).info.get("data_key")
-
     def train(self, tracks: np.ndarray, config: NoveltyConfig, scenario: str, path: Path,
               data_key: str, progress: bool) -> None:
         model, info = train_novelty(tracks, config, scenario, progress=progress)
