@@ -50,7 +50,7 @@ def test_simulate_keeps_poses_and_video_up_to_the_fault(monkeypatch, capsys, tmp
         assert words in line
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "failed" and manifest["fault"]["fault"] == "TIP"
-    t_fault = manifest["failure"]["time"]
+    t_fault = manifest["fault"]["time"]
     assert t_fault == pytest.approx(FAULT_AT) == manifest["simulated_seconds"]
     t = pq.read_table(out / "poses.parquet").column("t").to_numpy()
     assert len(t) > 0 and t.max() <= t_fault
@@ -92,7 +92,7 @@ def test_soak_prints_its_table_and_exits_1_on_a_fault(monkeypatch, capsys, tmp_p
     assert "seed 0" in one_line(err)
 
 
-def test_ctrl_c_in_simulate_leaves_no_empty_output_folder(monkeypatch, capsys, tmp_path):
+def test_ctrl_c_in_simulate_leaves_only_its_record(monkeypatch, capsys, tmp_path):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
@@ -101,4 +101,5 @@ def test_ctrl_c_in_simulate_leaves_no_empty_output_folder(monkeypatch, capsys, t
     code, _, err = cli_inprocess(capsys, "simulate", "--robots", "3", "--seconds", "5",
                                  "--out", str(out))
     assert code == 130 and err.strip() == "interrupted"
-    assert not out.exists()
+    assert [p.name for p in out.iterdir()] == ["manifest.json"]      # no half-written poses
+    assert json.loads((out / "manifest.json").read_text())["status"] == "interrupted"
