@@ -237,10 +237,10 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     return net, info
 
 
-def save_checkpoint(path: str | os.PathLike, net: RetloNet, px_per_cm: float,
-                    train_cfg: TrainConfig, info: dict) -> Path:
-    """Everything needed to predict: weights, scale, px/cm, config, kind, format and version."""
-    path = Path(path)
+def checkpoint_bytes(net: RetloNet, px_per_cm: float, train_cfg: TrainConfig,
+                     info: dict) -> bytes:
+    """Everything needed to predict: weights, scale, px/cm, config, kind, format and version
+    (tensors and plain data: `load_checkpoint` reads it with weights_only)."""
     ckpt = {
         "format": FORMAT, "version": VERSION, "kind": net.cfg.kind,
         "model_config": asdict(net.cfg), "pos_scale_cm": float(net.pos_scale),
@@ -250,8 +250,15 @@ def save_checkpoint(path: str | os.PathLike, net: RetloNet, px_per_cm: float,
     }
     buf = io.BytesIO()
     torch.save(ckpt, buf)
+    return buf.getvalue()
+
+
+def save_checkpoint(path: str | os.PathLike, net: RetloNet, px_per_cm: float,
+                    train_cfg: TrainConfig, info: dict) -> Path:
+    """`checkpoint_bytes` written atomically to `path`."""
+    path = Path(path)
     with atomic_path(path) as tmp:
-        tmp.write_bytes(buf.getvalue())
+        tmp.write_bytes(checkpoint_bytes(net, px_per_cm, train_cfg, info))
     return path
 
 

@@ -23,9 +23,11 @@ def render_threads(workers: int) -> int:
 
 
 def _pin_render_threads(threads: int) -> None:
-    """Worker initializer: runs before any GL context exists in the worker. An LP_NUM_THREADS
-    the user exported wins."""
+    """Worker initializer: runs before any GL context or torch exists in the worker, so each
+    worker's renderer and torch use its share of the cores (two workers on two cores do not
+    fight). An LP_NUM_THREADS or OMP_NUM_THREADS the user exported wins."""
     os.environ.setdefault("LP_NUM_THREADS", str(threads))
+    os.environ.setdefault("OMP_NUM_THREADS", str(threads))
 
 
 def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int

@@ -236,6 +236,9 @@ def experiment_oc(
                               "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
     device: str = Device(),
+    workers: int = Count(1, "Local worker processes: one (m, split, seed) run each.",
+                         max=MAX_WORKERS),
+    ray: str = typer.Option(None, "--ray", help="Run the runs on Ray: local, auto or ADDRESS."),
     probe_test: bool = Switch(False, "Research only: score the test and unstable samples after "
                               "every DSVDD and classifier epoch and report what choosing the "
                               "checkpoint on them would score (the published code's protocol); "
@@ -263,4 +266,5 @@ def experiment_oc(
     cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device).scaled(
         epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
     launch("oc", Config(data, split_list, m_list, cfg, 200 if quick else None,
-                        unstable=unstable, seeds=seeds, probe=probe_test), out, overwrite)
+                        unstable=unstable, seeds=seeds, probe=probe_test), out, overwrite,
+           workers, ray)

@@ -11,6 +11,7 @@ from estimators.retlo import MODEL_KINDS
 from macrostate_mj.app.cli.app import app, evaluate_app, experiment_app, train_app
 from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
+    MAX_WORKERS,
     Choice,
     Count,
     Fraction,
@@ -193,8 +194,11 @@ def experiment_retlo(
     cos_sin: bool = Switch(False, "Angles as cos/sin pairs (chapter 3's predictor).",
                            "--cos-sin/--radians"),
     px_per_cm: float = PxPerCm,
-    out: Path = OutputDir(..., "Output folder."),
-    overwrite: bool = Switch(False, "Replace existing outputs."),
+    workers: int = Count(1, "Local worker processes (one training each).", max=MAX_WORKERS),
+    ray: str = typer.Option(None, "--ray", help="Run the trainings on Ray: local, auto or "
+                            "ADDRESS."),
+    out: Path = OutputDir(..., "Output folder (trained models are cached in it)."),
+    overwrite: bool = Switch(False, "Replace existing outputs (cached models are kept)."),
 ) -> None:
     """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
     from dataclasses import replace
@@ -211,7 +215,7 @@ def experiment_retlo(
                      model=ModelConfig(history=history, bidirectional=not unidirectional,
                                        cos_sin=cos_sin),
                      **{k: v for k, v in given.items() if v is not None})
-    launch("retlo", config, out, overwrite)
+    launch("retlo", config, out, overwrite, workers, ray)
 
 
 def _load_predictor(model: str) -> tuple[Module, str]:

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from macrostate_mj.app.experiments import Progress
-from macrostate_mj.core.cache import task_key
+from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
 
 if TYPE_CHECKING:
@@ -139,9 +139,9 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     from viz.caging_figures import plot_snapshots
 
     with progress.stage("train_retlo"):
-        task = EstimatorTask(cfg)
-        model = ChainedMLP.from_npz(progress.cache.cached(task.stage, task.key(), task.compute)
-                                    / "mlp.npz")
+        trained = next(run_tasks(progress.cache, [EstimatorTask(cfg)], progress.workers,
+                                 progress.ray))
+        model = ChainedMLP.from_npz(trained.folder / "mlp.npz")
     episodes, snapshots = [], {}
     done, total = 0, len(POLICIES) * cfg.seeds
     for policy in POLICIES:

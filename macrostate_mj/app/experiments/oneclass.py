@@ -13,7 +13,7 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
 from estimators.oneclass.train import OCConfig
 from macrostate_mj.app.experiments import Progress, mean_std
-from macrostate_mj.core.cache import task_key
+from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import reference_data
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
@@ -84,33 +84,56 @@ def significance_marks(tests: list[dict], names: tuple[str, ...], alpha: float =
 Kept = tuple[OCModel, np.ndarray, np.ndarray, np.ndarray]   # a model and its x, xs, xu
 
 
-def _run(d: AntFlowData, exp: Config, m: int, split: int, seed: int, main_m: int,
-         progress: Progress) -> tuple[dict, Kept | None]:
-    """One (m, split, seed): its AUC reports (a cached task: all a rerun needs), and, when it
-    was trained here, the model with its inputs."""
-    inputs = _inputs(d, split, m, exp.max_train, seed)
-    key = task_key("oc-run", RUN_VERSION, {"config": replace(exp.config, m=m, seed=seed),
-                                           "split": split, "probe": exp.probe,
-                                           "main": m == main_m}, inputs)
-    folder = progress.cache.get("oc-run", key)
-    if folder is not None:
-        return json.loads((folder / "report.json").read_text()), None
-    report, kept = _train(d, exp, inputs, m, split, seed, main_m, progress)
-    progress.cache.put("oc-run", key, {"report.json": json.dumps(report).encode()})
-    return report, kept
+class RunTask:
+    """One (m, split, seed) as a cached task: its AUC reports (all a rerun needs), keyed by the
+    config, the run's coordinates and the bytes of its inputs. It trains in a worker with its
+    stages cached in `stages` (where the figures' model is reloaded from), and loads its
+    inputs there again rather than carrying them."""
+
+    stage: ClassVar[str] = "oc-run"
+    version: ClassVar[int] = RUN_VERSION
+
+    def __init__(self, exp: Config, m: int, split: int, seed: int, main_m: int,
+                 stages: Path):
+        self.exp, self.m, self.split, self.seed, self.main_m = exp, m, split, seed, main_m
+        self.stages = stages
+        self._key: str | None = None
+
+    @property
+    def name(self) -> str:
+        return f"m{self.m}_split{self.split}_s{self.seed}"
+
+    def inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return _inputs(_dataset(self.exp), self.split, self.m, self.exp.max_train, self.seed)
+
+    def key(self) -> str:
+        if self._key is None:
+            self._key = task_key(self.stage, self.version, {
+                "config": replace(self.exp.config, m=self.m, seed=self.seed),
+                "split": self.split, "probe": self.exp.probe, "main": self.m == self.main_m},
+                self.inputs())
+        return self._key
+
+    def compute(self) -> dict[str, bytes]:
+        report, _ = _train(_dataset(self.exp), self.exp, self.inputs(), self.m, self.split,
+                           self.seed, self.main_m, self.stages)
+        return {"report.json": json.dumps(report).encode()}
+
+
+def _dataset(exp: Config) -> AntFlowData:
+    d = open_dataset(exp.data)
+    return d if exp.unstable is None else d.with_unstable(exp.unstable)
 
 
 def _train(d: AntFlowData, exp: Config, inputs: tuple[np.ndarray, ...], m: int, split: int,
-           seed: int, main_m: int, progress: Progress) -> tuple[dict, Kept]:
+           seed: int, main_m: int, stages: Path) -> tuple[dict, Kept]:
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
     x, xs, xu = inputs
     methods = METHODS if m == main_m else ("iogen",)
     cfg = replace(exp.config, m=m, seed=seed)
     probe = Probe(np.concatenate([xs, xu])) if exp.probe else None
-    model = fit(x, methods, cfg,
-                lambda st, f: progress.report(f"m={m} split {split} seed {seed} {st}", f),
-                stages_dir=None if probe else progress.cache.root,  # resumes from its last stage
-                probe=probe)                                         # (a probe watches them all)
+    model = fit(x, methods, cfg, stages_dir=None if probe else stages,  # resumes from its last
+                probe=probe)                            # stage (a probe watches them all)
     scores = {meth: (model.score(meth, xs), model.score(meth, xu)) for meth in methods}
     report = {meth: auc_report(*scores[meth], bins, names) for meth in methods}
     if probe is not None:
@@ -140,27 +163,22 @@ def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     figures and tables into `out`. A rerun resumes from the cached runs and stages."""
     from viz import oneclass_figures as figures
 
-    d = open_dataset(exp.data)
-    if exp.unstable is not None:
-        d = d.with_unstable(exp.unstable)
+    d = _dataset(exp)
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
+    tasks = [RunTask(exp, m, split, seed, main_m, progress.cache.root)
+             for m in exp.ms for split in exp.splits for seed in seeds]
     runs: dict[str, dict] = {}
-    keep: tuple[str, Kept] | None = None        # the run whose model the figures show
-    for m in exp.ms:
-        for split in exp.splits:
-            for seed in seeds:
-                key = f"m{m}_split{split}_s{seed}"
-                with progress.stage(f"run_{key}"):
-                    runs[key], trained = _run(d, exp, m, split, seed, main_m, progress)
-                if keep is None and trained is not None and m == main_m:
-                    keep = key, trained
-    if keep is None:       # every run came from its report: a model again, from its stages
-        split, seed = exp.splits[0], seeds[0]
-        inputs = _inputs(d, split, main_m, exp.max_train, seed)
-        keep = (f"m{main_m}_split{split}_s{seed}",
-                _train(d, exp, inputs, main_m, split, seed, main_m, progress)[1])
+    with progress.stage("runs"):
+        for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray):
+            runs[outcome.task.name] = json.loads((outcome.folder / "report.json").read_text())
+            progress.report("runs", len(runs), len(tasks))
+    runs = {t.name: runs[t.name] for t in tasks}           # in task order, whatever finished first
+    with progress.stage("figures_model"):  # the first run's model, from its cached stages
+        first = next(t for t in tasks if t.m == main_m)
+        keep = first.name, _train(d, exp, first.inputs(), main_m, first.split, first.seed,
+                                  main_m, progress.cache.root)[1]
 
     def over(m: int, get: Callable[[dict], Any]) -> list:
         return [get(runs[f"m{m}_split{k}_s{s}"]) for k in exp.splits for s in seeds]

@@ -11,8 +11,11 @@ This module composes: reading, training and testing are `estimators.retlo.api`'s
 
 from __future__ import annotations
 
+import json
+import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -21,8 +24,9 @@ from estimators.retlo.chain import predict_chain
 from estimators.retlo.files import read_world, world_to_pixels
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
-from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint
+from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
 from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic
 from macrostate_mj.core.paths import real_thymioloc
@@ -71,18 +75,20 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         trains, val, tests = _read(cfg)
     models_dir = check_writable_dir(out / "models")
     reports = {t["name"]: {HEURISTIC: [evaluate(Heuristic2X(), t["world"])]} for t in tests}
-    runs = [(kind, seed) for seed in range(cfg.seed, cfg.seed + cfg.seeds) for kind in LEARNED]
-    total = len(runs) * cfg.epochs
+    tasks = [TrainTask(trains, val, TrainConfig(epochs=cfg.epochs, seed=seed,
+                                                model=replace(cfg.model, kind=kind)), px)
+             for seed in range(cfg.seed, cfg.seed + cfg.seeds) for kind in LEARNED]
+    folders: dict[int, Path] = {}
+    with progress.stage("train"):
+        for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray):
+            folders[tasks.index(outcome.task)] = outcome.folder
+            progress.report("train", len(folders), len(tasks))
     train_s: dict[str, list[float]] = {kind: [] for kind in LEARNED}
-    for i, (kind, seed) in enumerate(runs):
-        tcfg = TrainConfig(epochs=cfg.epochs, seed=seed, model=replace(cfg.model, kind=kind))
-        stage = f"train_{kind}_seed{seed}"
-        with progress.stage(stage):
-            net, info = fit(trains, val, tcfg, on_epoch=lambda e, _v, i=i: progress.report(
-                "train", i * cfg.epochs + e + 1, total))
-        train_s[kind].append(progress.run.timings[stage])
-        progress.report("train", (i + 1) * cfg.epochs, total)     # stopped early: a full bar
-        save_checkpoint(models_dir / f"{kind}_seed{seed}.pt", net, px, tcfg, info)
+    for i, task in enumerate(tasks):            # in task order: the same file for any workers
+        kind, seed = task.cfg.model.kind, task.cfg.seed
+        train_s[kind].append(json.loads((folders[i] / "timing.json").read_text())["seconds"])
+        shutil.copyfile(folders[i] / "model.pt", models_dir / f"{kind}_seed{seed}.pt")
+        net, _ = load_checkpoint(folders[i] / "model.pt")
         for t in tests:
             reports[t["name"]].setdefault(kind, []).append(
                 evaluate(TorchPredictor(net), t["world"]))
@@ -105,6 +111,26 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
                         world_to_pixels(est, px), px)
     progress.record(video_test=big["name"])
     return _summary(results, train_s)
+
+
+class TrainTask:
+    """One learned model (kind, seed) as a cached task, keyed by its training config, the
+    px scale and the training and validation chains' bytes."""
+
+    stage: ClassVar[str] = "retlo-model"
+    version: ClassVar[int] = 1
+
+    def __init__(self, trains: list[np.ndarray], val: np.ndarray, cfg: TrainConfig, px: float):
+        self.trains, self.val, self.cfg, self.px = trains, val, cfg, px
+
+    def key(self) -> str:
+        return task_key(self.stage, self.version, {"train": self.cfg, "px_per_cm": self.px},
+                        [*self.trains, self.val])
+
+    def compute(self) -> dict[str, bytes]:
+        net, info = fit(self.trains, self.val, self.cfg)
+        return {"model.pt": checkpoint_bytes(net, self.px, self.cfg, info),
+                "timing.json": json.dumps({"seconds": info["train_seconds"]}).encode()}
 
 
 def _read(cfg: Config) -> tuple[list[np.ndarray], np.ndarray, list[dict]]:
