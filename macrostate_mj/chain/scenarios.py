@@ -16,8 +16,8 @@ from macrostate_mj.core.errors import UserError
 @dataclass(frozen=True)
 class ScenarioConfig:
     name: str
-    scene: str                      # assets/mjcf/<scene>
-    robot: str                      # assets/mjcf/<robot>/robot.xml
+    scene: str                      # macrostate_mj/assets/mjcf/<scene>
+    robot: str                      # macrostate_mj/assets/mjcf/<robot>/robot.xml
     arena: tuple[float, float]      # floor size (x, y) in metres, walls on its edges
     spacing: float                  # follow distance d (m)
     k_f: float                      # Follower gain (1 / (m s))

@@ -1,6 +1,6 @@
 """World assembly: a scene MJCF plus N robot MJCFs, each with a unique marker colour.
 
-The scene (`assets/mjcf/scene_*.xml`) and the robot (`assets/mjcf/<robot>/robot.xml`) are
+The scene (`macrostate_mj/assets/mjcf/scene_*.xml`) and the robot (`macrostate_mj/assets/mjcf/<robot>/robot.xml`) are
 hand-written; only the tedious part, N prefixed copies with their colours, is generated here
 with `mujoco.MjSpec`. Robot geometry is read back from the compiled model so the XML is the one
 source of truth for wheel radius, track and top speed.
@@ -39,7 +39,7 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
 
 @functools.cache
 def robot_top_speed(robot: str) -> float:
-    """Top wheel speed x wheel radius of `assets/mjcf/<robot>/robot.xml` (m/s): the MJCF is the
+    """Top wheel speed x wheel radius of `macrostate_mj/assets/mjcf/<robot>/robot.xml` (m/s): the MJCF is the
     one home of a robot's geometry and motor limits."""
     model = mujoco.MjModel.from_xml_path(str(ASSETS / robot / "robot.xml"))
     return float(model.actuator("wheel_left").ctrlrange[1] * model.geom("wheel_left").size[0])

@@ -2,7 +2,7 @@
 
 No raw ant video exists here, so this colony exercises the optical-flow pipeline end to end with
 ground truth the seed never had: which ants duel or bite, where and when. About 55 planar ants
-(assets/mjcf/ant/ant.xml, one MjSpec copy per ant with prefix `antNN_`) live in a square nest
+(macrostate_mj/assets/mjcf/ant/ant.xml, one MjSpec copy per ant with prefix `antNN_`) live in a square nest
 watched by one overhead camera. Each simulated day is one episode: the full MuJoCo state is reset
 and every random draw comes from a Generator seeded by (seed, day), so a day's frames depend only
 on the seed and the day, never on which other days ran.

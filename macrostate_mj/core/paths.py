@@ -1,12 +1,17 @@
-"""Where things live: the one home of the repository's folder conventions."""
+"""Where things live: the one home of the package's folder conventions.
+
+Robots, scenes and built-in scenarios are package data (`macrostate_mj/assets/`), found through
+`importlib.resources`, so an installed wheel runs from any working directory.
+"""
 
 from __future__ import annotations
 
 import os
+from importlib.resources import files
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-ASSETS = REPO / "assets" / "mjcf"
+ASSETS = Path(str(files("macrostate_mj") / "assets" / "mjcf"))
+REPO = Path(__file__).resolve().parents[2]    # the checkout, when run from one
 
 
 def reference_data() -> Path:
