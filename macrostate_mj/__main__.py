@@ -2,4 +2,5 @@
 
 from macrostate_mj.app.cli import main
 
-main()
+if __name__ == "__main__":      # importing it (a tool's scan, a spawned worker) runs nothing
+    main()

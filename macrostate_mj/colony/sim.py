@@ -2,10 +2,10 @@
 
 No raw ant video exists here, so this colony exercises the optical-flow pipeline end to end with
 ground truth the seed never had: which ants duel or bite, where and when. About 55 planar ants
-(macrostate_mj/assets/mjcf/ant/ant.xml, one MjSpec copy per ant with prefix `antNN_`) live in a square nest
-watched by one overhead camera. Each simulated day is one episode: the full MuJoCo state is reset
-and every random draw comes from a Generator seeded by (seed, day), so a day's frames depend only
-on the seed and the day, never on which other days ran.
+(macrostate_mj/assets/mjcf/ant/ant.xml, one MjSpec copy per ant with prefix `antNN_`) live in a
+square nest watched by one overhead camera. Each simulated day is one episode: the full MuJoCo
+state is reset and every random draw comes from a Generator seeded by (seed, day), so a day's
+frames depend only on the seed and the day, never on which other days ran.
 
 Behaviour is a semi-Markov state machine per ant. Stable regime: rest, walk, groom and brief
 pairwise antennation. After the gamergates are removed (D0), the aggression level of the day,

@@ -1,8 +1,14 @@
 """The one exception the CLI turns into a one-line message and exit code 2."""
 
 
-class UserError(Exception):
-    """Bad input a user can fix: the message names the problem and the fix."""
+class UserError(ValueError):
+    """Bad input a user can fix: the message names the problem and the fix.
+
+    A `ValueError`, so that library callers catch it the way Python signals a bad argument
+    (`except ValueError` around `get_scenario(name)` works without knowing our types). The price:
+    inside the package, an `except ValueError` must never wrap code that can raise a `UserError`,
+    or it would swallow the user's message; keep those try blocks to the parsing call alone.
+    """
 
 
 class RunFailure(Exception):

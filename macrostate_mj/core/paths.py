@@ -11,14 +11,29 @@ from importlib.resources import files
 from pathlib import Path
 
 ASSETS = Path(str(files("macrostate_mj") / "assets" / "mjcf"))
-REPO = Path(__file__).resolve().parents[2]    # the checkout, when run from one
+
+
+def _checkout() -> Path | None:
+    """The source checkout this package runs from, or None when it is installed (a wheel in
+    site-packages has no pyproject.toml beside it), so checkout conventions never leak into
+    site-packages' parent folders."""
+    root = Path(__file__).resolve().parents[2]
+    return root if (root / "pyproject.toml").is_file() else None
+
+
+CHECKOUT = _checkout()
 
 
 def reference_data() -> Path:
-    """The dissertation's real data: `$MACROSTATE_REFERENCE_DATA`, else `../shared/reference-data`
-    beside the checkout (never part of the project)."""
-    return Path(os.environ.get("MACROSTATE_REFERENCE_DATA", REPO.parent / "shared" /
-                               "reference-data"))
+    """The dissertation's real data (never part of the project): `$MACROSTATE_REFERENCE_DATA`;
+    else `../shared/reference-data` beside the checkout when run from one; else, installed,
+    `reference-data` in the working directory. A missing folder is reported where it is read,
+    with the variable to set."""
+    if env := os.environ.get("MACROSTATE_REFERENCE_DATA"):
+        return Path(env)
+    if CHECKOUT is not None:
+        return CHECKOUT.parent / "shared" / "reference-data"
+    return Path.cwd() / "reference-data"
 
 
 def real_thymioloc(name: str) -> Path:

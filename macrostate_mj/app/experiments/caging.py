@@ -65,7 +65,6 @@ def run_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None = 
     the Tail's estimate of the Head drawn in, a rerun recording, when asked)."""
     import gymnasium
 
-    import macrostate_mj.env  # noqa: F401  (registers the ids)
     from collectors.caging import run_caging_episode
     from viz.caging_video import caging_recorders
 
