@@ -12,7 +12,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
@@ -20,10 +20,16 @@ from macrostate_mj.chain.health import Fault, PhysicsError
 from macrostate_mj.core.cache import TaskCache, run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 
+if TYPE_CHECKING:
+    from macrostate_mj.chain.scenarios import ScenarioConfig
+
 
 @dataclass(frozen=True)
 class SoakTask:
-    scenario: str
+    """One seed's soak. `scenario` is a scenario's name or a config of its own (a variant that
+    no embedded scenario holds: another robot, say)."""
+
+    scenario: str | ScenarioConfig
     robots: int
     seconds: float
     seed: int
@@ -46,11 +52,10 @@ class SoakRun:
 
 def soak_one(task: SoakTask) -> SoakRun:
     """One seed to its end or its first fault, health checked `check_hz` times a second."""
-    from macrostate_mj.chain.scenarios import scenario_for
     from macrostate_mj.chain.sim import ChainSim
     from macrostate_mj.chain.world import build_world
 
-    world = build_world(scenario_for(task.scenario), task.robots)
+    world = build_world(_config(task.scenario), task.robots)
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(task.seed))
     dt = world.model.opt.timestep
@@ -67,12 +72,17 @@ def soak_one(task: SoakTask) -> SoakRun:
                    s.max_penetration_mm, s.warnings, int(round(sim.time / dt)), wall)
 
 
-def soak_tasks(scenario: str, robots: int, seeds: int, seconds: float, first_seed: int = 0,
-               check_hz: float = 50.0) -> list[SoakTask]:
+def _config(scenario: str | ScenarioConfig) -> ScenarioConfig:
     from macrostate_mj.chain.scenarios import scenario_for
+
+    return scenario_for(scenario) if isinstance(scenario, str) else scenario
+
+
+def soak_tasks(scenario: str | ScenarioConfig, robots: int, seeds: int, seconds: float,
+               first_seed: int = 0, check_hz: float = 50.0) -> list[SoakTask]:
     from macrostate_mj.chain.world import validate_chain
 
-    validate_chain(scenario_for(scenario), robots, seconds)
+    validate_chain(_config(scenario), robots, seconds)
     if seeds < 1:
         raise UserError(f"--seeds must be at least 1, got {seeds}")
     if first_seed < 0:
@@ -93,10 +103,8 @@ class SoakRunTask:
         self.task = task
 
     def key(self) -> str:
-        from macrostate_mj.chain.scenarios import scenario_for
-
         return task_key(self.stage, self.version,
-                        {"task": self.task, "scenario": scenario_for(self.task.scenario)})
+                        {"task": self.task, "scenario": _config(self.task.scenario)})
 
     def compute(self) -> dict[str, bytes]:
         return {"run.json": json.dumps(asdict(soak_one(self.task))).encode()}

@@ -8,13 +8,14 @@ source of truth for wheel radius, track and top speed.
 
 from __future__ import annotations
 
-import colorsys
 import functools
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from macrostate_mj.chain.markers import marker_colours
+from macrostate_mj.chain.robot import load_robot
 from macrostate_mj.chain.scenarios import ScenarioConfig
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.paths import ASSETS
@@ -23,11 +24,6 @@ from macrostate_mj.core.paths import ASSETS
 def robot_names(n: int) -> list[str]:
     """Chain order [H, F1, ..., F{n-2}, T]; F1 is nearest the Head."""
     return ["H", *[f"F{i}" for i in range(1, n - 1)], "T"]
-
-
-def marker_colours(n: int) -> np.ndarray:
-    """n saturated colours with hues spread evenly, so the tracker can tell them apart."""
-    return np.array([colorsys.hsv_to_rgb(i / n, 1.0, 1.0) for i in range(n)])
 
 
 def chain_capacity(cfg: ScenarioConfig) -> int:
@@ -39,10 +35,10 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
 
 @functools.cache
 def robot_top_speed(robot: str) -> float:
-    """Top wheel speed x wheel radius of `macrostate_mj/assets/mjcf/<robot>/robot.xml` (m/s): the MJCF is the
-    one home of a robot's geometry and motor limits."""
-    model = mujoco.MjModel.from_xml_path(str(ASSETS / robot / "robot.xml"))
-    return float(model.actuator("wheel_left").ctrlrange[1] * model.geom("wheel_left").size[0])
+    """Top wheel speed x wheel radius of `macrostate_mj/assets/mjcf/<robot>/robot.xml` (m/s):
+    the MJCF is the one home of a robot's geometry and motor limits (checked by the robot
+    contract, `chain.robot`, on load)."""
+    return load_robot(robot).top_speed
 
 
 def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
@@ -133,7 +129,7 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
     colours = marker_colours(n)
     spec = mujoco.MjSpec.from_file(str(ASSETS / cfg.scene))
     spec.copy_during_attach = True
-    robot = mujoco.MjSpec.from_file(str(ASSETS / cfg.robot / "robot.xml"))
+    robot = load_robot(cfg.robot, largest_team=max(n, chain_capacity(cfg))).spec
     for name, colour, pose in zip(names, colours, start, strict=True):
         frame = spec.worldbody.add_frame(pos=[pose[0], pose[1], 0.0],
                                          quat=[np.cos(pose[2] / 2), 0, 0, np.sin(pose[2] / 2)])

@@ -13,13 +13,19 @@ through the camera's plane homography to world metres at marker height.
 
 from __future__ import annotations
 
-import colorsys
 from dataclasses import dataclass
 
 import cv2
 import mujoco
 import numpy as np
 
+from macrostate_mj.chain.markers import (
+    MIN_SATURATION,
+    MIN_VALUE,
+    hue_distance,
+    hue_tolerance,
+    marker_hues,
+)
 from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
 
@@ -40,8 +46,8 @@ class Tracker:
     colours: np.ndarray          # (n, 3) RGB in [0, 1]
     marker_height: float         # world z of the marker plane (m)
     marker_area: float           # marker area on that plane (m^2)
-    min_saturation: int = 90     # of 255
-    min_value: int = 50
+    min_saturation: int = MIN_SATURATION     # of 255 (`chain.markers`: the one colour rule)
+    min_value: int = MIN_VALUE
     min_fill: float = 0.4
 
     @classmethod
@@ -53,11 +59,8 @@ class Tracker:
         return cls(camera, world.colours, world.marker_height, area)
 
     def __post_init__(self) -> None:
-        hues = np.array([colorsys.rgb_to_hsv(*c)[0] for c in self.colours]) * 256
-        self._hues = hues.astype(np.int32) % 256
-        n = len(hues)
-        spacing = 256 / max(n, 2)
-        self._hue_tol = int(min(14, spacing / 2 - 1))
+        self._hues = marker_hues(self.colours)
+        self._hue_tol = hue_tolerance(len(self._hues))
         scale = self.camera.focal / (self.camera.position[2] - self.marker_height)
         self._area_px = self.marker_area * scale**2
         self._radius_px = 1.2 * np.sqrt(self.marker_area * 2.5) * scale
@@ -103,8 +106,7 @@ class Tracker:
         axis = np.full((n, 2), np.nan)
         detected = np.zeros(n, bool)
         for i, h in enumerate(self._hues):
-            diff = np.abs((hue - h + 128) % 256 - 128)
-            sel = diff <= self._hue_tol
+            sel = hue_distance(hue, h) <= self._hue_tol
             if sel.sum() < self.min_fill * self._area_px:
                 continue
             pts = np.column_stack([us[sel], vs[sel]]).astype(np.float64)

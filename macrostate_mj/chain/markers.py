@@ -1,0 +1,61 @@
+"""The marker colour code, both sides of it: the colour each robot's marker gets, and which
+colours the overhead tracker takes for which marker.
+
+It lives in `chain`, below `vision`, so that loading a robot (`chain.robot`) can refuse a body
+the tracker would take for a marker by the tracker's own rule, and `vision.tracker` classifies
+pixels with this same code (one rule, never two copies that drift apart). Hues and thresholds are
+OpenCV's 8-bit full-range HSV (`cv2.COLOR_RGB2HSV_FULL`): hue 0-255 around the circle,
+saturation and value 0-255.
+"""
+
+from __future__ import annotations
+
+import colorsys
+
+import numpy as np
+
+MIN_SATURATION = 90     # of 255: a greyer pixel is never any marker's
+MIN_VALUE = 50          # of 255: a darker pixel is never any marker's
+HUE_LEVELS = 256        # full-range hue: 0-255 around the circle
+MAX_HUE_TOLERANCE = 14  # of 256: how far a marker's pixels may stray in hue (few robots)
+
+
+def marker_colours(n: int) -> np.ndarray:
+    """n saturated colours with hues spread evenly, so the tracker can tell them apart."""
+    return np.array([colorsys.hsv_to_rgb(i / n, 1.0, 1.0) for i in range(n)])
+
+
+def marker_hues(colours: np.ndarray) -> np.ndarray:
+    """Each marker colour's hue (int32, 0-255), the centre of the pixels taken for it."""
+    hues = np.array([colorsys.rgb_to_hsv(*c)[0] for c in colours]) * HUE_LEVELS
+    return hues.astype(np.int32) % HUE_LEVELS
+
+
+def hue_tolerance(n: int) -> int:
+    """How far (in hue levels) a pixel may be from a marker's hue and still count for it: half
+    the gap between neighbouring hues less one, so no pixel counts for two markers."""
+    spacing = HUE_LEVELS / max(n, 2)
+    return int(min(MAX_HUE_TOLERANCE, spacing / 2 - 1))
+
+
+def hue_distance(hue: np.ndarray, centre: int) -> np.ndarray:
+    """Distance around the hue circle (levels) from `centre` to each of `hue` (ints)."""
+    half = HUE_LEVELS // 2
+    return np.abs((hue - centre + half) % HUE_LEVELS - half)
+
+
+def taken_for_marker(rgb: tuple[float, float, float] | np.ndarray,
+                     colours: np.ndarray) -> int | None:
+    """The index of the marker among `colours` that a surface of colour `rgb` (0-1) would be
+    tracked as, or None: the tracker's rule (saturated and bright enough, hue within the
+    tolerance of a marker's) applied to the colour as an 8-bit image holds it."""
+    r, g, b = (round(float(c) * 255) / 255 for c in rgb[:3])
+    h, s, v = colorsys.rgb_to_hsv(r, g, b)
+    if round(s * 255) < MIN_SATURATION or round(v * 255) < MIN_VALUE:
+        return None
+    hue = np.array([round(h * HUE_LEVELS) % HUE_LEVELS])
+    tol = hue_tolerance(len(colours))
+    for i, centre in enumerate(marker_hues(colours)):
+        if hue_distance(hue, int(centre))[0] <= tol:
+            return i
+    return None
