@@ -9,9 +9,10 @@ Lifecycle (dm_control-style names say when things happen):
                            the controller and each hook's `on_tick` (logger, renderer, tracker)
                            on its tick, and check the physics' health after every stretch.
 Event times are whole physics steps (a scenario whose rates do not divide into whole steps is
-rejected), so runs are bit-identical for the same seed. A fault (NaN, tip, lift, escape) is
-pinned to the physics step where it first appears: the stretch is replayed step by step from
-its saved state, which on one machine reproduces it exactly.
+rejected when it is made: `scenarios.steps_per_tick`), so runs are bit-identical for the same
+seed. A fault (NaN, tip, lift, escape) is pinned to the physics step where it first appears: the
+stretch is replayed step by step from its saved state, which on one machine reproduces it
+exactly.
 """
 
 from __future__ import annotations
@@ -33,17 +34,6 @@ from macrostate_mj.chain.motion import (
 )
 from macrostate_mj.chain.planners import Planner
 from macrostate_mj.chain.world import World, place_chain
-from macrostate_mj.core.errors import UserError
-
-
-def steps_per_tick(period: float, dt: float, what: str) -> int:
-    """Whole physics steps per tick, or a clear error (dm_control's divisibility check): a rate
-    that is not a whole number of steps makes its ticks jitter between two step counts."""
-    steps = period / dt
-    if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
-        raise UserError(f"{what} period {period:g} s is {steps:.3f} physics steps of {dt:g} s; "
-                        "choose a rate or timestep that divides into whole steps")
-    return int(round(steps))
 
 
 class Hook(Protocol):
@@ -180,9 +170,6 @@ class ChainSim:
         self.mission = mission
         self.n = len(world.names)
         self._body = world.body
-        dt = self.model.opt.timestep
-        steps_per_tick(1 / self.cfg.command_hz, dt, f"{self.cfg.name} command")
-        steps_per_tick(1 / self.cfg.log_hz, dt, f"{self.cfg.name} log")
         self.monitor = PhysicsMonitor(world)
         # Health checks at least this often (physics steps); events bound the stretches too.
         self.check_steps = 10**9

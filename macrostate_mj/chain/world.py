@@ -1,9 +1,10 @@
-"""World assembly: a scene MJCF plus N robot MJCFs, each with a unique marker colour.
+"""World assembly: the scenario's arena scene plus N robot MJCFs, each with a unique marker colour.
 
-The scene (`macrostate_mj/assets/mjcf/scene_*.xml`) and the robot (`macrostate_mj/assets/mjcf/<robot>/robot.xml`) are
-hand-written; only the tedious part, N prefixed copies with their colours, is generated here
-with `mujoco.MjSpec`. Robot geometry is read back from the compiled model so the XML is the one
-source of truth for wheel radius, track and top speed.
+The scene is generated from the scenario (`chain.scene.build_scene`); the robot
+(`macrostate_mj/assets/mjcf/<robot>/robot.xml`) is hand-written, and only the tedious part, N
+prefixed copies with their colours, is generated here with `mujoco.MjSpec`. Robot geometry is
+read back from the compiled model so the XML is the one source of truth for wheel radius, track
+and top speed.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ import numpy as np
 from macrostate_mj.chain.markers import marker_colours
 from macrostate_mj.chain.robot import load_robot
 from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scene import build_scene
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.paths import ASSETS
 
 
 def robot_names(n: int) -> list[str]:
@@ -127,7 +128,7 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
         start = place_chain(cfg, n, np.random.default_rng(0))
     names = robot_names(n)
     colours = marker_colours(n)
-    spec = mujoco.MjSpec.from_file(str(ASSETS / cfg.scene))
+    spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics)
     spec.copy_during_attach = True
     robot = load_robot(cfg.robot, largest_team=max(n, chain_capacity(cfg))).spec
     for name, colour, pose in zip(names, colours, start, strict=True):

@@ -1,5 +1,6 @@
 """Every MJCF we ship, as MuJoCo Menagerie's model_test steps every model: it compiles, steps
-2,000 physics steps and raises no MuJoCo warning; every scene also with a chain of robots."""
+2,000 physics steps and raises no MuJoCo warning; so does every built-in scenario's generated
+scene, alone and with a chain of robots."""
 
 from pathlib import Path
 
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 
 from macrostate_mj.chain.scenarios import SCENARIOS
+from macrostate_mj.chain.scene import build_scene
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.paths import ASSETS
@@ -28,6 +30,15 @@ def finite(data: mujoco.MjData) -> bool:
 @pytest.mark.parametrize("path", FILES, ids=str)
 def test_file_compiles_and_steps_without_warnings(path: Path):
     model = mujoco.MjModel.from_xml_path(str(ASSETS / path))
+    data = mujoco.MjData(model)
+    assert step(model, data) == {}
+    assert finite(data)
+
+
+@pytest.mark.parametrize("scenario", sorted(SCENARIOS))
+def test_generated_scene_steps_without_warnings(scenario):
+    cfg = SCENARIOS[scenario]
+    model = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics).compile()
     data = mujoco.MjData(model)
     assert step(model, data) == {}
     assert finite(data)

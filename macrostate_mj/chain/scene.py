@@ -1,0 +1,167 @@
+"""The arena scene, generated with `mujoco.MjSpec` from what a scenario describes.
+
+A scenario says its arena once (`arena`, the floor's size); the floor, the four walls on its
+edges, the overhead camera that films it, the light and the physics options all follow from that
+and from the small descriptions below, so nothing has to be kept in step by hand. Robots are
+added by `chain.world`.
+
+World frame: origin at the arena's centre, +x along its first side, +z up; the camera looks
+straight down with image right = +x and image up = +y.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+
+from macrostate_mj.core.errors import UserError
+
+# Smooth walls (priority 1: their low friction wins), so a robot pressed against a wall still
+# turns on the spot instead of locking by friction. Robots touch walls through their contype-2
+# footprint sphere only (robot.xml).
+WALL_FRICTION = (0.05, 0.005, 0.0001)
+WALL_PRIORITY = 1
+WALL_CONTACT = 2                # contype = conaffinity
+FLOOR_GRID = 0.05               # the plane's rendering grid spacing (m); no physical meaning
+# A corner within half a pixel of the image's edge is imaged by the edge pixel.
+EDGE_TOLERANCE_PX = 0.5
+
+
+@dataclass(frozen=True)
+class Camera:
+    """The overhead camera, straight down over the arena's centre at `height` m."""
+
+    height: float                       # above the floor (m)
+    resolution: tuple[int, int]         # image (width, height) px; the offscreen buffer too
+    fovy: float | None = None           # vertical field of view (deg); None frames the arena
+
+    def fovy_for(self, arena: tuple[float, float]) -> float:
+        """`fovy`, or the narrowest one that sees the whole floor: 2 atan(half-extent / height)
+        on the limiting axis (the x half-extent scaled by the image's aspect)."""
+        if self.fovy is not None:
+            return self.fovy
+        w, h = self.resolution
+        half = max(arena[1] / 2, arena[0] / 2 * h / w)
+        return math.degrees(2 * math.atan(half / self.height))
+
+
+@dataclass(frozen=True)
+class Look:
+    """Colours and lighting: what the renderer (and so the tracker) sees, not the physics."""
+
+    floor_rgba: tuple[float, float, float, float] = (0.72, 0.72, 0.70, 1.0)
+    wall_rgba: tuple[float, float, float, float] = (0.55, 0.55, 0.58, 1.0)
+    light_height: float = 3.0           # the directional 'sun' (m); castshadow off
+    light_diffuse: float = 0.45         # grey level of the sun
+    headlight_ambient: float = 0.35     # grey levels of MuJoCo's headlight (no specular)
+    headlight_diffuse: float = 0.45
+
+
+@dataclass(frozen=True)
+class Physics:
+    """MuJoCo's `<option>`: the timestep is a scenario's, so its rates divide into whole steps."""
+
+    timestep: float                     # s
+    integrator: str = "implicitfast"    # a mjtIntegrator name without its prefix
+    impratio: float | None = None       # None: MuJoCo's default
+    cone: str = "elliptic"              # a mjtCone name without its prefix
+
+
+@dataclass(frozen=True)
+class Walls:
+    """Four box walls on the floor's edges, outside it (the floor stays `arena`)."""
+
+    height: float = 0.1                 # m
+    thickness: float = 0.02             # m
+
+
+CORNERS = {"north-east": (1, 1), "north-west": (-1, 1), "south-west": (-1, -1),
+           "south-east": (1, -1)}
+
+
+def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
+    """The camera sees the whole floor: every corner projects inside the image (the tracker
+    cannot follow a robot it does not see). One line naming the first corner that does not."""
+    w, h = camera.resolution
+    if w < 1 or h < 1 or not camera.height > 0:
+        raise UserError(f"{name}: the overhead camera needs a positive height and resolution, "
+                        f"got height {camera.height:g} m and {w} x {h} px")
+    fovy = camera.fovy_for(arena)
+    if not 0 < fovy < 180:
+        raise UserError(f"{name}: the overhead camera's fovy must lie in (0, 180) deg, "
+                        f"got {fovy:g}")
+    focal = h / 2 / math.tan(math.radians(fovy) / 2)            # px
+    for corner, (sx, sy) in CORNERS.items():
+        x, y = sx * arena[0] / 2, sy * arena[1] / 2
+        out = max(abs(x) * focal / camera.height - w / 2, abs(y) * focal / camera.height - h / 2)
+        if out > EDGE_TOLERANCE_PX:
+            raise UserError(f"{name}: the overhead camera does not see the arena's {corner} corner "
+                            f"({x:g}, {y:g}) m, {out:.1f} px outside its {w} x {h} image; raise "
+                            "its height or widen its fovy (leave fovy unset to frame the arena)")
+
+
+def build_scene(name: str, arena: tuple[float, float], walls: Walls | None, camera: Camera,
+                look: Look, physics: Physics) -> mujoco.MjSpec:
+    """The arena as an `MjSpec`: floor `floor` (material `floor`), walls `wall_east/west/north/
+    south` (default class `wall`), light `sun`, camera `overhead` and an offscreen buffer of the
+    camera's resolution."""
+    check_camera(name, arena, camera)
+    spec = mujoco.MjSpec()
+    spec.modelname = name
+    spec.compiler.degree = False
+    spec.compiler.autolimits = True
+
+    opt = spec.option
+    opt.timestep = physics.timestep
+    opt.integrator = _enum(mujoco.mjtIntegrator, "mjINT_", physics.integrator, "integrator")
+    opt.cone = _enum(mujoco.mjtCone, "mjCONE_", physics.cone, "cone")
+    if physics.impratio is not None:
+        opt.impratio = physics.impratio
+
+    vis = spec.visual
+    vis.global_.offwidth, vis.global_.offheight = camera.resolution
+    # No multisampling nor shadows: 3.5x cheaper on llvmpipe; the imaging chain's lens PSF
+    # softens edges as a real camera's lens does (macrostate_mj/vision/imaging.py).
+    vis.quality.shadowsize = 0
+    vis.quality.offsamples = 0
+    vis.headlight.ambient = [look.headlight_ambient] * 3
+    vis.headlight.diffuse = [look.headlight_diffuse] * 3
+    vis.headlight.specular = [0.0] * 3
+
+    wall = spec.add_default("wall", spec.default).geom
+    wall.type = mujoco.mjtGeom.mjGEOM_BOX
+    wall.contype = wall.conaffinity = WALL_CONTACT
+    wall.rgba = list(look.wall_rgba)
+    wall.priority = WALL_PRIORITY
+    wall.friction = list(WALL_FRICTION)
+
+    spec.add_material(name="floor", rgba=list(look.floor_rgba), specular=0.0, shininess=0.0)
+
+    world = spec.worldbody
+    world.add_light(name="sun", pos=[0, 0, look.light_height], dir=[0, 0, -1],
+                    type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, castshadow=False,
+                    diffuse=[look.light_diffuse] * 3)
+    hx, hy = arena[0] / 2, arena[1] / 2
+    world.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[hx, hy, FLOOR_GRID],
+                   material="floor")
+    if walls is not None:
+        t, z = walls.thickness / 2, walls.height / 2                # half-sizes
+        for side, pos, size in (("east", [hx + t, 0, z], [t, hy + t, z]),
+                                ("west", [-hx - t, 0, z], [t, hy + t, z]),
+                                ("north", [0, hy + t, z], [hx + 2 * t, t, z]),
+                                ("south", [0, -hy - t, z], [hx + 2 * t, t, z])):
+            world.add_geom(spec.find_default("wall"), name=f"wall_{side}", pos=pos, size=size)
+    world.add_camera(name="overhead", pos=[0, 0, camera.height], fovy=camera.fovy_for(arena),
+                     resolution=list(camera.resolution))
+    return spec
+
+
+def _enum(kind: type, prefix: str, value: str, what: str) -> int:
+    try:
+        return getattr(kind, prefix + value.upper())
+    except AttributeError:
+        names = [n[len(prefix):].lower() for n in dir(kind) if n.startswith(prefix)]
+        raise UserError(f"unknown physics {what} {value!r}; choose one of "
+                        f"{', '.join(names)}") from None
