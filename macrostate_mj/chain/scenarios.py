@@ -67,7 +67,7 @@ class ScenarioConfig:
 
 
 # The three built-in scenes' fovy are the hand-written XMLs' 2 atan(half-extent / height),
-# rounded to 0.01 deg (kept so renders and tracked poses stay bit for bit; within 0.02 px of
+# rounded to 0.01 deg (kept so renders and tracked poses stay bit for bit; within 0.04 px of
 # framing the arena exactly).
 SCENARIOS: dict[str, ScenarioConfig] = {
     # Physical testbed, seed §2.6.2: 2.5 x 1.9 m, Thymio II, Psi on a 12 x 8 grid.
