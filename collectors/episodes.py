@@ -19,13 +19,14 @@ from collectors.randomize import (
     randomized_noise,
     randomized_scenario,
 )
+from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.formats.poses import poses_table
 from macrostate_mj.vision.imaging import NoiseConfig
 
 
 @dataclass(frozen=True)
 class EpisodeSpec:
-    scenario: str
+    scenario: ScenarioRef        # a built-in name, a scenario file, or the resolved config
     robots: int
     seconds: float              # driving time logged after the warm-up
     warmup: float               # settling time at the start (s), logged but never cut

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from macrostate_mj.chain.motion import WaitForBehind
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision.imaging import NoiseConfig

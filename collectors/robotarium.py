@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import World, build_world
 from macrostate_mj.core.errors import UserError

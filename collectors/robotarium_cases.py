@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from collectors.robotarium import fit_start, open_floor, run_chain, twists_of
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.world import build_world
 
 TURN_PRESET = 3                   # (0.03 m/s, +0.2 rad/s)

@@ -24,13 +24,13 @@ import pyarrow.parquet as pq
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import Randomization
-from macrostate_mj.chain.scenarios import scenario_for
+from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import atomic_path
 from macrostate_mj.core.parallel import runner_for
-from macrostate_mj.core.run import Run, run_finished
+from macrostate_mj.core.run import Run, config_hash, run_finished
 from macrostate_mj.formats.instances import (
     INSTANCE_STEPS,
     cut_instances,
@@ -50,7 +50,7 @@ PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.j
 
 @dataclass(frozen=True)
 class CollectRequest:
-    scenario: str
+    scenario: ScenarioRef        # a built-in name, a scenario file, or the resolved config
     robots: int
     minutes: float
     seed: int
@@ -145,7 +145,7 @@ def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
     """What a collection's outputs depend on (not where or how fast it runs): its run's
     identity, so a resumed run may change --workers but not the collection."""
     identity = {k: v for k, v in asdict(req).items()
-                if k not in ("out", "workers", "ray", "overwrite")}
+                if k not in ("out", "workers", "ray", "overwrite", "scenario")}
     return {"request": identity, "scenario": asdict(scenario_for(req.scenario, req.head_speed)),
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
@@ -185,6 +185,7 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
                  for t, f in zip(tasks, folders, strict=True)}
         written["manifest"] = run.path
         run.record(px_per_cm=req.px_per_cm, workers=req.workers, ray=req.ray,
+                   scenario_hash=config_hash(scenario_for(req.scenario, req.head_speed)),
                    resumed_episodes=resumed, damaged_shards_rerun=damaged,
                    randomization=None if specs[0].randomize is None
                    else asdict(specs[0].randomize),

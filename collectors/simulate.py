@@ -12,7 +12,7 @@ import numpy as np
 import pyarrow as pa
 
 from macrostate_mj.chain.health import PhysicsError
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.sim import ChainSim, Every, Hook, PoseLog, Tracker
 from macrostate_mj.chain.world import World, build_world
 from macrostate_mj.formats.poses import poses_table

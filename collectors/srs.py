@@ -184,14 +184,14 @@ def _novelty(req: SRSRequest, ro_req: CollectRequest, novelty: NoveltyTrainer,
     scenario = scenario_for(req.base.scenario, req.base.head_speed)
     key = task_key(NOVELTY_STAGE, NOVELTY_VERSION,
                    {"config": repr(cfg), "ro_instances": req.ro_instances,
-                    "scenario": req.base.scenario, "constants": scenario,
+                    "scenario": scenario.name, "constants": scenario,
                     "px_per_cm": req.base.px_per_cm}, [data])
 
     def compute() -> dict[str, bytes]:
         tracks = _tracks(data, ro_req, req.ro_instances)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / NOVELTY
-            novelty.train(tracks, cfg, req.base.scenario, path, key, show)
+            novelty.train(tracks, cfg, scenario.name, path, key, show)
             return {NOVELTY: path.read_bytes()}
 
     model = (cache.cached(NOVELTY_STAGE, key, compute) / NOVELTY).read_bytes()

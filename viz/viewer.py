@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import build_world, validate_chain
 from macrostate_mj.core.errors import UserError

@@ -10,7 +10,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from macrostate_mj.chain.scenarios import ScenarioConfig, scenario_for
+from macrostate_mj.chain.scenario import ScenarioConfig
+from macrostate_mj.chain.scenarios import SCENARIOS, ScenarioRef, scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import check_writable_file
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class SimulateRequest:
-    scenario: str
+    scenario: ScenarioRef        # a built-in name, a scenario file, or the resolved config
     robots: int
     seconds: float
     seed: int
@@ -126,9 +127,19 @@ def _recorders(req: SimulateRequest, cfg: ScenarioConfig, sim: ChainSim,
     return hooks
 
 
+def scenario_arg(ref: str | ScenarioConfig) -> str:
+    """How a command line names a scenario: a built-in's name, else a file holding it (the
+    run's manifest has it whole: `macrostate-mj scenario show` writes one from a name)."""
+    if isinstance(ref, str):
+        return ref
+    builtin = SCENARIOS.get(ref.name)
+    return ref.name if builtin == ref else f"{ref.name}.toml"
+
+
 def reproduce_command(req: SimulateRequest) -> str:
     """The CLI line that reruns this request's simulation (same trajectory on this machine)."""
-    parts = ["macrostate-mj simulate", f"--scenario {req.scenario}", f"--robots {req.robots}",
+    parts = ["macrostate-mj simulate", f"--scenario {scenario_arg(req.scenario)}",
+             f"--robots {req.robots}",
              f"--seconds {req.seconds:g}", f"--seed {req.seed}"]
     if req.head_speed is not None:
         parts.append(f"--head-speed {req.head_speed:g}")

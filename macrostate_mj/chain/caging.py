@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from macrostate_mj.chain.motion import pull
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.sim import ChainSim
 
 TRACK_STEPS = 5        # how many of the Head's latest positions the Tail fits a circle to

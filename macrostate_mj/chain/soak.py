@@ -21,7 +21,7 @@ from macrostate_mj.core.cache import TaskCache, run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 
 if TYPE_CHECKING:
-    from macrostate_mj.chain.scenarios import ScenarioConfig
+    from macrostate_mj.chain.scenario import ScenarioConfig
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ import numpy as np
 
 from macrostate_mj.chain.markers import marker_colours
 from macrostate_mj.chain.robot import load_robot
-from macrostate_mj.chain.scenarios import ScenarioConfig
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import build_scene
 from macrostate_mj.core.errors import UserError
 

@@ -19,6 +19,7 @@ from macrostate_mj.app.cli import oc as _oc  # noqa: F401
 from macrostate_mj.app.cli import params
 from macrostate_mj.app.cli import retlo as _retlo  # noqa: F401
 from macrostate_mj.app.cli import retlo_sim as _retlo_sim  # noqa: F401
+from macrostate_mj.app.cli import scenario as _scenario  # noqa: F401
 from macrostate_mj.app.cli import sim as _sim  # noqa: F401
 from macrostate_mj.app.cli import sim2real as _sim2real  # noqa: F401
 from macrostate_mj.app.cli import soak as _soak  # noqa: F401

@@ -128,9 +128,26 @@ def Device() -> Any:  # noqa: N802
 
 
 def _scenario() -> Any:
+    """A built-in scenario's name or a scenario file, resolved here, once: the command and
+    every worker it starts get the typed config (a bad file fails while parsing, naming its
+    key)."""
     from macrostate_mj.chain.scenarios import SCENARIOS
 
-    return Choice("lab", "Embedded scenario (README: Physics choices).", tuple(SCENARIOS))
+    def resolve(value: Any) -> Any:
+        from macrostate_mj.chain.scenarios import get_scenario
+        from macrostate_mj.core.errors import UserError
+
+        if value is None or not isinstance(value, str | Path):
+            return value
+        try:
+            return get_scenario(value)
+        except UserError as err:
+            _fail(str(err))
+
+    resolve.role = "choice"  # type: ignore[attr-defined]
+    return typer.Option("lab", help="A built-in scenario (one of: "
+                        f"{', '.join(SCENARIOS)}) or a scenario file (.toml; `scenario show "
+                        "lab` prints one to start from).", callback=resolve)
 
 
 def _input_file(suffixes: tuple[str, ...]) -> Callable[[Path, str], None]:

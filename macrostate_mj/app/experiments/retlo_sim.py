@@ -28,7 +28,8 @@ from estimators.retlo.mlp import ChainedMLP, mse, train_mlp, training_pairs
 from estimators.retlo.report import chain_errors, one_step_errors, summarize, unseen_names
 from macrostate_mj.app.experiments import Progress
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
-from macrostate_mj.chain.scenarios import ScenarioConfig, get_scenario
+from macrostate_mj.chain.scenario import ScenarioConfig
+from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 

@@ -1,0 +1,56 @@
+"""Scenario files: built-ins are files, a user's file extends one, bad keys name the key."""
+
+import pytest
+
+from macrostate_mj.chain.scenario_file import builtin_names, load_scenario, to_toml
+from macrostate_mj.core.errors import UserError
+
+
+def _write(tmp_path, text, name="mylab.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("name", ["lab", "webots", "robotarium"])
+def test_a_builtin_written_back_loads_as_itself(tmp_path, name):
+    cfg = load_scenario(name)
+    assert load_scenario(_write(tmp_path, to_toml(cfg))) == cfg
+    assert name in builtin_names()
+
+
+def test_a_file_extends_a_builtin_and_overrides_keys(tmp_path):
+    path = _write(tmp_path, 'extends = "lab"\nname = "mylab"\n[arena]\nsize = [4.0, 3.0]\n'
+                            '[camera]\nheight = 3.0\nresolution = [1280, 960]\nfovy = "auto"\n'
+                            '[chain]\nspacing = 0.25\n')
+    cfg, lab = load_scenario(path), load_scenario("lab")
+    assert (cfg.name, cfg.arena, cfg.spacing) == ("mylab", (4.0, 3.0), 0.25)
+    assert cfg.camera.fovy is None and cfg.camera.resolution == (1280, 960)   # framed
+    assert (cfg.k_f, cfg.planner, cfg.physics) == (lab.k_f, lab.planner, lab.physics)
+    child = _write(tmp_path, 'extends = "mylab.toml"\n[chain]\nk_f = 5.0\n', "child.toml")
+    assert load_scenario(child).arena == (4.0, 3.0) and load_scenario(child).k_f == 5.0
+
+
+@pytest.mark.parametrize("text,words", [
+    ('extends = "lab"\n[arena]\nsizes = [1, 1]\n', ["arena.sizes", "mylab.toml"]),
+    ('extends = "lab"\n[cam]\nheight = 1\n', ["unknown key 'cam'"]),
+    ('extends = "lab"\n[chain]\nspacing = "far"\n', ["chain.spacing", "number"]),
+    ('extends = "lab"\n[arena]\nsize = [4.0]\n', ["arena.size", "2 values"]),
+    ('extends = "lab"\n[camera]\nheight = 0.5\nresolution = [640, 480]\nfovy = 30.0\n',
+     ["does not see", "corner"]),
+    ('extends = "lab"\n[physics]\ntimestep = 0.004\n', ["whole", "steps"]),
+    ('extends = "nowhere"\n', ["unknown scenario 'nowhere'"]),
+    ('extends = "mylab.toml"\n', ["loops"]),
+    ('name = "x"\n', ["missing"]),
+    ('extends = "lab"\n[planner]\nkind = "spiral"\n', ["planner.kind", "psi_grid"]),
+    ('extends = "lab"\n[arena]\nwalls = "yes"\n', ["arena.walls"]),
+    ('extends = "lab"\n[chain]\nk_f = nan\n', ["chain.k_f", "finite"]),
+])
+def test_bad_files_are_one_line_naming_the_key(tmp_path, text, words):
+    path = _write(tmp_path, text)
+    with pytest.raises(UserError) as err:
+        load_scenario(path)
+    message = str(err.value)
+    assert "\n" not in message and isinstance(err.value, ValueError)
+    for w in words:
+        assert w in message, message
