@@ -36,6 +36,9 @@ class Camera:
     height: float                       # above the floor (m)
     resolution: tuple[int, int]         # image (width, height) px; the offscreen buffer too
     fovy: float | None = None           # vertical field of view (deg); None frames the arena
+    # The lens: OpenCV's radial-tangential [k1, k2, p1, p2] (normalized image coordinates, y
+    # down). The renderer is an ideal pinhole; `vision.camera.Lens` bends its frames by these.
+    distortion: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
     def fovy_for(self, arena: tuple[float, float]) -> float:
         """`fovy`, or the narrowest one that sees the whole floor: 2 atan(half-extent / height)
@@ -88,6 +91,9 @@ def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
     if w < 1 or h < 1 or not camera.height > 0:
         raise UserError(f"{name}: the overhead camera needs a positive height and resolution, "
                         f"got height {camera.height:g} m and {w} x {h} px")
+    if not all(math.isfinite(k) for k in camera.distortion):
+        raise UserError(f"{name}: the overhead camera's distortion must be finite numbers, "
+                        f"got {list(camera.distortion)}")
     fovy = camera.fovy_for(arena)
     if not 0 < fovy < 180:
         raise UserError(f"{name}: the overhead camera's fovy must lie in (0, 180) deg, "

@@ -2,16 +2,85 @@
 
 Pixels follow `macrostate_mj.core.pixels` (OpenCV's convention, integer coordinates at pixel
 centres), whose `project` is the one projection of the project.
+
+Lens distortion (a scenario camera's `distortion`, OpenCV's [k1, k2, p1, p2]): MuJoCo renders an
+ideal pinhole image, and `Lens` bends it into the distorted image a real lens makes; the tracker's
+`PinholeCamera` undistorts detected pixels with its calibrated coefficients before they go to the
+floor. Both sides use `cv2.undistortPoints` (the render's maps are that function on the pixel
+grid), so a calibration equal to the lens undoes it to the solver's tolerance.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import mujoco
 import numpy as np
 
 from macrostate_mj.core.pixels import focal_length, project
+
+Distortion = tuple[float, float, float, float]
+NO_DISTORTION: Distortion = (0.0, 0.0, 0.0, 0.0)
+# undistortPoints' fixed-point iteration: its default 5 steps leave ~0.1 px at the corners of a
+# k1 = -0.2 lens; this converges to well under 1e-6 px there.
+UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+
+
+def camera_matrix(width: int, height: int, focal: float) -> np.ndarray:
+    """OpenCV's K of a MuJoCo camera: square pixels, principal point at the image centre in the
+    pixel-centre convention (`core.pixels.project`)."""
+    return np.array([[focal, 0.0, width / 2 - 0.5], [0.0, focal, height / 2 - 0.5],
+                     [0.0, 0.0, 1.0]])
+
+
+def undistort_pixels(uv: np.ndarray, k: np.ndarray, distortion: Distortion) -> np.ndarray:
+    """(..., 2) observed (distorted) pixels -> where the ideal pinhole camera images them."""
+    uv = np.asarray(uv, np.float64)
+    flat = np.ascontiguousarray(uv.reshape(-1, 1, 2))
+    if flat.size == 0:
+        return uv.copy()
+    out = cv2.undistortPoints(flat, k, np.asarray(distortion, np.float64), P=k,
+                              criteria=UNDISTORT_CRITERIA)
+    return out.reshape(uv.shape)
+
+
+def distort_pixels(uv: np.ndarray, k: np.ndarray, distortion: Distortion) -> np.ndarray:
+    """(..., 2) ideal pinhole pixels -> where the lens images them (the forward model)."""
+    uv = np.asarray(uv, np.float64)
+    k1, k2, p1, p2 = distortion
+    x = (uv[..., 0] - k[0, 2]) / k[0, 0]
+    y = (uv[..., 1] - k[1, 2]) / k[1, 1]
+    r2 = x * x + y * y
+    radial = 1 + k1 * r2 + k2 * r2 * r2
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return np.stack([xd * k[0, 0] + k[0, 2], yd * k[1, 1] + k[1, 2]], axis=-1)
+
+
+class Lens:
+    """Bends ideal renders into distorted frames: remap maps built once per camera (for each
+    output pixel, its source in the pinhole image: `undistort_pixels` on the pixel grid), one
+    `cv2.remap` per frame. An ideal lens (all zero) returns frames untouched."""
+
+    def __init__(self, width: int, height: int, focal: float,
+                 distortion: Distortion = NO_DISTORTION):
+        self.distortion = tuple(float(c) for c in distortion)
+        self.ideal = not any(self.distortion)
+        self.k = camera_matrix(width, height, focal)
+        self.maps: tuple[np.ndarray, np.ndarray] | None = None
+        if not self.ideal:
+            u, v = np.meshgrid(np.arange(width, dtype=np.float64),
+                               np.arange(height, dtype=np.float64))
+            src = undistort_pixels(np.stack([u, v], axis=-1), self.k, self.distortion)
+            self.maps = cv2.convertMaps(src[..., 0].astype(np.float32),
+                                        src[..., 1].astype(np.float32), cv2.CV_16SC2)
+
+    def apply(self, rgb: np.ndarray) -> np.ndarray:
+        """The frame this lens makes of an ideal render (bilinear; black beyond the render)."""
+        if self.maps is None:
+            return rgb
+        return cv2.remap(rgb, *self.maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
 
 @dataclass(frozen=True)
@@ -23,15 +92,23 @@ class PinholeCamera:
     focal: float            # pixels
     position: np.ndarray    # (3,) world
     rotation: np.ndarray    # (3, 3) camera-to-world, columns = camera x, y, z axes
+    distortion: Distortion = NO_DISTORTION   # the lens as calibrated: OpenCV's k1, k2, p1, p2
 
     @classmethod
     def from_model(cls, model: mujoco.MjModel, data: mujoco.MjData, name: str = "overhead",
-                   width: int | None = None, height: int | None = None) -> PinholeCamera:
+                   width: int | None = None, height: int | None = None,
+                   distortion: Distortion = NO_DISTORTION) -> PinholeCamera:
         cam = model.camera(name)
         w = int(width or model.cam_resolution[cam.id][0])
         h = int(height or model.cam_resolution[cam.id][1])
         return cls(w, h, focal_length(h, float(cam.fovy[0])), data.cam_xpos[cam.id].copy(),
-                   data.cam_xmat[cam.id].reshape(3, 3).copy())
+                   data.cam_xmat[cam.id].reshape(3, 3).copy(),
+                   tuple(float(c) for c in distortion))
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """OpenCV's camera matrix K."""
+        return camera_matrix(self.width, self.height, self.focal)
 
     @property
     def px_per_m(self) -> float:
@@ -39,13 +116,18 @@ class PinholeCamera:
         return self.focal / float(self.position[2])
 
     def world_to_pixel(self, xyz: np.ndarray) -> np.ndarray:
-        """(..., 3) world points -> (..., 2) pixel (u, v)."""
-        return project(xyz, self.position, self.rotation, self.focal, self.width, self.height)
+        """(..., 3) world points -> (..., 2) pixel (u, v), through the calibrated lens."""
+        uv = project(xyz, self.position, self.rotation, self.focal, self.width, self.height)
+        return uv if not any(self.distortion) else distort_pixels(uv, self.matrix,
+                                                                   self.distortion)
 
     def pixel_to_world(self, uv: np.ndarray, z: float = 0.0) -> np.ndarray:
         """(..., 2) pixels -> (..., 2) world x, y on the horizontal plane at height z: the
-        inverse of the homography between that plane and the image."""
+        pixels undistorted with the calibrated lens, then the inverse of the homography between
+        that plane and the image."""
         uv = np.asarray(uv, float)
+        if any(self.distortion):
+            uv = undistort_pixels(uv, self.matrix, self.distortion)
         ray_c = np.stack([(uv[..., 0] + 0.5 - self.width / 2) / self.focal,
                           -(uv[..., 1] + 0.5 - self.height / 2) / self.focal,
                           -np.ones(uv.shape[:-1])], axis=-1)
@@ -54,9 +136,11 @@ class PinholeCamera:
         return (self.position + s[..., None] * ray_w)[..., :2]
 
     def homography(self, z: float = 0.0) -> np.ndarray:
-        """3 x 3 H with [u, v, 1] ~ H [x, y, 1] for points on the plane at height z."""
+        """3 x 3 H with [u, v, 1] ~ H [x, y, 1] for points on the plane at height z, in the
+        ideal (undistorted) image."""
         world = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
-        pix = self.world_to_pixel(np.column_stack([world, np.full(4, z)]))
+        pix = project(np.column_stack([world, np.full(4, z)]), self.position, self.rotation,
+                      self.focal, self.width, self.height)
         a = []
         for (x, y), (u, v) in zip(world, pix, strict=True):
             a.append([x, y, 1, 0, 0, 0, -u * x, -u * y, -u])
@@ -69,17 +153,20 @@ class OverheadRenderer:
     """Offscreen renders of the overhead camera; close() (or `with`) frees the GL context."""
 
     def __init__(self, model: mujoco.MjModel, name: str = "overhead",
-                 width: int | None = None, height: int | None = None):
+                 width: int | None = None, height: int | None = None,
+                 distortion: Distortion = NO_DISTORTION):
         cam = model.camera(name)
         self.width = int(width or model.cam_resolution[cam.id][0])
         self.height = int(height or model.cam_resolution[cam.id][1])
         self.name = name
+        self.lens = Lens(self.width, self.height,
+                         focal_length(self.height, float(cam.fovy[0])), distortion)
         self._renderer = mujoco.Renderer(model, height=self.height, width=self.width)
 
     def render(self, data: mujoco.MjData) -> np.ndarray:
-        """RGB uint8 (height, width, 3) of the current state."""
+        """RGB uint8 (height, width, 3) of the current state, through the lens (if any)."""
         self._renderer.update_scene(data, camera=self.name)
-        return self._renderer.render()
+        return self.lens.apply(self._renderer.render())
 
     def close(self) -> None:
         self._renderer.close()

@@ -66,7 +66,7 @@ class CameraChain:
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
         self.noise = noise or NoiseConfig()
-        self.renderer = OverheadRenderer(sim.model)
+        self.renderer = OverheadRenderer(sim.model, distortion=sim.cfg.camera.distortion)
         self.conditions = SceneConditions(sim.model)
         n = len(sim.world.names)
         self._latest = np.full((n, 3), np.nan)
@@ -81,15 +81,17 @@ class CameraChain:
         self._spare = mujoco.MjData(sim.model)     # the waiting frame's copy of the state
 
     def start(self, rng: np.random.Generator) -> None:
-        """Calibrate on the nominal camera, then draw this episode's conditions."""
+        """Calibrate on the nominal camera (its lens as this episode's draw misjudges it), then
+        apply this episode's conditions."""
         sim = self.sim
         self._waiting = None
         self.conditions.restore()
         mujoco.mj_forward(sim.model, sim.data)
-        self.tracker = Tracker.for_world(sim.world, sim.data)
         self.rng = rng
         shape = (self.renderer.height, self.renderer.width, 3)
         self.episode = draw_episode(self.noise, rng, shape)
+        self.tracker = Tracker.for_world(
+            sim.world, sim.data, self.episode.calibrated(sim.cfg.camera.distortion))
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
         self._latest[:] = np.nan

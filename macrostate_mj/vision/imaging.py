@@ -1,14 +1,15 @@
 """Imaging noise between the renderer and the tracker: the camera chain of the real testbed.
 
 Domain randomization per episode (light intensity and direction, a small camera-pose error
-the tracker's calibration does not know about, JPEG quality, motion-blur direction), and per
-frame (sensor noise, blur, compression, dropped frames). Every draw comes from the Generator
-passed in. Defaults aim at the real camera: sub-pixel to one-pixel tracking error, rare drops.
+the tracker's calibration does not know about, an error in its calibrated lens distortion,
+JPEG quality, motion-blur direction), and per frame (sensor noise, blur, compression, dropped
+frames). Every draw comes from the Generator passed in. Defaults aim at the real camera:
+sub-pixel to one-pixel tracking error, rare drops.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import mujoco
@@ -26,6 +27,7 @@ class NoiseConfig:
     blur_px: float = 1.5                               # max motion-blur length (px)
     psf_sigma_px: float = 0.4                          # lens point-spread function (Gaussian)
     drop_prob: float = 0.003                           # whole frames lost
+    distortion_error: float = 0.0                      # calibrated k1, k2: relative error sigma
 
     @classmethod
     def none(cls) -> NoiseConfig:
@@ -45,6 +47,15 @@ class EpisodeImaging:
     blur_kernel: np.ndarray | None    # this episode's motion blur
     psf: np.ndarray | None            # the lens's separable point-spread function
     sensor_field: SensorField | None  # FIELD_MARGIN px larger than the frame
+    # The tracker's calibrated lens: k1, k2 of the scenario's lens times these (1 + error).
+    distortion_scale: tuple[float, float] = (1.0, 1.0)
+
+    def calibrated(self, distortion: tuple[float, float, float, float]
+                   ) -> tuple[float, float, float, float]:
+        """The tracker's belief about the lens `distortion`: as the camera-pose error, a
+        calibration off by this episode's draw."""
+        k1, k2, p1, p2 = distortion
+        return (k1 * self.distortion_scale[0], k2 * self.distortion_scale[1], p1, p2)
 
 
 FIELD_MARGIN = 48
@@ -90,9 +101,13 @@ def draw_episode(cfg: NoiseConfig, rng: np.random.Generator,
         h, w, c = frame_shape
         field = SensorField.of(np.round(rng.normal(
             0.0, cfg.sensor_sigma, (h + FIELD_MARGIN, w + FIELD_MARGIN, c))).astype(np.int16))
-    return EpisodeImaging(float(rng.uniform(*cfg.light_scale)), light_dir,
-                          cfg.cam_shift_m * rng.standard_normal(3), quat,
-                          int(rng.integers(lo, hi + 1)), kernel, lens_psf(cfg.psf_sigma_px), field)
+    ep = EpisodeImaging(float(rng.uniform(*cfg.light_scale)), light_dir,
+                        cfg.cam_shift_m * rng.standard_normal(3), quat,
+                        int(rng.integers(lo, hi + 1)), kernel, lens_psf(cfg.psf_sigma_px), field)
+    if cfg.distortion_error > 0:      # drawn last and only then: error-free streams unchanged
+        scale = 1 + cfg.distortion_error * rng.standard_normal(2)
+        ep = replace(ep, distortion_scale=(float(scale[0]), float(scale[1])))
+    return ep
 
 
 def _line_kernel(length: float, angle: float) -> np.ndarray:

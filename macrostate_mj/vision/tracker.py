@@ -51,10 +51,13 @@ class Tracker:
     min_fill: float = 0.4
 
     @classmethod
-    def for_world(cls, world: World, data: mujoco.MjData) -> Tracker:
-        """The tracker of a compiled chain world: its overhead camera as calibrated in `data`,
-        its marker colours, plane and area."""
-        camera = PinholeCamera.from_model(world.model, data)
+    def for_world(cls, world: World, data: mujoco.MjData,
+                  distortion: tuple[float, float, float, float] | None = None) -> Tracker:
+        """The tracker of a compiled chain world: its overhead camera as calibrated in `data`
+        with the lens `distortion` (default: the scenario's, exactly), its marker colours,
+        plane and area."""
+        lens = world.scenario.camera.distortion if distortion is None else distortion
+        camera = PinholeCamera.from_model(world.model, data, distortion=lens)
         area = marker_area(world.spec, f"{world.names[0]}/marker")
         return cls(camera, world.colours, world.marker_height, area)
 
