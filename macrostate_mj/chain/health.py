@@ -1,4 +1,5 @@
-"""Physics health of a chain world: every robot finite, upright, on the floor, inside the walls.
+"""Physics health of a chain world: every robot finite, upright, on the floor, inside the walls
+and outside the obstacles.
 
 `PhysicsMonitor.check(data)` is cheap (a few numpy reductions over the robots' bodies), so the
 simulation loop calls it after every stretch of physics steps; it also keeps the run's worst
@@ -24,6 +25,7 @@ class Fault(enum.Enum):
     TIP = enum.auto()        # tilted past `max_tilt_deg`
     LIFT = enum.auto()       # body above its rest height by more than `max_lift` (climbing)
     ESCAPE = enum.auto()     # centre outside the walls
+    INTRUDE = enum.auto()    # centre inside an obstacle (through it: contacts failed)
 
 
 @dataclass(frozen=True)
@@ -40,13 +42,15 @@ class PhysicsFault:
     fault: Fault
     robot: str
     time: float
-    value: float                     # tilt (deg), lift (mm), distance outside (mm); 0 for NaN
+    value: float                     # tilt (deg), lift (mm), distance outside or in (mm);
+    #                                  0 for NaN
 
     def describe(self) -> str:
         what = {Fault.NAN: "has a NaN state",
                 Fault.TIP: f"tipped {self.value:.0f} deg",
                 Fault.LIFT: f"lifted {self.value:.1f} mm off the floor (climbing)",
-                Fault.ESCAPE: f"left the arena by {self.value:.0f} mm"}[self.fault]
+                Fault.ESCAPE: f"left the arena by {self.value:.0f} mm",
+                Fault.INTRUDE: f"is {self.value:.0f} mm inside an obstacle"}[self.fault]
         return f"robot {self.robot} {what} at t={self.time:.3f} s"
 
 
@@ -85,6 +89,7 @@ class PhysicsMonitor:
         self.body = world.body
         self.rest_z = model.qpos0[world.qpos_adr + 2].copy()
         self.half = np.array(world.scenario.arena) / 2
+        self.obstacles = world.scenario.obstacles
         self.min_up = float(np.cos(np.radians(self.limits.max_tilt_deg)))
         self.stats = HealthStats()
         # MuJoCo resets a diverged state itself (to qpos0, with a warning): that is a NaN too.
@@ -97,7 +102,7 @@ class PhysicsMonitor:
         self.stats = HealthStats()
 
     def check(self, data: mujoco.MjData, t: float | None = None) -> PhysicsFault | None:
-        """The first fault of this state (NaN, tip, lift, escape) at time `t` (default
+        """The first fault of this state (NaN, tip, lift, escape, intrusion) at time `t` (default
         `data.time`, which MuJoCo's own reset of a diverged state sets back to 0)."""
         t = float(data.time) if t is None else t
         pos = data.xpos[self.body]
@@ -128,6 +133,11 @@ class PhysicsMonitor:
         if out.max() > 0:
             i = int(np.argmax(out))
             return PhysicsFault(Fault.ESCAPE, self.names[i], t, float(out[i]) * 1000)
+        for ob in self.obstacles:
+            depth = -ob.distance(pos[:, :2])[0]
+            if depth.max() > 0:
+                i = int(np.argmax(depth))
+                return PhysicsFault(Fault.INTRUDE, self.names[i], t, float(depth[i]) * 1000)
         return None
 
     def record_warnings(self, data: mujoco.MjData) -> None:

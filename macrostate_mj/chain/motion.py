@@ -8,11 +8,14 @@ metres in the world frame, headings radians CCW from +x.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from macrostate_mj.core.angles import wrap_angle
+
+if TYPE_CHECKING:
+    from macrostate_mj.chain.scene import Obstacle
 
 
 def head_velocity(p: np.ndarray, target: np.ndarray, gain: float = 1.0) -> np.ndarray:
@@ -101,6 +104,22 @@ def avoidance_velocities(positions: np.ndarray, radius: float, gain: float) -> n
     np.fill_diagonal(dist, np.inf)
     push = np.clip((radius - dist) / radius, 0.0, None) * gain
     return np.sum(push[:, :, None] * diff / dist[:, :, None], axis=1)
+
+
+def steer_around(positions: np.ndarray, vel: np.ndarray, obstacles: tuple[Obstacle, ...],
+                 radius: float, gain: float) -> np.ndarray:
+    """Reference velocities (n, 2) bent around obstacles nearer than `radius` to a robot's
+    centre: the part heading into the obstacle fades out and a repulsion grows (linearly to
+    `gain` m/s at its outline), as for robots. What is left slides along the obstacle, so a
+    chain drawn round a corner follows its Head around instead of pushing into it."""
+    p = np.asarray(positions, float)
+    out = np.array(vel, float)
+    for ob in obstacles:
+        dist, normal = ob.distance(p)
+        w = np.clip((radius - dist) / radius, 0.0, 1.0)[:, None]
+        into = np.minimum(np.sum(out * normal, axis=1), 0.0)[:, None]
+        out += w * (gain * normal - into * normal)
+    return out
 
 
 def path_blocked(positions: np.ndarray, i: int, heading: float, radius: float,

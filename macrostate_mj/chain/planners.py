@@ -13,6 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
+from macrostate_mj.chain.scene import Obstacle, blocked
 from macrostate_mj.core.angles import wrap_angle
 
 # Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tighter
@@ -71,7 +72,8 @@ class GridPlanner:
     """Psi: random waypoints ahead of the Head; memory M = [latest cell, earlier cell].
 
     A waypoint not reached within `timeout` seconds (blocked by the Head's own chain, whose
-    robots it steers around) counts as reached, so the team never deadlocks."""
+    robots it steers around) counts as reached, so the team never deadlocks. Cells whose
+    centre lies within `margin` of an obstacle are never chosen, nor points that do."""
 
     grid: Grid
     margin: float
@@ -81,6 +83,7 @@ class GridPlanner:
     target: np.ndarray | None = None
     twist: tuple[float, float] | None = None
     _drawn_at: float = 0.0
+    obstacles: tuple[Obstacle, ...] = ()
 
     def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
         # Pretend the Head came from the cell behind it, so its first waypoint lies ahead.
@@ -97,17 +100,41 @@ class GridPlanner:
 
     def _draw(self, rng: np.random.Generator) -> np.ndarray:
         cells = psi_candidates(self.grid, *self.memory)
-        c = cells[rng.integers(len(cells))]
-        p = self.grid.cell_origin(c) + rng.random(2) * self.grid.cell_size
         half = np.array(self.grid.arena) / 2 - self.margin
-        return np.clip(p, -half, half)
+        if self.obstacles:      # (without obstacles the draws are exactly as before)
+            cells = _free_cells(self.grid, cells, half, self.obstacles, self.margin) or \
+                _free_cells(self.grid, self.grid.neighbours(self.memory[0]), half,
+                            self.obstacles, self.margin) or \
+                _free_cells(self.grid, range(int(np.prod(self.grid.shape))), half,
+                            self.obstacles, self.margin) or cells
+        c = cells[rng.integers(len(cells))]
+        p = np.clip(self.grid.cell_origin(c) + rng.random(2) * self.grid.cell_size, -half, half)
+        for _ in range(20 if self.obstacles else 0):
+            if not blocked(self.obstacles, p, self.margin)[0]:
+                return p
+            p = np.clip(self.grid.cell_origin(c) + rng.random(2) * self.grid.cell_size,
+                        -half, half)
+        return np.clip(self.grid.centre(c), -half, half) if self.obstacles else p
+
+
+def _free_cells(grid: Grid, cells: object, half: np.ndarray, obstacles: tuple[Obstacle, ...],
+                margin: float) -> list[int]:
+    """Those of `cells` whose (margin-clipped) centre is farther than `margin` from every
+    obstacle."""
+    cells = list(cells)
+    if not cells:
+        return []
+    centres = np.clip([grid.centre(c) for c in cells], -half, half)
+    return [c for c, hit in zip(cells, blocked(obstacles, centres, margin), strict=True)
+            if not hit]
 
 
 @dataclass
 class CellPlanner:
     """Webots study: whenever the Head enters a new cell, aim at the centre of a random
     neighbouring cell (not the one just left, so the Head keeps moving on); redraw after
-    `timeout` seconds in one cell (a Head blocked by its own chain)."""
+    `timeout` seconds in one cell (a Head blocked by its own chain). Cells whose centre lies
+    within `margin` of an obstacle are never chosen."""
 
     grid: Grid
     margin: float
@@ -117,6 +144,7 @@ class CellPlanner:
     target: np.ndarray | None = None
     twist: tuple[float, float] | None = None
     _drawn_at: float = 0.0
+    obstacles: tuple[Obstacle, ...] = ()
 
     def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
         self.cell, self.previous = self.grid.cell_of(head_pose), -1
@@ -132,6 +160,14 @@ class CellPlanner:
         half = np.array(self.grid.arena) / 2 - self.margin
         cells = [i for i in self.grid.neighbours(self.cell) if i != self.previous
                  and np.all(np.abs(self.grid.centre(i)) <= half)]
+        if self.obstacles:      # boxed in: back the way it came, or anywhere free
+            cells = _free_cells(self.grid, cells, half, self.obstacles, self.margin) or \
+                _free_cells(self.grid, [i for i in self.grid.neighbours(self.cell)
+                                        if np.all(np.abs(self.grid.centre(i)) <= half)],
+                            half, self.obstacles, self.margin) or \
+                _free_cells(self.grid, [i for i in range(int(np.prod(self.grid.shape)))
+                                        if np.all(np.abs(self.grid.centre(i)) <= half)],
+                            half, self.obstacles, self.margin) or cells
         return self.grid.centre(cells[rng.integers(len(cells))])
 
 
@@ -139,7 +175,8 @@ class CellPlanner:
 class PresetPlanner:
     """Robotarium Head: hold a preset (v, omega) for `hold` seconds, then draw another. Near a
     wall the Head turns on the spot at `wall_turn` rad/s until it faces within 60 degrees of
-    the arena centre, so it never grinds along a wall."""
+    the arena centre, so it never grinds along a wall; within `margin` of an obstacle, alike
+    until it faces within 60 degrees of straight away from it."""
 
     arena: tuple[float, float]
     margin: float
@@ -149,6 +186,7 @@ class PresetPlanner:
     target: np.ndarray | None = None
     twist: tuple[float, float] | None = None
     _next_switch: float = 0.0
+    obstacles: tuple[Obstacle, ...] = ()
 
     def reset(self, head_pose: np.ndarray, rng: np.random.Generator) -> None:
         self._next_switch = 0.0
@@ -165,6 +203,14 @@ class PresetPlanner:
                 self.twist = (0.0, float(np.sign(to_centre) * self.wall_turn))
             else:
                 self.twist = self.presets[0]
+        for ob in self.obstacles:
+            dist, normal = ob.distance(head_pose[:2])
+            if dist[0] < self.margin:
+                away = wrap_angle(np.arctan2(normal[0, 1], normal[0, 0]) - head_pose[2])
+                if abs(away) > np.radians(60):
+                    self.twist = (0.0, float(np.sign(away) * self.wall_turn))
+                else:
+                    self.twist = self.presets[0]
 
 
 @dataclass
@@ -188,7 +234,8 @@ Planner = GridPlanner | CellPlanner | PresetPlanner | FixedWaypoint
 class PlannerSpec(Protocol):
     """What a scenario names as its Head planner: builds a fresh planner for one world."""
 
-    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
+              obstacles: tuple[Obstacle, ...] = ()) -> Planner:
         ...
 
 
@@ -198,8 +245,9 @@ class PsiGrid:
 
     grid: tuple[int, int]
 
-    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
-        return GridPlanner(Grid(arena, self.grid), margin, reach_radius)
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
+              obstacles: tuple[Obstacle, ...] = ()) -> Planner:
+        return GridPlanner(Grid(arena, self.grid), margin, reach_radius, obstacles=obstacles)
 
 
 @dataclass(frozen=True)
@@ -208,8 +256,9 @@ class CellWalk:
 
     grid: tuple[int, int]
 
-    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
-        return CellPlanner(Grid(arena, self.grid), margin)
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
+              obstacles: tuple[Obstacle, ...] = ()) -> Planner:
+        return CellPlanner(Grid(arena, self.grid), margin, obstacles=obstacles)
 
 
 @dataclass(frozen=True)
@@ -218,5 +267,6 @@ class PresetTwists:
 
     presets: tuple[tuple[float, float], ...] = ROBOTARIUM_HEAD_PRESETS
 
-    def build(self, arena: tuple[float, float], margin: float, reach_radius: float) -> Planner:
-        return PresetPlanner(arena, margin, presets=self.presets)
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
+              obstacles: tuple[Obstacle, ...] = ()) -> Planner:
+        return PresetPlanner(arena, margin, presets=self.presets, obstacles=obstacles)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 from macrostate_mj.chain.motion import FollowerRule
 from macrostate_mj.chain.planners import PlannerSpec
-from macrostate_mj.chain.scene import Camera, Look, Physics, Walls, check_camera
+from macrostate_mj.chain.scene import Camera, Look, Obstacle, Physics, Walls, check_camera
 from macrostate_mj.core.errors import UserError
 
 
@@ -54,12 +54,17 @@ class ScenarioConfig:
     #                                 imaging chain makes (sigma, m): see `CameraChain`
     walls: Walls | None = Walls()   # None: an open floor
     look: Look = Look()             # colours and lighting
+    obstacles: tuple[Obstacle, ...] = ()    # static boxes and cylinders on the floor
 
     def __post_init__(self) -> None:
         """Refuse, when the scenario is made, rates that are not whole physics steps and a
         camera that does not see the whole arena."""
         check_camera(self.name, self.arena, self.camera)
         self._check_numbers()
+        for i, ob in enumerate(self.obstacles):
+            problem = ob.problem(self.arena)
+            if problem is not None:
+                raise UserError(f"{self.name}: arena.obstacles[{i}] {problem}")
         for what, hz in (("command", self.command_hz), ("log", self.log_hz)):
             if not hz > 0:
                 raise UserError(f"{self.name}: the {what} rate must be positive, got {hz:g} Hz")

@@ -34,7 +34,7 @@ BUILTIN = Path(str(files("macrostate_mj") / "assets" / "scenarios"))
 # read by `_special`.
 LAYOUT: dict[str, dict[str, str]] = {
     "": {"name": "name"},
-    "arena": {"size": "arena", "margin": "wall_margin"},
+    "arena": {"size": "arena", "margin": "wall_margin", "obstacles": "obstacles"},
     "robot": {"model": "robot"},
     "chain": {"spacing": "spacing", "head_speed": "head_speed", "chain_speed": "chain_speed",
               "k_f": "k_f", "k_t": "k_t", "k_omega": "k_omega", "allow_reverse": "allow_reverse",
@@ -203,7 +203,7 @@ def _typed(value: Any, hint: Any, key: str, source: str) -> Any:
         if not isinstance(value, list):
             raise UserError(f"{source}: {key} must be a list, got {value!r}")
         if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_typed(v, args[0], key, source) for v in value)
+            return tuple(_typed(v, args[0], f"{key}[{i}]", source) for i, v in enumerate(value))
         if len(value) != len(args):
             raise UserError(f"{source}: {key} must have {len(args)} values, got {len(value)}")
         return tuple(_typed(v, a, key, source) for v, a in zip(value, args, strict=True))
@@ -283,4 +283,6 @@ def _toml(value: Any) -> str:
         return repr(value)
     if isinstance(value, tuple | list):
         return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if is_dataclass(value) and not isinstance(value, type):     # an inline table (obstacles)
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in _fields(value).items()) + "}"
     raise TypeError(f"no TOML form for {value!r}")

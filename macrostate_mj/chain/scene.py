@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 
 from macrostate_mj.core.errors import UserError
 
@@ -80,6 +81,87 @@ class Walls:
     thickness: float = 0.02             # m
 
 
+# How many sizes each obstacle shape takes: its footprint's full extents, then optionally height.
+OBSTACLE_SIZES = {"box": (2, 3), "cylinder": (1, 2)}
+OBSTACLE_HEIGHT = Walls().height        # m, an obstacle's height when its size leaves it out
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A static box or cylinder standing on the floor, touched by robots like a wall.
+
+    Sizes are full extents as a user measures them (not MuJoCo's half-sizes): a box's
+    `[x, y]` or `[x, y, height]`, a cylinder's `[diameter]` or `[diameter, height]`; boxes are
+    axis-aligned. `pos` is the footprint's centre (m, world frame)."""
+
+    shape: str
+    pos: tuple[float, float]
+    size: tuple[float, ...]
+
+    def problem(self, arena: tuple[float, float]) -> str | None:
+        """What is wrong with it in an `arena`-sized floor, or None (the scenario words it)."""
+        if self.shape not in OBSTACLE_SIZES:
+            return f"shape must be one of {', '.join(OBSTACLE_SIZES)}, got {self.shape!r}"
+        counts = OBSTACLE_SIZES[self.shape]
+        if len(self.size) not in counts:
+            what = "[x, y] or [x, y, height]" if self.shape == "box" else \
+                "[diameter] or [diameter, height]"
+            return f"a {self.shape}'s size is {what} (full extents, m), got {list(self.size)}"
+        if not all(math.isfinite(v) and v > 0 for v in self.size):
+            return f"sizes must be positive finite numbers, got {list(self.size)}"
+        if not all(math.isfinite(v) for v in self.pos):
+            return f"pos must be finite, got {list(self.pos)}"
+        half = self.half_extents
+        out = max(abs(self.pos[k]) + half[k] - arena[k] / 2 for k in range(2))
+        if out > 1e-9:
+            return (f"lies {out * 1000:.0f} mm outside the {arena[0]:g} x {arena[1]:g} m arena; "
+                    "move it inside")
+        return None
+
+    @property
+    def height(self) -> float:
+        n = 2 if self.shape == "box" else 1
+        return float(self.size[n]) if len(self.size) > n else OBSTACLE_HEIGHT
+
+    @property
+    def half_extents(self) -> tuple[float, float]:
+        """Half the footprint's bounding box (m)."""
+        if self.shape == "box":
+            return self.size[0] / 2, self.size[1] / 2
+        return self.size[0] / 2, self.size[0] / 2
+
+    def distance(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance (k,) from points (k, 2) to the footprint's outline (negative
+        inside) and the unit outward direction (k, 2) there: what repulsion, health checks and
+        the planner's clearance need."""
+        d = np.atleast_2d(np.asarray(xy, float)) - np.asarray(self.pos, float)
+        if self.shape == "cylinder":
+            r = np.linalg.norm(d, axis=1)
+            safe = np.where(r > 1e-12, r, 1.0)[:, None]
+            normal = np.where(r[:, None] > 1e-12, d / safe, [1.0, 0.0])
+            return r - self.size[0] / 2, normal
+        q = np.abs(d) - np.asarray(self.half_extents)
+        outside = np.maximum(q, 0.0)
+        dist_out = np.linalg.norm(outside, axis=1)
+        inside = np.minimum(q.max(axis=1), 0.0)
+        sign = np.where(d >= 0, 1.0, -1.0)
+        normal = np.where(dist_out[:, None] > 0, outside * sign / np.maximum(dist_out, 1e-12)
+                          [:, None], 0.0)
+        face = np.argmax(q, axis=1)            # inside: the nearest face's normal
+        rows = np.flatnonzero(dist_out == 0)
+        normal[rows, face[rows]] = sign[rows, face[rows]]
+        return dist_out + inside, normal
+
+
+def blocked(obstacles: tuple[Obstacle, ...], xy: np.ndarray, clearance: float) -> np.ndarray:
+    """(k,) which points (k, 2) lie within `clearance` of any obstacle (or inside one)."""
+    xy = np.atleast_2d(np.asarray(xy, float))
+    hit = np.zeros(len(xy), bool)
+    for ob in obstacles:
+        hit |= ob.distance(xy)[0] < clearance
+    return hit
+
+
 CORNERS = {"north-east": (1, 1), "north-west": (-1, 1), "south-west": (-1, -1),
            "south-east": (1, -1)}
 
@@ -109,10 +191,11 @@ def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
 
 
 def build_scene(name: str, arena: tuple[float, float], walls: Walls | None, camera: Camera,
-                look: Look, physics: Physics) -> mujoco.MjSpec:
+                look: Look, physics: Physics, obstacles: tuple[Obstacle, ...] = ()
+                ) -> mujoco.MjSpec:
     """The arena as an `MjSpec`: floor `floor` (material `floor`), walls `wall_east/west/north/
-    south` (default class `wall`), light `sun`, camera `overhead` and an offscreen buffer of the
-    camera's resolution."""
+    south` and obstacles `obstacle_<i>` (default class `wall`: robots touch them alike), light
+    `sun`, camera `overhead` and an offscreen buffer of the camera's resolution."""
     check_camera(name, arena, camera)
     spec = mujoco.MjSpec()
     spec.modelname = name
@@ -159,6 +242,14 @@ def build_scene(name: str, arena: tuple[float, float], walls: Walls | None, came
                                 ("north", [0, hy + t, z], [hx + 2 * t, t, z]),
                                 ("south", [0, -hy - t, z], [hx + 2 * t, t, z])):
             world.add_geom(spec.find_default("wall"), name=f"wall_{side}", pos=pos, size=size)
+    for i, ob in enumerate(obstacles):
+        z = ob.height / 2
+        if ob.shape == "box":
+            kind, size = mujoco.mjtGeom.mjGEOM_BOX, [*ob.half_extents, z]
+        else:
+            kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [ob.size[0] / 2, z, 0.0]
+        world.add_geom(spec.find_default("wall"), name=f"obstacle_{i}", type=kind,
+                       pos=[*ob.pos, z], size=size)
     world.add_camera(name="overhead", pos=[0, 0, camera.height], fovy=camera.fovy_for(arena),
                      resolution=list(camera.resolution))
     return spec

@@ -29,6 +29,7 @@ from macrostate_mj.chain.motion import (
     avoidance_velocities,
     chain_velocities,
     path_blocked,
+    steer_around,
     unicycle_from_holonomic,
     wheel_speeds,
 )
@@ -159,7 +160,7 @@ class ChainSim:
         # `data`: someone else's MjData of this model (dm_control's Physics, in `env`)
         self.data = mujoco.MjData(self.model) if data is None else data
         self.planner = planner or self.cfg.planner.build(self.cfg.arena, self.cfg.wall_margin,
-                                                         self.cfg.reach_radius)
+                                                         self.cfg.reach_radius, self.cfg.obstacles)
         self.k_t = self.cfg.k_t if k_t is None else k_t
         self.rng = np.random.default_rng(0)
         self.log_phase = 0.0
@@ -215,6 +216,8 @@ class ChainSim:
         vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
                                followers=cfg.followers)
         vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
+        if cfg.obstacles:
+            vel = steer_around(poses[:, :2], vel, cfg.obstacles, cfg.avoid_radius, cfg.avoid_gain)
         # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
         # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
         gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])

@@ -139,6 +139,7 @@ def summary(runs: list[SoakRun], workers: int) -> dict[str, float | int | str]:
     return {
         "runs": len(runs), "tips": counts[Fault.TIP], "nans": counts[Fault.NAN],
         "escapes": counts[Fault.ESCAPE], "climbs": counts[Fault.LIFT],
+        "intrusions": counts[Fault.INTRUDE],
         "max_penetration_mm": max(r.max_penetration_mm for r in runs),
         "min_upright": min(r.min_upright for r in runs),
         "max_tilt_deg": float(np.degrees(np.arccos(min(r.min_upright for r in runs)))),

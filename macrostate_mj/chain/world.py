@@ -18,7 +18,7 @@ import numpy as np
 from macrostate_mj.chain.markers import marker_colours
 from macrostate_mj.chain.robot import load_robot
 from macrostate_mj.chain.scenario import ScenarioConfig
-from macrostate_mj.chain.scene import build_scene
+from macrostate_mj.chain.scene import blocked, build_scene
 from macrostate_mj.core.errors import UserError
 
 
@@ -28,10 +28,9 @@ def robot_names(n: int) -> list[str]:
 
 
 def chain_capacity(cfg: ScenarioConfig) -> int:
-    """How many robots a snake layout at spacing d fits inside the walls' margin."""
-    span = np.array(cfg.arena) - 2 * cfg.wall_margin
-    per_row, rows = (np.floor(span / cfg.spacing).astype(int) + 1)
-    return int(per_row * rows)
+    """How many robots a snake layout at spacing d fits inside the walls' margin, clear of
+    the obstacles by the same margin."""
+    return len(_snake_slots(cfg))
 
 
 @functools.cache
@@ -71,20 +70,39 @@ def place_chain(cfg: ScenarioConfig, n: int, rng: np.random.Generator) -> np.nda
         phi = rng.uniform(-np.pi, np.pi)
         head = rng.uniform(-half, half)
         xy = head - back * np.array([np.cos(phi), np.sin(phi)])
-        if np.all(np.abs(xy) <= half):
+        if np.all(np.abs(xy) <= half) and not _crosses_obstacle(cfg, xy):
             return np.column_stack([xy[2:], np.full(n, phi)])
     return _snake(cfg, n)
 
 
-def _snake(cfg: ScenarioConfig, n: int) -> np.ndarray:
+def _crosses_obstacle(cfg: ScenarioConfig, xy: np.ndarray) -> bool:
+    """Does the straight chain through `xy` (its robots and the lines between them) pass
+    within the wall margin of an obstacle? (Without obstacles: no, and no draws change.)"""
+    if not cfg.obstacles:
+        return False
+    s = np.linspace(0.0, 1.0, 5)[:, None, None]
+    line = (xy[:-1] + s * (xy[1:] - xy[:-1])).reshape(-1, 2)
+    return bool(blocked(cfg.obstacles, line, cfg.wall_margin).any())
+
+
+def _snake_slots(cfg: ScenarioConfig) -> np.ndarray:
+    """The snake layout's free places (k, 2) in laying order: rows at spacing d from the
+    arena's north-east margin corner, every other row reversed, those near an obstacle left
+    out."""
     half = np.array(cfg.arena) / 2 - cfg.wall_margin
-    per_row = int(np.floor(2 * half[0] / cfg.spacing)) + 1
+    span = np.array(cfg.arena) - 2 * cfg.wall_margin
+    per_row, rows = (np.floor(span / cfg.spacing).astype(int) + 1)
     xy = []
-    for k in range(n):
+    for k in range(per_row * rows):
         row, col = divmod(k, per_row)
         col = col if row % 2 == 0 else per_row - 1 - col
         xy.append([half[0] - col * cfg.spacing, half[1] - row * cfg.spacing])
     xy = np.array(xy)
+    return xy[~blocked(cfg.obstacles, xy, cfg.wall_margin)] if cfg.obstacles else xy
+
+
+def _snake(cfg: ScenarioConfig, n: int) -> np.ndarray:
+    xy = _snake_slots(cfg)[:n]
     ahead = np.vstack([xy[0] + [cfg.spacing, 0], xy[:-1]])
     theta = np.arctan2(ahead[:, 1] - xy[:, 1], ahead[:, 0] - xy[:, 0])
     return np.column_stack([xy, theta])
@@ -128,7 +146,8 @@ def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) ->
         start = place_chain(cfg, n, np.random.default_rng(0))
     names = robot_names(n)
     colours = marker_colours(n)
-    spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics)
+    spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics,
+                       cfg.obstacles)
     spec.copy_during_attach = True
     robot = load_robot(cfg.robot, largest_team=max(n, chain_capacity(cfg))).spec
     for name, colour, pose in zip(names, colours, start, strict=True):

@@ -26,8 +26,10 @@ from macrostate_mj.chain.markers import (
     hue_tolerance,
     marker_hues,
 )
+from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
+from macrostate_mj.vision.occlusion import occluded
 
 
 @dataclass(frozen=True)
@@ -49,6 +51,7 @@ class Tracker:
     min_saturation: int = MIN_SATURATION     # of 255 (`chain.markers`: the one colour rule)
     min_value: int = MIN_VALUE
     min_fill: float = 0.4
+    occluders: tuple[Obstacle, ...] = ()     # obstacles that can hide a marker: it is missed
 
     @classmethod
     def for_world(cls, world: World, data: mujoco.MjData,
@@ -59,7 +62,8 @@ class Tracker:
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
         area = marker_area(world.spec, f"{world.names[0]}/marker")
-        return cls(camera, world.colours, world.marker_height, area)
+        return cls(camera, world.colours, world.marker_height, area,
+                   occluders=world.scenario.obstacles)
 
     def __post_init__(self) -> None:
         self._hues = marker_hues(self.colours)
@@ -131,6 +135,11 @@ class Tracker:
             tip = self.camera.pixel_to_world(uv[ok] + 10 * axis[ok], self.marker_height)
             heading = np.arctan2(tip[:, 1] - xy[:, 1], tip[:, 0] - xy[:, 0])
             poses[ok] = np.column_stack([xy, heading])
+        if self.occluders and detected.any():
+            hidden = occluded(poses[:, :2], self.marker_height, self.camera.position,
+                              self.occluders, float(np.sqrt(self.marker_area)))
+            poses[hidden] = np.nan
+            detected &= ~hidden
         return Detections(poses, detected)
 
 

@@ -22,6 +22,7 @@ from macrostate_mj.app.cli.params import (
 
 COLUMNS = [("runs", "runs", "d"), ("tips", "tips", "d"), ("nans", "NaNs", "d"),
            ("escapes", "escapes", "d"), ("climbs", "climbs", "d"),
+           ("intrusions", "intrusions", "d"),
            ("max_penetration_mm", "max pen. mm", ".2f"), ("min_upright", "min upright", ".4f"),
            ("max_lift_mm", "max lift mm", ".2f"), ("warnings", "warnings", "d"),
            ("steps_per_s_per_worker", "steps/s/worker", ".0f")]
@@ -43,7 +44,8 @@ def soak(
     as_json: bool = Switch(False, "Print the summary as one JSON line.", "--json/--table"),
     overwrite: bool = Switch(False, "Replace an existing soak.json."),
 ) -> None:
-    """Run many seeds and count tips, NaNs, escapes and climbing; exit 1 if any run faulted."""
+    """Run many seeds and count tips, NaNs, escapes, climbing and obstacle intrusions; exit 1
+    if any run faulted."""
     from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
     from macrostate_mj.chain.soak import run_records, soak_tasks, summary
     from macrostate_mj.chain.soak import soak as run_soak
