@@ -71,6 +71,8 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "experiment srs": ["--out", str(out)],
         "experiment caging": ["--out", str(out)],
         "experiment list": [],
+        "scenario show": ["lab"],
+        "scenario check": ["lab"],
         "experiment sim2real": ["--real", d, "--out", str(out)],
         "sysid": ["--train", c, "--val", c, "--out", str(out)],
         "ants simulate": ["--out", str(out)],

@@ -127,11 +127,10 @@ def Device() -> Any:  # noqa: N802
                         callback=_checked(check, "choice"))
 
 
-def _scenario() -> Any:
-    """A built-in scenario's name or a scenario file, resolved here, once: the command and
-    every worker it starts get the typed config (a bad file fails while parsing, naming its
-    key)."""
-    from macrostate_mj.chain.scenarios import SCENARIOS
+def _resolve_scenario() -> Callable[[Any], Any]:
+    """A callback resolving a built-in scenario's name or a scenario file, once: the command
+    and every worker it starts get the typed config (a bad file fails while parsing, naming
+    its key)."""
 
     def resolve(value: Any) -> Any:
         from macrostate_mj.chain.scenarios import get_scenario
@@ -145,9 +144,21 @@ def _scenario() -> Any:
             _fail(str(err))
 
     resolve.role = "choice"  # type: ignore[attr-defined]
-    return typer.Option("lab", help="A built-in scenario (one of: "
-                        f"{', '.join(SCENARIOS)}) or a scenario file (.toml; `scenario show "
-                        "lab` prints one to start from).", callback=resolve)
+    return resolve
+
+
+def ScenarioArg() -> Any:  # noqa: N802
+    """A scenario as a command's argument (`scenario show lab`)."""
+    return typer.Argument(..., help="A built-in scenario's name or a scenario file (.toml).",
+                          callback=_resolve_scenario())
+
+
+def _scenario() -> Any:
+    from macrostate_mj.chain.scenarios import SCENARIOS
+
+    return typer.Option("lab", callback=_resolve_scenario(), help="A built-in scenario (one "
+                        f"of: {', '.join(SCENARIOS)}) or a scenario file (.toml; `scenario "
+                        "show lab` prints one to start from).")
 
 
 def _input_file(suffixes: tuple[str, ...]) -> Callable[[Path, str], None]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.cli.params import ScenarioArg
 
 scenario_app = typer.Typer(help="Scenario files: print one resolved, check one.",
                            no_args_is_help=True)
@@ -13,28 +14,26 @@ app.add_typer(scenario_app, name="scenario")
 
 @scenario_app.command("show")
 def scenario_show(
-    scenario: str = typer.Argument(..., help="A built-in scenario's name or a scenario file."),
+    scenario: str = ScenarioArg(),
 ) -> None:
     """Print the scenario resolved (its `extends` merged in) as a scenario file."""
     from macrostate_mj.chain.scenario_file import to_toml
-    from macrostate_mj.chain.scenarios import get_scenario
 
-    typer.echo(to_toml(get_scenario(scenario)), nl=False)
+    typer.echo(to_toml(scenario), nl=False)
 
 
 @scenario_app.command("check")
 def scenario_check(
-    scenario: str = typer.Argument(..., help="A built-in scenario's name or a scenario file."),
+    scenario: str = ScenarioArg(),
 ) -> None:
     """Validate a scenario and print what it builds: arena, chain capacity, px/cm, timestep and
     physics steps per command and log tick."""
     import math
 
     from macrostate_mj.chain.scenario import steps_per_tick
-    from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.chain.world import build_world, chain_capacity, robot_top_speed
 
-    cfg = get_scenario(scenario)
+    cfg = scenario
     capacity = chain_capacity(cfg)
     build_world(cfg, min(capacity, 3))           # the robot file meets its contract
     dt = cfg.physics.timestep

@@ -56,15 +56,16 @@ def soak(
     from macrostate_mj.core.run import Run
 
     tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
+    name = scenario.name
     with contextlib.ExitStack() as stack:
         run = None if out is None else stack.enter_context(
             Run(out, "soak", {"tasks": tasks[0], "seeds": seeds}, first_seed, ["soak.json"],
                 overwrite))
-        bar = stack.enter_context(sim_progress(seeds, f"soak {scenario} {robots} robots",
+        bar = stack.enter_context(sim_progress(seeds, f"soak {name} {robots} robots",
                                                unit="runs"))
         runs = run_soak(tasks, workers, ray, bar, None if out is None
                         else TaskCache(out / "cache"))
-        row = {"scenario": scenario, "robots": robots, "seconds": seconds,
+        row = {"scenario": name, "robots": robots, "seconds": seconds,
                **summary(runs, workers)}
         if run is not None:
             write_json_atomic(out / "soak.json", {"summary": row, "runs": run_records(runs)})
@@ -72,7 +73,7 @@ def soak(
     if as_json:
         print(json.dumps(row), flush=True)
     else:
-        typer.echo(f"{scenario} x {robots} robots, {seconds:g} s each, seeds "
+        typer.echo(f"{name} x {robots} robots, {seconds:g} s each, seeds "
                    f"{first_seed}..{first_seed + seeds - 1}")
         typer.echo("  ".join(f"{head:>{max(len(head), 6)}}" for _, head, _ in COLUMNS))
         typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" for key, head, fmt in COLUMNS))

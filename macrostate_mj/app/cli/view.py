@@ -22,4 +22,4 @@ def view(
     from viz.viewer import view as run_view
 
     reached = run_view(scenario_for(scenario), robots, seed, seconds, speed)
-    typer.echo(f"viewed {reached:.1f} simulated s of {scenario} with {robots} robots")
+    typer.echo(f"viewed {reached:.1f} simulated s of {scenario.name} with {robots} robots")
