@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.app.bench import figure
-from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import build_world
 
@@ -53,7 +53,8 @@ def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int,
     return data
 
 
-def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> list[dict]:
+def bench_sim(scenario: ScenarioRef = "lab", robots: int = 5, seconds: float = 60.0
+              ) -> list[dict]:
     """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
     wheel commands from the same start state: the physics cost alone, same contacts."""
     cfg = get_scenario(scenario)
@@ -73,7 +74,7 @@ def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> 
         replay_bare(world.model, start, ticks, steps)
 
     t_ours, t_bare = _best_of(ours), _best_of(bare)
-    tag = f"{scenario}, {robots} robots, dt={dt}"
+    tag = f"{cfg.name}, {robots} robots, dt={dt}"
     return [
         figure("sim_steps_per_s", steps / t_ours, "steps/s", steps / t_bare,
                limit_name="bare mj_step(nstep) on the same model", config=tag),
@@ -81,7 +82,8 @@ def bench_sim(scenario: str = "lab", robots: int = 5, seconds: float = 60.0) -> 
     ]
 
 
-def bench_render(scenario: str = "lab", robots: int = 5, frames: int = 60) -> list[dict]:
+def bench_render(scenario: ScenarioRef = "lab", robots: int = 5, frames: int = 60
+                 ) -> list[dict]:
     from macrostate_mj.vision.camera import OverheadRenderer
 
     world = build_world(get_scenario(scenario), robots)

@@ -1,12 +1,13 @@
 """`macrostate-mj bench`: speed figures, each a ratio against a limit measured in the same run."""
 
 import importlib
+import inspect
 import json
 
 from rich.console import Console
 
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import Choice, Switch
+from macrostate_mj.app.cli.params import Choice, Count, Scenario, Switch
 
 # name -> "module:function"; each function takes no argument and returns a list of figures made
 # by `macrostate_mj.app.bench.figure` (one schema: name, value, unit, limit, ratio, config).
@@ -29,14 +30,20 @@ def bench(
     only: list[str] = Choice(None, "Suites to run (repeatable); default all.", tuple(SUITES),
                              "--only"),
     as_json: bool = Switch(False, "One JSON object per line, nothing else.", "--json/--table"),
+    scenario: str = Scenario,
+    robots: int = Count(None, "Chain length of the sim and render suites (default: 5)."),
 ) -> None:
-    """Measure our loops against their bare limits (simulation, rendering, tracking, ...)."""
+    """Measure our loops against their bare limits (simulation, rendering, tracking, ...).
+    `--scenario` and `--robots` set the world of the suites that take one (sim, render)."""
     names = only or list(SUITES)
     console, results = Console(stderr=True), Console()   # progress on stderr, figures on stdout
     for name in names:
         module, func = SUITES[name].split(":")
         with console.status(f"bench {name} ..."):
-            figures = getattr(importlib.import_module(module), func)()
+            fn = getattr(importlib.import_module(module), func)
+            given = {"scenario": scenario, "robots": robots}
+            figures = fn(**{k: v for k, v in given.items()
+                            if v is not None and k in inspect.signature(fn).parameters})
         for fig in figures:
             fig = {"suite": name, **fig}
             if as_json:
