@@ -102,10 +102,16 @@ def _path_of(ref: str | Path) -> Path:
 
 
 def _merge(base: dict, over: dict) -> dict:
+    """Tables merge key by key, except a rule table of another `kind` (a planner or follower
+    rule of another kind has other keys): it replaces the inherited one."""
     out = dict(base)
     for key, value in over.items():
-        out[key] = (_merge(out[key], value) if isinstance(value, dict)
-                    and isinstance(out.get(key), dict) else value)
+        inherited = out.get(key)
+        if (isinstance(value, dict) and isinstance(inherited, dict)
+                and value.get("kind", inherited.get("kind")) == inherited.get("kind")):
+            out[key] = _merge(inherited, value)
+        else:
+            out[key] = value
     return out
 
 

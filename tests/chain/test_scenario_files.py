@@ -54,3 +54,13 @@ def test_bad_files_are_one_line_naming_the_key(tmp_path, text, words):
     assert "\n" not in message and isinstance(err.value, ValueError)
     for w in words:
         assert w in message, message
+
+
+def test_a_rule_of_another_kind_replaces_the_inherited_table(tmp_path):
+    path = _write(tmp_path, 'extends = "lab"\n[planner]\nkind = "cell_walk"\ngrid = [6, 4]\n'
+                            '[followers]\nkind = "two_neighbours"\n')
+    cfg = load_scenario(path)
+    assert type(cfg.planner).__name__ == "CellWalk" and cfg.planner.grid == (6, 4)
+    assert type(cfg.followers).__name__ == "TwoNeighbours"
+    twists = _write(tmp_path, 'extends = "lab"\n[planner]\nkind = "preset_twists"\n', "t.toml")
+    assert type(load_scenario(twists).planner).__name__ == "PresetTwists"
