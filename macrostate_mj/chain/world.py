@@ -139,9 +139,7 @@ class World:
 def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) -> World:
     """Compile the scene with n robots; `start` (n, 3) poses are baked in as the default
     qpos (the simulation resets poses itself, this matters for exported MJCF)."""
-    if n < 2:
-        raise UserError(f"a chain needs at least 2 robots (Head and Tail), got {n}; use --robots 2 "
-                        "or more")
+    validate_chain(cfg, n, 1.0)      # from Python too: a team that fits, a drivable Head speed
     if start is None:
         start = place_chain(cfg, n, np.random.default_rng(0))
     names = robot_names(n)

@@ -64,3 +64,18 @@ def test_a_rule_of_another_kind_replaces_the_inherited_table(tmp_path):
     assert type(cfg.followers).__name__ == "TwoNeighbours"
     twists = _write(tmp_path, 'extends = "lab"\n[planner]\nkind = "preset_twists"\n', "t.toml")
     assert type(load_scenario(twists).planner).__name__ == "PresetTwists"
+
+
+def test_the_python_api_refuses_what_the_cli_does():
+    from macrostate_mj.chain.scenarios import get_scenario
+    from macrostate_mj.chain.world import build_world
+
+    lab = get_scenario("lab")
+    for bad, words in (({"k_f": float("nan")}, "k_f"), ({"spacing": -0.2}, "spacing"),
+                       ({"arena": (0.0, 1.0)}, "arena"), ({"command_hz": 0.0}, "command rate")):
+        with pytest.raises(ValueError, match=words):
+            lab.with_overrides(**bad)
+    with pytest.raises(ValueError, match="top speed"):
+        build_world(lab.with_overrides(head_speed=1.0), 3)
+    with pytest.raises(ValueError, match="at least 2"):
+        build_world(lab, 1)
