@@ -4,6 +4,7 @@ path)."""
 from pathlib import Path
 
 import cv2
+import mujoco
 import numpy as np
 
 
@@ -29,3 +30,15 @@ def make_layout(root: Path, stable: int = 10, unstable=(1333, 1999, 5000), subfr
             (root / f"split{s}" / f"{part}.csv").write_text(
                 "".join(f"Stable/{i:05d}\n" for i in ids))
     return root
+
+
+def drive(sim, left: float, right: float, seconds: float) -> np.ndarray:
+    """Hold wheel speeds on robot 0 and return its (x, y, theta) every physics step."""
+    w = sim.world
+    sim.data.ctrl[w.ctrl_left[0]] = left
+    sim.data.ctrl[w.ctrl_right[0]] = right
+    out = []
+    for _ in range(int(round(seconds / sim.model.opt.timestep))):
+        mujoco.mj_step(sim.model, sim.data)
+        out.append(sim.poses[0])
+    return np.array(out)

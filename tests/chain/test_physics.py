@@ -2,9 +2,9 @@
 
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
+from builders import drive
 
 from macrostate_mj.chain.health import Fault, PhysicsError
 from macrostate_mj.chain.motion import body_twist
@@ -29,18 +29,6 @@ def lone_robot(scenario: str = "lab") -> tuple[ChainSim, int]:
     start = [[-half[0] + 0.2, 0.0, 0.0], [half[0] - 0.1, half[1] - 0.1, 0.0]]
     sim.reset(np.random.default_rng(0), start=np.array(start))
     return sim, 0
-
-
-def drive(sim: ChainSim, left: float, right: float, seconds: float) -> np.ndarray:
-    """Hold wheel speeds on robot 0 and return its (x, y, theta) every physics step."""
-    w = sim.world
-    sim.data.ctrl[w.ctrl_left[0]] = left
-    sim.data.ctrl[w.ctrl_right[0]] = right
-    out = []
-    for _ in range(int(round(seconds / sim.model.opt.timestep))):
-        mujoco.mj_step(sim.model, sim.data)
-        out.append(sim.poses[0])
-    return np.array(out)
 
 
 @pytest.mark.parametrize("left,right", [(4.0, 4.0), (2.0, 5.0), (6.0, 3.0), (-3.0, 3.0)])

@@ -5,6 +5,7 @@ and the e-puck drives as its data sheet says and runs a chain without a physics 
 import mujoco
 import numpy as np
 import pytest
+from builders import drive
 
 from macrostate_mj.chain.markers import marker_colours, taken_for_marker
 from macrostate_mj.chain.robot import known_robots, load_robot
@@ -90,18 +91,6 @@ def test_the_colour_rule_is_the_trackers(rgb):
     seen = tracker.track(frame).detected
     expected = taken_for_marker(rgb, marker_colours(3))
     assert list(np.flatnonzero(seen)) == ([] if expected is None else [expected])
-
-
-def drive(sim: ChainSim, left: float, right: float, seconds: float) -> np.ndarray:
-    """Hold robot 0's wheel speeds (rad/s); its (x, y, theta) every physics step."""
-    w = sim.world
-    sim.data.ctrl[w.ctrl_left[0]] = left
-    sim.data.ctrl[w.ctrl_right[0]] = right
-    out = []
-    for _ in range(int(round(seconds / sim.model.opt.timestep))):
-        mujoco.mj_step(sim.model, sim.data)
-        out.append(sim.poses[0])
-    return np.array(out)
 
 
 def test_the_epuck_drives_straight_at_its_top_speed_and_turns_on_the_spot():
