@@ -118,10 +118,12 @@ class EpisodeTask:
 
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec
+        cfg = scenario_for(spec.scenario, spec.head_speed)
+        self._key = task_key(self.stage, self.version, {"spec": spec, "scenario": cfg})
 
     def key(self) -> str:
-        cfg = scenario_for(self.spec.scenario, self.spec.head_speed)
-        return task_key(self.stage, self.version, {"spec": self.spec, "scenario": cfg})
+        """Hashed once: the runner, the resume count and the assembly all ask for it."""
+        return self._key
 
     def compute(self) -> dict[str, bytes]:
         _, table, stats = run_episode(self.spec)

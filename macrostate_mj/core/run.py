@@ -31,7 +31,12 @@ from typing import Any
 
 from macrostate_mj import __version__
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import check_writable_dir, jsonable, write_json_atomic
+from macrostate_mj.core.io import (
+    check_writable_dir,
+    jsonable,
+    write_json_atomic,
+    write_text_atomic,
+)
 
 MANIFEST = "manifest.json"
 RUNNING, FINISHED, FAILED, INTERRUPTED = "running", "finished", "failed", "interrupted"
@@ -137,8 +142,6 @@ class Run:
         if self._previous is None:
             self.path.unlink(missing_ok=True)
         else:
-            from macrostate_mj.core.io import write_text_atomic
-
             write_text_atomic(self.path, self._previous)
 
 
