@@ -28,6 +28,10 @@ WALL_CONTACT = 2                # contype = conaffinity
 FLOOR_GRID = 0.05               # the plane's rendering grid spacing (m); no physical meaning
 # A corner within half a pixel of the image's edge is imaged by the edge pixel.
 EDGE_TOLERANCE_PX = 0.5
+# Widest overhead lens: a camera low enough to need more frames the floor in theory but sees the
+# markers edge-on near its corners (a camera 2 cm up "framed" the arena at 178 deg and tracked
+# nothing).
+MAX_FOVY = 120.0
 
 
 @dataclass(frozen=True)
@@ -177,9 +181,10 @@ def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
         raise UserError(f"{name}: the overhead camera's distortion must be finite numbers, "
                         f"got {list(camera.distortion)}")
     fovy = camera.fovy_for(arena)
-    if not 0 < fovy < 180:
-        raise UserError(f"{name}: the overhead camera's fovy must lie in (0, 180) deg, "
-                        f"got {fovy:g}")
+    if not 0 < fovy <= MAX_FOVY:
+        raise UserError(f"{name}: the overhead camera's fovy is {fovy:.1f} deg (at most "
+                        f"{MAX_FOVY:g}: a wider lens images markers too obliquely to track); "
+                        f"raise camera.height ({camera.height:g} m) or narrow camera.fovy")
     focal = h / 2 / math.tan(math.radians(fovy) / 2)            # px
     for corner, (sx, sy) in CORNERS.items():
         x, y = sx * arena[0] / 2, sy * arena[1] / 2

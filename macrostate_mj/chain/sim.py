@@ -17,6 +17,7 @@ exactly.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -35,6 +36,7 @@ from macrostate_mj.chain.motion import (
 )
 from macrostate_mj.chain.planners import Planner
 from macrostate_mj.chain.world import World, place_chain
+from macrostate_mj.core.errors import UserError
 
 
 class Hook(Protocol):
@@ -262,6 +264,8 @@ class ChainSim:
             progress: Callable[[float], None] | None = None) -> None:
         """Advance `seconds` of simulated time, firing the controller first, then each hook's
         `on_tick` when due (no lifecycle calls: see `episode`)."""
+        if not (isinstance(seconds, int | float) and math.isfinite(seconds) and seconds >= 0):
+            raise UserError(f"seconds must be a finite non-negative number, got {seconds!r}")
         dt = self.model.opt.timestep
         controller = Every(1 / self.cfg.command_hz, lambda s: s.command())
         events = [_Ticks(h, self.time, dt) for h in (controller, *hooks)]

@@ -48,6 +48,8 @@ def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
     if cfg.head_speed > top + 1e-9:
         raise UserError(f"--head-speed {cfg.head_speed:g} m/s is faster than the {cfg.robot}'s "
                         f"top speed {top:.3f} m/s; choose at most {top:.3f}")
+    if isinstance(robots, bool) or not isinstance(robots, int | np.integer):
+        raise UserError(f"--robots (n) must be a whole number, got {robots!r}")
     if robots < 2:
         raise UserError(f"--robots must be at least 2 (a Head and a Tail), got {robots}")
     if robots > chain_capacity(cfg):

@@ -79,3 +79,24 @@ def test_the_python_api_refuses_what_the_cli_does():
         build_world(lab.with_overrides(head_speed=1.0), 3)
     with pytest.raises(ValueError, match="at least 2"):
         build_world(lab, 1)
+
+
+def test_what_an_outsider_tried_is_refused_from_python():
+    """A camera so low that "framing" the arena needs a fisheye, a fractional team, a run of
+    infinite or negative length: each a ValueError naming the value."""
+    import math
+
+    from macrostate_mj.chain.scenarios import get_scenario
+    from macrostate_mj.chain.scene import Camera
+    from macrostate_mj.chain.sim import ChainSim
+    from macrostate_mj.chain.world import build_world
+
+    lab = get_scenario("lab")
+    with pytest.raises(ValueError, match="camera.height"):
+        lab.with_overrides(camera=Camera(0.02, (750, 570)))
+    with pytest.raises(ValueError, match="whole number"):
+        build_world(lab, 2.5)
+    sim = ChainSim(build_world(lab, 3))
+    for bad in (math.inf, math.nan, -1.0):
+        with pytest.raises(ValueError, match="seconds"):
+            sim.run(bad, [])
