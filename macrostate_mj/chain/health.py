@@ -134,7 +134,7 @@ class PhysicsMonitor:
             i = int(np.argmax(out))
             return PhysicsFault(Fault.ESCAPE, self.names[i], t, float(out[i]) * 1000)
         for ob in self.obstacles:
-            depth = -ob.distance(pos[:, :2])[0]
+            depth = ob.depth(pos[:, :2])
             if depth.max() > 0:
                 i = int(np.argmax(depth))
                 return PhysicsFault(Fault.INTRUDE, self.names[i], t, float(depth[i]) * 1000)

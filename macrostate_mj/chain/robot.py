@@ -15,6 +15,7 @@ wheel-axle midpoint at axle height, +x forward, +y left, +z up; metres).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,6 +99,13 @@ def load_robot(robot: str, largest_team: int | None = None) -> Robot:
     if largest_team is not None:
         check_colours(model, path, largest_team)
     return Robot(path.parent.name if path.name == ROBOT_FILE else path.stem, path, spec, model)
+
+
+@functools.cache
+def top_speed(robot: str) -> float:
+    """Top wheel speed x wheel radius of `robot` (m/s), read off its checked MJCF (the one
+    home of a robot's geometry and motor limits)."""
+    return load_robot(robot).top_speed
 
 
 class _Refusal:

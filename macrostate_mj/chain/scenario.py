@@ -14,8 +14,40 @@ from dataclasses import dataclass, replace
 
 from macrostate_mj.chain.motion import FollowerRule
 from macrostate_mj.chain.planners import PlannerSpec
+from macrostate_mj.chain.robot import top_speed
 from macrostate_mj.chain.scene import Camera, Look, Obstacle, Physics, Walls, check_camera
 from macrostate_mj.core.errors import UserError
+
+# A scenario file's tables and keys -> ScenarioConfig's fields: one home, read by the file
+# loader (`chain.scenario_file`), written back by `scenario show`, and used here so that an
+# error names both the field a Python caller set and the key a file sets.
+LAYOUT: dict[str, dict[str, str]] = {
+    "": {"name": "name"},
+    "arena": {"size": "arena", "margin": "wall_margin", "obstacles": "obstacles"},
+    "robot": {"model": "robot"},
+    "chain": {"spacing": "spacing", "head_speed": "head_speed", "chain_speed": "chain_speed",
+              "k_f": "k_f", "k_t": "k_t", "k_omega": "k_omega", "allow_reverse": "allow_reverse",
+              "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
+              "avoid_gain": "avoid_gain"},
+    "rates": {"command_hz": "command_hz", "log_hz": "log_hz"},
+    "noise": {"marker_jitter": "marker_jitter"},
+}
+NESTED = {"camera": "camera", "physics": "physics", "look": "look"}   # table -> dataclass field
+
+
+def file_key(field_name: str) -> str:
+    """The scenario file's key for a config field (`spacing` -> `chain.spacing`)."""
+    for section, keys in LAYOUT.items():
+        for key, name in keys.items():
+            if name == field_name:
+                return f"{section}.{key}" if section else key
+    return next((t for t, f in NESTED.items() if f == field_name), field_name)
+
+
+def named(field_name: str) -> str:
+    """A field as an error message names it: the Python name, then the file's key."""
+    key = file_key(field_name)
+    return field_name if key == field_name else f"{field_name} ({key} in a scenario file)"
 
 
 def steps_per_tick(period: float, dt: float, what: str) -> int:
@@ -59,34 +91,55 @@ class ScenarioConfig:
     def __post_init__(self) -> None:
         """Refuse, when the scenario is made, rates that are not whole physics steps and a
         camera that does not see the whole arena."""
-        check_camera(self.name, self.arena, self.camera)
         self._check_numbers()
+        check_camera(self.name, self.arena, self.camera)
         for i, ob in enumerate(self.obstacles):
             problem = ob.problem(self.arena)
             if problem is not None:
-                raise UserError(f"{self.name}: arena.obstacles[{i}] {problem}")
+                raise UserError(f"{self.name}: arena.obstacles[{i}] {problem}", "obstacles")
         for what, hz in (("command", self.command_hz), ("log", self.log_hz)):
             if not hz > 0:
-                raise UserError(f"{self.name}: the {what} rate must be positive, got {hz:g} Hz")
+                raise UserError(f"{self.name}: the {what} rate {named(f'{what}_hz')} must be "
+                                f"positive, got {hz:g} Hz", f"{what}_hz")
             steps_per_tick(1 / hz, self.physics.timestep, f"{self.name} {what}")
+        self._check_robot()
+
+    def _check_robot(self) -> None:
+        """The robot file meets the contract and can drive the Head's speed (the robot's
+        XML is the one home of its top speed)."""
+        if not isinstance(self.robot, str):
+            raise UserError(f"{self.name}: {named('robot')} must be a robot's name or a "
+                            f"robot.xml path, got {self.robot!r}", "robot")
+        try:
+            top = top_speed(self.robot)
+        except UserError as err:
+            raise UserError(f"{self.name}: {file_key('robot')}: {err}", "robot") from None
+        if self.head_speed > top + 1e-9:
+            raise UserError(f"{self.name}: {named('head_speed')} {self.head_speed:g} m/s is "
+                            f"faster than the {self.robot}'s top speed {top:.3f} m/s; choose "
+                            f"at most {top:.3f}", "head_speed")
 
     def _check_numbers(self) -> None:
         """NaN, infinite, zero or negative sizes, gains and speeds are refused here, so the
         Python API refuses what the CLI does (a chain with k_f = nan never moves)."""
-        named = {"arena": self.arena, "spacing": self.spacing, "k_f": self.k_f, "k_t": self.k_t,
+        sizes = {"arena": self.arena, "spacing": self.spacing, "k_f": self.k_f, "k_t": self.k_t,
                  "k_omega": self.k_omega, "head_speed": self.head_speed,
                  "chain_speed": self.chain_speed, "reach_radius": self.reach_radius,
-                 "avoid_radius": self.avoid_radius, "timestep": self.physics.timestep}
-        for key, value in named.items():
+                 "avoid_radius": self.avoid_radius}
+        for key, value in sizes.items():
             for v in (value if isinstance(value, tuple) else (value,)):
                 if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                    raise UserError(f"{self.name}: {key} must be a positive finite number, "
-                                    f"got {value!r}")
+                    raise UserError(f"{self.name}: {named(key)} must be a positive finite "
+                                    f"number, got {value!r}", key)
+        dt = self.physics.timestep
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
+            raise UserError(f"{self.name}: physics.timestep must be a positive finite number "
+                            f"of seconds, got {dt!r}", "physics")
         for key, v in {"wall_margin": self.wall_margin, "avoid_gain": self.avoid_gain,
                        "marker_jitter": self.marker_jitter}.items():
-            if not (math.isfinite(v) and v >= 0):
-                raise UserError(f"{self.name}: {key} must be a non-negative finite number, "
-                                f"got {v!r}")
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise UserError(f"{self.name}: {named(key)} must be a non-negative finite "
+                                f"number, got {v!r}", key)
 
     def with_overrides(self, **kw: object) -> ScenarioConfig:
         return replace(self, **kw)

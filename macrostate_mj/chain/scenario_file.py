@@ -24,26 +24,11 @@ from pathlib import Path
 from typing import Any
 
 from macrostate_mj.chain import motion, planners, scene
-from macrostate_mj.chain.scenario import ScenarioConfig
+from macrostate_mj.chain.scenario import LAYOUT, NESTED, ScenarioConfig, file_key
 from macrostate_mj.core.errors import UserError
 
 BUILTIN = Path(str(files("macrostate_mj") / "assets" / "scenarios"))
 
-# The file's tables and keys -> ScenarioConfig's fields (one place: `scenario show` writes the
-# same layout back). A key maps to a field name; `arena.walls` and the two rule tables are
-# read by `_special`.
-LAYOUT: dict[str, dict[str, str]] = {
-    "": {"name": "name"},
-    "arena": {"size": "arena", "margin": "wall_margin", "obstacles": "obstacles"},
-    "robot": {"model": "robot"},
-    "chain": {"spacing": "spacing", "head_speed": "head_speed", "chain_speed": "chain_speed",
-              "k_f": "k_f", "k_t": "k_t", "k_omega": "k_omega", "allow_reverse": "allow_reverse",
-              "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
-              "avoid_gain": "avoid_gain"},
-    "rates": {"command_hz": "command_hz", "log_hz": "log_hz"},
-    "noise": {"marker_jitter": "marker_jitter"},
-}
-NESTED = {"camera": "camera", "physics": "physics", "look": "look"}   # table -> dataclass field
 PLANNERS = {"psi_grid": planners.PsiGrid, "cell_walk": planners.CellWalk,
             "preset_twists": planners.PresetTwists}
 FOLLOWERS = {"two_neighbours": motion.TwoNeighbours, "wait_for_behind": motion.WaitForBehind}
@@ -77,6 +62,7 @@ def resolve(ref: str | Path, seen: tuple[Path, ...] = ()) -> tuple[dict, str]:
         raise UserError(f"{path}: not valid TOML ({err}); fix the file") from None
     except OSError as err:
         raise UserError(f"cannot read scenario file {path} ({err.strerror})") from None
+    _anchor_robot(table, path)
     base = table.pop("extends", None)
     if base is None:
         return table, str(path)
@@ -85,6 +71,16 @@ def resolve(ref: str | Path, seen: tuple[Path, ...] = ()) -> tuple[dict, str]:
     ref = base if not is_file_ref(base) else path.parent / base
     parent, _ = resolve(ref, (*seen, path))
     return _merge(parent, table), str(path)
+
+
+def _anchor_robot(table: dict, path: Path) -> None:
+    """A relative `robot.model` path is relative to the file that says it (not to the working
+    directory, nor to a file that extends it)."""
+    robot = table.get("robot")
+    model = robot.get("model") if isinstance(robot, dict) else None
+    if isinstance(model, str) and ("/" in model or model.endswith(".xml")):
+        if not Path(model).expanduser().is_absolute():
+            robot["model"] = str(path.parent / model)
 
 
 def _path_of(ref: str | Path) -> Path:
@@ -143,7 +139,7 @@ def to_config(table: dict, source: str) -> ScenarioConfig:
     missing = [f.name for f in fields(ScenarioConfig) if f.default is MISSING
                and f.default_factory is MISSING and f.name not in kw]
     if missing:
-        raise UserError(f"{source}: missing {', '.join(_key_of(m) for m in missing)}; add it "
+        raise UserError(f"{source}: missing {', '.join(file_key(m) for m in missing)}; add it "
                         "or `extends` a built-in scenario")
     return _checked(ScenarioConfig, kw, "", source)
 
@@ -241,15 +237,6 @@ def _number(value: Any, key: str, source: str, positive: bool = False) -> float:
 
 def _field_type(name: str) -> Any:
     return typing.get_type_hints(ScenarioConfig)[name]
-
-
-def _key_of(field_name: str) -> str:
-    """The file's key for a config field (for messages)."""
-    for section, keys in LAYOUT.items():
-        for key, name in keys.items():
-            if name == field_name:
-                return f"{section}.{key}" if section else key
-    return next((t for t, f in NESTED.items() if f == field_name), field_name)
 
 
 def to_toml(cfg: ScenarioConfig) -> str:

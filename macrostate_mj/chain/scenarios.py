@@ -11,7 +11,6 @@ from pathlib import Path
 
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenario_file import builtin_names, is_file_ref, load_scenario
-from macrostate_mj.core.errors import UserError
 
 SCENARIOS: dict[str, ScenarioConfig] = {name: load_scenario(name) for name in builtin_names()}
 ScenarioRef = str | Path | ScenarioConfig
@@ -27,10 +26,9 @@ def get_scenario(ref: ScenarioRef) -> ScenarioConfig:
 
 
 def scenario_for(ref: ScenarioRef, head_speed: float | None = None) -> ScenarioConfig:
-    """A scenario, with the `--head-speed` override checked and applied."""
+    """A scenario, with a Head speed override applied (and checked, as the scenario checks
+    its own)."""
     cfg = get_scenario(ref)
     if head_speed is not None:
-        if not 0 < head_speed:
-            raise UserError(f"--head-speed must be positive, got {head_speed}")
         cfg = cfg.with_overrides(head_speed=head_speed)
     return cfg

@@ -134,6 +134,15 @@ class Obstacle:
             return self.size[0] / 2, self.size[1] / 2
         return self.size[0] / 2, self.size[0] / 2
 
+    def depth(self, xy: np.ndarray) -> np.ndarray:
+        """How deep (k,) points (k, 2) lie inside the footprint (m; 0 or less: outside, not
+        the exact distance there). The health check's test, kept cheaper than `distance`: it
+        runs at every check of every run."""
+        d = np.abs(np.atleast_2d(xy) - self.pos)
+        if self.shape == "cylinder":
+            return self.size[0] / 2 - np.sqrt((d * d).sum(axis=1))
+        return np.min(np.asarray(self.half_extents) - d, axis=1)
+
     def distance(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (k,) from points (k, 2) to the footprint's outline (negative
         inside) and the unit outward direction (k, 2) there: what repulsion, health checks and

@@ -84,11 +84,11 @@ def soak_tasks(scenario: str | ScenarioConfig, robots: int, seeds: int, seconds:
 
     validate_chain(_config(scenario), robots, seconds)
     if seeds < 1:
-        raise UserError(f"--seeds must be at least 1, got {seeds}")
+        raise UserError(f"seeds must be at least 1, got {seeds}", "seeds")
     if first_seed < 0:
-        raise UserError(f"--first-seed must be non-negative, got {first_seed}")
+        raise UserError(f"first_seed must be non-negative, got {first_seed}", "first_seed")
     if not (0 < check_hz < float("inf")):
-        raise UserError(f"--check-hz must be a positive number, got {check_hz}")
+        raise UserError(f"check_hz must be a positive number, got {check_hz}", "check_hz")
     return [SoakTask(scenario, robots, seconds, first_seed + k, check_hz) for k in range(seeds)]
 
 
@@ -117,7 +117,7 @@ def soak(tasks: list[SoakTask], workers: int = 1, ray: str | None = None,
     each finished run is kept there and a rerun skips the seeds it holds (an interrupted soak
     resumes); without, the runs are kept in a temporary folder for the call."""
     if workers < 1:
-        raise UserError(f"--workers must be at least 1, got {workers}")
+        raise UserError(f"workers must be at least 1, got {workers}", "workers")
     with tempfile.TemporaryDirectory() as tmp:
         runs = []
         for outcome in run_tasks(cache or TaskCache(tmp), [SoakRunTask(t) for t in tasks],

@@ -9,7 +9,6 @@ and top speed.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import mujoco
@@ -33,30 +32,20 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
     return len(_snake_slots(cfg))
 
 
-@functools.cache
-def robot_top_speed(robot: str) -> float:
-    """Top wheel speed x wheel radius of `macrostate_mj/assets/mjcf/<robot>/robot.xml` (m/s):
-    the MJCF is the one home of a robot's geometry and motor limits (checked by the robot
-    contract, `chain.robot`, on load)."""
-    return load_robot(robot).top_speed
-
-
-def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
-    """A chain request's checks: team size fits the arena, a positive duration, speeds the
-    robot can drive."""
-    top = robot_top_speed(cfg.robot)
-    if cfg.head_speed > top + 1e-9:
-        raise UserError(f"--head-speed {cfg.head_speed:g} m/s is faster than the {cfg.robot}'s "
-                        f"top speed {top:.3f} m/s; choose at most {top:.3f}")
-    if isinstance(robots, bool) or not isinstance(robots, int | np.integer):
-        raise UserError(f"--robots (n) must be a whole number, got {robots!r}")
-    if robots < 2:
-        raise UserError(f"--robots must be at least 2 (a Head and a Tail), got {robots}")
-    if robots > chain_capacity(cfg):
-        raise UserError(f"{robots} robots do not fit the {cfg.name} arena (at most "
-                        f"{chain_capacity(cfg)} at spacing {cfg.spacing} m); use fewer --robots")
-    if not seconds > 0:
-        raise UserError(f"--seconds must be positive, got {seconds}")
+def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
+    """A chain request's checks (the scenario checked itself when made): a team of `n` robots
+    that fits the arena, and a positive duration."""
+    if isinstance(n, bool) or not isinstance(n, int | np.integer):
+        raise UserError(f"n (the number of robots) must be a whole number, got {n!r}", "n")
+    if n < 2:
+        raise UserError(f"n (the number of robots) must be at least 2 (a Head and a Tail), "
+                        f"got {n}", "n")
+    if n > chain_capacity(cfg):
+        raise UserError(f"{n} robots do not fit the {cfg.name} arena (at most "
+                        f"{chain_capacity(cfg)} at spacing {cfg.spacing} m); use fewer robots",
+                        "n")
+    if not (isinstance(seconds, int | float) and seconds > 0 and seconds < float("inf")):
+        raise UserError(f"seconds must be a positive finite number, got {seconds!r}", "seconds")
 
 
 def place_chain(cfg: ScenarioConfig, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -65,7 +54,7 @@ def place_chain(cfg: ScenarioConfig, n: int, rng: np.random.Generator) -> np.nda
     have to U-turn through its own chain); a snake layout when no straight chain fits."""
     if n > chain_capacity(cfg):
         raise UserError(f"{n} robots do not fit the {cfg.name} arena at spacing {cfg.spacing} m "
-                        f"(at most {chain_capacity(cfg)}); use fewer robots")
+                        f"(at most {chain_capacity(cfg)}); use fewer robots", "n")
     half = np.array(cfg.arena) / 2 - cfg.wall_margin
     back = np.arange(-2, n)[:, None] * cfg.spacing
     for _ in range(500):

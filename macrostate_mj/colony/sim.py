@@ -209,7 +209,8 @@ def place(n: int, rng: np.random.Generator, half: float, clearance: float = 0.00
             if i == 0 or segment_gaps(p, y, pos[:i], yaw[:i]).min() > clearance:
                 break
         else:
-            raise UserError(f"cannot fit {n} ants in the nest without overlap; use fewer --ants")
+            raise UserError(f"cannot fit {n} ants in the nest without overlap; use fewer ants",
+                            "ants")
         pos[i], yaw[i] = p, y
     return pos, yaw
 
@@ -391,23 +392,24 @@ def parse_days(text: str) -> list[int]:
     def one(tok: str) -> int:
         tok = tok.strip().upper()
         if not tok.startswith("D") or tok[1:2] not in "+-" or not tok[2:].isdigit() or not tok[2:]:
-            raise UserError(f"bad day {tok!r} in --days {text!r}; write days like D-2 or D+5")
+            raise UserError(f"bad day {tok!r} in days {text!r}; write days like D-2 or D+5",
+                            "days")
         d = int(tok[1:])
         if d == 0 or not DAY_MIN <= d <= DAY_MAX:
             raise UserError(f"day {tok} is outside the timeline D-2..D-1, D+1..D+18 "
-                            f"(D0 is the removal itself); fix --days")
+                            f"(D0 is the removal itself); fix the days", "days")
         return d
 
     if ".." in text:
         lo, _, hi = text.partition("..")
         a, b = one(lo), one(hi)
         if a > b:
-            raise UserError(f"--days {text!r} runs backwards; write the earlier day first")
+            raise UserError(f"days {text!r} runs backwards; write the earlier day first", "days")
         days = [d for d in range(a, b + 1) if d != 0]
     else:
         days = [one(t) for t in text.split(",") if t.strip()]
     if not days:
-        raise UserError(f"--days {text!r} names no day; e.g. D-2..D+18 or D-1,D+1")
+        raise UserError(f"days {text!r} names no day; e.g. D-2..D+18 or D-1,D+1", "days")
     return sorted(set(days))
 
 

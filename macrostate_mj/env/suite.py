@@ -26,6 +26,9 @@ def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history:
     `.task.sim`); `options` go to the task's `create` (`caging=CagingConfig(...)`)."""
     if name not in SUITE:
         raise UserError(f"unknown task {name!r}; choose one of {', '.join(SUITE)}")
+    if not (isinstance(time_limit, int | float) and 0 < time_limit < float("inf")):
+        raise UserError(f"time_limit must be a positive finite number of seconds, got "
+                        f"{time_limit!r}", "time_limit")
     cfg = scenario_for(scenario)
     validate_chain(cfg, robots, time_limit)
     world = build_world(cfg, robots)

@@ -59,8 +59,8 @@ class AntFlowData:
     def load(self, label: str, ids: list[int] | tuple[int, ...], m: int) -> np.ndarray:
         """Stack samples of one label into N × 2m × 64 × 64 float32 in [−1, 1]."""
         if m < 1 or m > self.subframes:
-            raise UserError(f"--m {m} needs {m} sub-frames per sample but {self.root} has "
-                            f"{self.subframes}; choose m in 1..{self.subframes}")
+            raise UserError(f"m {m} needs {m} sub-frames per sample but {self.root} has "
+                            f"{self.subframes}; choose m in 1..{self.subframes}", "m")
         folder = self.unstable_dir if label == "Unstable" and self.unstable_dir else (
             self.root / label)
         return load_samples(folder, ids, m)
@@ -84,13 +84,13 @@ def open_dataset(root: str | Path) -> AntFlowData:
     """Index a dataset folder; fail with one line if its layout is not the expected one."""
     root = Path(root)
     if not root.is_dir():
-        raise UserError(f"dataset folder {root} does not exist; check --data")
+        raise UserError(f"dataset folder {root} does not exist; check the path", "root")
     ids, subs = {}, []
     for label in LABELS:
         folder = root / label
         if not folder.is_dir():
-            raise UserError(f"dataset {root} has no {label}/ folder; point --data at the folder "
-                            "holding Stable/, Unstable/ and split1..3/")
+            raise UserError(f"dataset {root} has no {label}/ folder; give the folder holding "
+                            "Stable/, Unstable/ and split1..3/", "root")
         ids[label], sub = _index(folder)
         subs.append(sub)
     return AntFlowData(root, ids["Stable"], ids["Unstable"], min(subs),
@@ -128,8 +128,8 @@ def read_split(root: str | Path, k: int) -> tuple[list[int], list[int]]:
     for part in ("train", "test"):
         path = root / f"split{k}" / f"{part}.csv"
         if not path.is_file():
-            raise UserError(f"dataset {root} lacks split{k}/{part}.csv; use --split 1..3 on a "
-                            "dataset that has its splits")
+            raise UserError(f"dataset {root} lacks split{k}/{part}.csv; use split 1..3 on a "
+                            "dataset that has its splits", "k")
         ids = []
         for n, line in enumerate(path.read_text().splitlines(), 1):
             line = line.strip()

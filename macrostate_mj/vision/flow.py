@@ -114,15 +114,17 @@ def extract_flow_samples(frames: Iterable[np.ndarray], fps: float, out_dir: Path
 
 def _check_params(fps: float, every: float, gap: float, m: int, start_id: int) -> None:
     if not (fps > 0 and math.isfinite(fps)):
-        raise UserError(f"frame rate {fps} is not positive; pass --fps")
+        raise UserError(f"frame rate fps {fps} is not positive; pass the video's rate", "fps")
     if not every > 0 or not gap > 0:
-        raise UserError(f"--every ({every}) and --gap ({gap}) must be positive seconds")
+        raise UserError(f"every ({every}) and gap ({gap}) must be positive seconds",
+                        "every" if not every > 0 else "gap")
     if m < 1:
-        raise UserError(f"--m {m} must be at least 1")
+        raise UserError(f"m {m} must be at least 1", "m")
     if start_id < 0:
-        raise UserError(f"--start-id {start_id} must be >= 0")
+        raise UserError(f"start_id {start_id} must be >= 0", "start_id")
     if round(gap * fps) < 1:
-        raise UserError(f"--gap {gap} s is under one frame at {fps:g} fps; use a larger --gap")
+        raise UserError(f"gap {gap} s is under one frame at {fps:g} fps; use a larger gap",
+                        "gap")
 
 
 def _extract(frames: Iterable[np.ndarray], fps: float, stage: Path, every: float, gap: float,
@@ -154,7 +156,7 @@ def _extract(frames: Iterable[np.ndarray], fps: float, stage: Path, every: float
         raise UserError("the video or frame folder holds no frames; check the input")
     if not written:
         raise UserError(f"the input ({n + 1} frames at {fps:g} fps) is too short for one sample of "
-                        f"{m} pairs {gap} s apart; lower --m/--gap or use a longer input")
+                        f"{m} pairs {gap} s apart; lower m or gap, or use a longer input")
     return written
 
 

@@ -194,7 +194,17 @@ def test_a_bad_value_leaves_an_existing_folder_as_it_was(tmp_path):
     (out / "note.txt").write_text("mine")
     code, err = _run(["simulate", "--out", str(out), "--seconds", "5", "--head-speed", "50"])
     assert code == 2 and "top speed" in err
+    assert err.startswith("error: --head-speed: ")      # the library names head_speed
     assert [p.name for p in out.iterdir()] == ["note.txt"]
+
+
+def test_a_library_error_names_the_commands_flag(tmp_path):
+    """The library names its parameter (`n`, `seeds`); the CLI names its own flag for it."""
+    for args, flag in ((["simulate", "--robots", "400"], "--robots"),
+                       (["soak", "--scenario", "lab", "--robots", "400"], "--robots")):
+        code, err = _run([*args, "--out", str(tmp_path / "out")])
+        assert code == 2 and err.startswith(f"error: {flag}: "), err
+        assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("args", [

@@ -119,6 +119,15 @@ def test_a_robot_driven_into_an_obstacle_stops_at_it(cfg):
     assert abs(sim.poses[0, 1] - 0.4) < 0.02                  # pressed on, not slid past
 
 
+@pytest.mark.parametrize("ob", [Obstacle("box", (0.3, -0.2), (0.4, 0.2)),
+                                Obstacle("cylinder", (0.1, 0.1), (0.3,))])
+def test_the_health_checks_depth_agrees_with_the_signed_distance(ob):
+    xy = np.random.default_rng(0).uniform(-1, 1, (20000, 2))
+    dist, depth = ob.distance(xy)[0], ob.depth(xy)
+    assert np.array_equal(depth > 0, dist < 0)
+    assert np.allclose(depth[dist < 0], -dist[dist < 0])
+
+
 def test_a_centre_inside_an_obstacle_is_a_health_fault(cfg):
     sim = _sim(cfg, [[-1.35, 0.4, 0.0], [-1.6, -1.0, 0.0]])
     assert sim.monitor.check(sim.data) is None

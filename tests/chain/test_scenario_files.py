@@ -1,5 +1,7 @@
 """Scenario files: built-ins are files, a user's file extends one, bad keys name the key."""
 
+from pathlib import Path
+
 import pytest
 
 from macrostate_mj.chain.scenario_file import builtin_names, load_scenario, to_toml
@@ -45,6 +47,11 @@ def test_a_file_extends_a_builtin_and_overrides_keys(tmp_path):
     ('extends = "lab"\n[planner]\nkind = "spiral"\n', ["planner.kind", "psi_grid"]),
     ('extends = "lab"\n[arena]\nwalls = "yes"\n', ["arena.walls"]),
     ('extends = "lab"\n[chain]\nk_f = nan\n', ["chain.k_f", "finite"]),
+    ('extends = "lab"\n[chain]\nspacing = -0.2\n', ["mylab.toml", "chain.spacing", "positive"]),
+    ('extends = "lab"\n[arena]\nsize = [-4.0, 3.0]\n', ["arena.size", "positive"]),
+    ('extends = "lab"\n[chain]\nhead_speed = 1.0\n', ["chain.head_speed", "top speed"]),
+    ('extends = "lab"\n[robot]\nmodel = "rover"\n', ["mylab.toml", "robot.model", "'rover'"]),
+    ('extends = "lab"\n[robot]\nmodel = "mine/robot.xml"\n', ["robot.model", "mine/robot.xml"]),
 ])
 def test_bad_files_are_one_line_naming_the_key(tmp_path, text, words):
     path = _write(tmp_path, text)
@@ -75,10 +82,24 @@ def test_the_python_api_refuses_what_the_cli_does():
                        ({"arena": (0.0, 1.0)}, "arena"), ({"command_hz": 0.0}, "command rate")):
         with pytest.raises(ValueError, match=words):
             lab.with_overrides(**bad)
-    with pytest.raises(ValueError, match="top speed"):
-        build_world(lab.with_overrides(head_speed=1.0), 3)
+    with pytest.raises(ValueError, match=r"head_speed \(chain.head_speed .*top speed"):
+        lab.with_overrides(head_speed=1.0)
     with pytest.raises(ValueError, match="at least 2"):
         build_world(lab, 1)
+
+
+def test_a_relative_robot_path_is_relative_to_the_file_that_says_it(tmp_path):
+    from macrostate_mj.chain.robot import ASSETS
+
+    (tmp_path / "robots").mkdir()
+    (tmp_path / "robots" / "bot.xml").write_text((ASSETS / "epuck" / "robot.xml").read_text())
+    (tmp_path / "labs").mkdir()
+    _write(tmp_path, 'extends = "../epuck_lab.toml"\n', "labs/child.toml")
+    base = (Path(__file__).parents[2] / "examples" / "epuck_lab.toml").read_text()
+    _write(tmp_path, base.replace('model = "epuck"', 'model = "robots/bot.xml"'),
+           "epuck_lab.toml")
+    cfg = load_scenario(tmp_path / "labs" / "child.toml")
+    assert Path(cfg.robot) == tmp_path / "robots" / "bot.xml"
 
 
 def test_what_an_outsider_tried_is_refused_from_python():

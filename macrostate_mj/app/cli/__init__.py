@@ -33,6 +33,25 @@ from macrostate_mj.core.errors import RunFailure, UserError
 # is click's UsageError, which every parser error (bad flag, missing argument) derives from.
 UsageError: type[Exception] = typer.BadParameter.__mro__[1]
 INTERRUPTED = 130               # the shell's code for a process stopped by SIGINT
+# A library parameter the CLI names otherwise (`build_world(cfg, n)` is `--robots`); any other
+# parameter is the flag of the same name, where the command has one.
+ALIASES = {"n": "robots", "time_limit": "seconds", "root": "data", "k": "split"}
+
+
+def _flag_for(param: str | None, argv: list[str]) -> str | None:
+    """The running command's flag for the library parameter a `UserError` names, if any."""
+    if param is None:
+        return None
+    command = typer.main.get_command(app)
+    for token in argv:
+        sub = getattr(command, "commands", {}).get(token)
+        if sub is not None:
+            command = sub
+    name = ALIASES.get(param, param)
+    for option in command.params:
+        if option.name == name:
+            return next((o for o in option.opts if o.startswith("--")), None)
+    return None
 
 
 def _run(argv: list[str] | None) -> object:
@@ -64,7 +83,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f"error: {message} (see `{where} --help`)", file=sys.stderr)
         sys.exit(2)
     except UserError as err:
-        print(f"error: {err}", file=sys.stderr)
+        flag = _flag_for(err.param, sys.argv[1:] if argv is None else argv)
+        print(f"error: {flag}: {err}" if flag else f"error: {err}", file=sys.stderr)
         sys.exit(2)
     except RunFailure as err:
         print(f"failed: {err}", file=sys.stderr)

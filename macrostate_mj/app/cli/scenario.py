@@ -30,8 +30,9 @@ def scenario_check(
     physics steps per command and log tick."""
     import math
 
+    from macrostate_mj.chain.robot import top_speed
     from macrostate_mj.chain.scenario import steps_per_tick
-    from macrostate_mj.chain.world import build_world, chain_capacity, robot_top_speed
+    from macrostate_mj.chain.world import build_world, chain_capacity
 
     cfg = scenario
     capacity = chain_capacity(cfg)
@@ -44,7 +45,7 @@ def scenario_check(
     typer.echo(f"scenario   {cfg.name}: robot {cfg.robot}, arena {cfg.arena[0]:g} x "
                f"{cfg.arena[1]:g} m ({walls})")
     typer.echo(f"chain      up to {capacity} robots at spacing {cfg.spacing:g} m; Head "
-               f"{cfg.head_speed:g} m/s (robot's top {robot_top_speed(cfg.robot):.3f} m/s)")
+               f"{cfg.head_speed:g} m/s (robot's top {top_speed(cfg.robot):.3f} m/s)")
     typer.echo(f"camera     {w} x {h} px at {cfg.camera.height:g} m, fovy {fovy:.2f} deg: "
                f"{px_per_m / 100:.2f} px/cm")
     typer.echo(f"physics    timestep {dt:g} s: {steps_per_tick(1 / cfg.command_hz, dt, 'command')}"
