@@ -7,6 +7,7 @@ metres in the world frame, headings radians CCW from +x.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -23,10 +24,16 @@ def head_velocity(p: np.ndarray, target: np.ndarray, gain: float = 1.0) -> np.nd
     return gain * (np.asarray(target, float) - np.asarray(p, float))
 
 
+def _norm(v: np.ndarray) -> float:
+    """|v| of one vector as `np.linalg.norm` computes it (sqrt of the dot product, so bit for
+    bit the same), without its per-call overhead: the control tick calls it per robot."""
+    return math.sqrt(v.dot(v))
+
+
 def pull(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
     """(|p - q| - d)(q - p): toward q when farther than d, away when nearer."""
     diff = np.asarray(q, float) - np.asarray(p, float)
-    return (np.linalg.norm(diff) - d) * diff
+    return (_norm(diff) - d) * diff
 
 
 def follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
@@ -39,7 +46,7 @@ def waiting_follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarr
                               k_f: float, slack: float) -> np.ndarray:
     """Lab Follower (seed §2.6.2.1): regulate the distance to the robot ahead; regulate the one
     behind only by stopping (not backing up) while it lags more than d + slack."""
-    if np.linalg.norm(np.asarray(behind, float) - np.asarray(p, float)) > d + slack:
+    if _norm(np.asarray(behind, float) - np.asarray(p, float)) > d + slack:
         return np.zeros(2)
     return k_f * pull(p, ahead, d)
 
@@ -141,31 +148,49 @@ def unicycle_from_holonomic(u: np.ndarray, theta: float, k_omega: float, v_max: 
     robot is tracked backwards, turning the rear toward it (no half-turns for small
     corrections); otherwise the robot stops instead of backing up and turns on the spot (the
     lab's followers: fewer high-frequency oscillations, seed §2.6.2.1). Below `deadband` (m/s)
-    the robot holds still rather than spinning on the spot.
+    the robot holds still rather than spinning on the spot. One robot of `unicycle_commands`.
     """
-    speed = float(np.hypot(u[0], u[1]))
-    if speed < deadband:
-        return 0.0, 0.0
-    speed = min(speed, v_max)
-    e = wrap_angle(np.arctan2(u[1], u[0]) - theta)
+    v, omega = unicycle_commands(np.asarray(u, float)[None], np.array([theta], float), k_omega,
+                                 np.array([v_max], float), np.array([allow_reverse]), deadband)
+    return float(v[0]), float(omega[0])
+
+
+def unicycle_commands(u: np.ndarray, theta: np.ndarray, k_omega: float, v_max: np.ndarray,
+                      allow_reverse: np.ndarray, deadband: float = 0.005
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """`unicycle_from_holonomic` for n robots at once: u (n, 2), theta, v_max, allow_reverse
+    (n,) -> v, omega (n,). Elementwise ufuncs only, so each robot's numbers are bit for bit
+    those of the one-robot call (the chain's control tick costs one call, not n)."""
+    speed = np.hypot(u[:, 0], u[:, 1])
+    still = speed < deadband
+    speed = np.minimum(speed, v_max)
+    e = wrap_angle(np.arctan2(u[:, 1], u[:, 0]) - theta)
     v = speed * np.cos(e)
-    if allow_reverse and v < 0:
-        e = wrap_angle(e + np.pi)
-    elif not allow_reverse:
-        v = max(v, 0.0)
-    return float(v), float(k_omega * e)
+    back = allow_reverse & (v < 0)
+    e = np.where(back, wrap_angle(e + np.pi), e)
+    v = np.where(allow_reverse, v, np.maximum(v, 0.0))
+    return np.where(still, 0.0, v), np.where(still, 0.0, k_omega * e)
 
 
 def wheel_speeds(v: float, omega: float, wheel_radius: float, track: float,
                  max_wheel_speed: float) -> tuple[float, float]:
     """Differential drive: (v, omega) -> (left, right) wheel rad/s, scaled down together so
     neither exceeds the motor limit (keeps the commanded curvature when saturating)."""
+    left, right = wheel_commands(np.array([v], float), np.array([omega], float), wheel_radius,
+                                 track, max_wheel_speed)
+    return float(left[0]), float(right[0])
+
+
+def wheel_commands(v: np.ndarray, omega: np.ndarray, wheel_radius: float, track: float,
+                   max_wheel_speed: float) -> tuple[np.ndarray, np.ndarray]:
+    """`wheel_speeds` for n robots at once (elementwise, bit for bit the one-robot numbers)."""
     left = (v - omega * track / 2) / wheel_radius
     right = (v + omega * track / 2) / wheel_radius
-    peak = max(abs(left), abs(right))
-    if peak > max_wheel_speed:
-        left, right = left * max_wheel_speed / peak, right * max_wheel_speed / peak
-    return left, right
+    peak = np.maximum(np.abs(left), np.abs(right))
+    over = peak > max_wheel_speed
+    peak = np.where(over, peak, 1.0)
+    return (np.where(over, left * max_wheel_speed / peak, left),
+            np.where(over, right * max_wheel_speed / peak, right))
 
 
 def body_twist(wheel_left: float, wheel_right: float, wheel_radius: float,

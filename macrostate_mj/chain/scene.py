@@ -11,6 +11,7 @@ straight down with image right = +x and image up = +y.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -138,22 +139,31 @@ class Obstacle:
         """How deep (k,) points (k, 2) lie inside the footprint (m; 0 or less: outside, not
         the exact distance there). The health check's test, kept cheaper than `distance`: it
         runs at every check of every run."""
-        d = np.abs(np.atleast_2d(xy) - self.pos)
+        d = np.abs(np.atleast_2d(xy) - self._centre)
         if self.shape == "cylinder":
             return self.size[0] / 2 - np.sqrt((d * d).sum(axis=1))
-        return np.min(np.asarray(self.half_extents) - d, axis=1)
+        return np.min(self._half - d, axis=1)
+
+    @functools.cached_property
+    def _centre(self) -> np.ndarray:
+        """`pos` as an array, made once: the control tick measures against it per tick."""
+        return np.asarray(self.pos, float)
+
+    @functools.cached_property
+    def _half(self) -> np.ndarray:
+        return np.asarray(self.half_extents, float)
 
     def distance(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (k,) from points (k, 2) to the footprint's outline (negative
         inside) and the unit outward direction (k, 2) there: what repulsion, health checks and
         the planner's clearance need."""
-        d = np.atleast_2d(np.asarray(xy, float)) - np.asarray(self.pos, float)
+        d = np.atleast_2d(np.asarray(xy, float)) - self._centre
         if self.shape == "cylinder":
             r = np.linalg.norm(d, axis=1)
             safe = np.where(r > 1e-12, r, 1.0)[:, None]
             normal = np.where(r[:, None] > 1e-12, d / safe, [1.0, 0.0])
             return r - self.size[0] / 2, normal
-        q = np.abs(d) - np.asarray(self.half_extents)
+        q = np.abs(d) - self._half
         outside = np.maximum(q, 0.0)
         dist_out = np.linalg.norm(outside, axis=1)
         inside = np.minimum(q.max(axis=1), 0.0)

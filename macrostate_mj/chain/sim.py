@@ -31,8 +31,8 @@ from macrostate_mj.chain.motion import (
     chain_velocities,
     path_blocked,
     steer_around,
-    unicycle_from_holonomic,
-    wheel_speeds,
+    unicycle_commands,
+    wheel_commands,
 )
 from macrostate_mj.chain.planners import Planner
 from macrostate_mj.chain.world import World, place_chain
@@ -173,6 +173,9 @@ class ChainSim:
         self.mission = mission
         self.n = len(world.names)
         self._body = world.body
+        # Speed caps and reversing per robot: the Head drives at most head_speed, forward only.
+        self._v_max = np.array([self.cfg.head_speed] + [self.cfg.chain_speed] * (self.n - 1))
+        self._reverse = np.array([False] + [self.cfg.allow_reverse] * (self.n - 1))
         self.monitor = PhysicsMonitor(world)
         # Health checks at least this often (physics steps); events bound the stretches too.
         self.check_steps = 10**9
@@ -226,18 +229,14 @@ class ChainSim:
         vel[-1] += self.k_t * gap * self.tail_offset
         if self.mission is not None:
             self.mission.adjust(self.time, poses, vel, cfg.spacing, cfg.k_f, cfg.head_speed)
-        for i in range(self.n):
-            if i == 0 and self.planner.twist is not None and self.mission is None:
-                v, omega = self.planner.twist
-                if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):
-                    v = 0.0     # a Head driven in (v, omega) waits rather than ram a robot
-            else:
-                v_max = cfg.head_speed if i == 0 else cfg.chain_speed
-                reverse = cfg.allow_reverse and i > 0
-                v, omega = unicycle_from_holonomic(vel[i], poses[i, 2], cfg.k_omega, v_max, reverse)
-            left, right = wheel_speeds(v, omega, w.wheel_radius, w.track, w.max_wheel_speed)
-            self.data.ctrl[w.ctrl_left[i]] = left
-            self.data.ctrl[w.ctrl_right[i]] = right
+        v, omega = unicycle_commands(vel, poses[:, 2], cfg.k_omega, self._v_max, self._reverse)
+        if self.planner.twist is not None and self.mission is None:
+            v[0], omega[0] = self.planner.twist
+            if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):
+                v[0] = 0.0     # a Head driven in (v, omega) waits rather than ram a robot
+        left, right = wheel_commands(v, omega, w.wheel_radius, w.track, w.max_wheel_speed)
+        self.data.ctrl[w.ctrl_left] = left
+        self.data.ctrl[w.ctrl_right] = right
 
     # -- loop ---------------------------------------------------------------------------------
     def episode(self, seconds: float, hooks: Sequence[Hook],
