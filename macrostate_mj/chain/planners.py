@@ -15,6 +15,7 @@ import numpy as np
 
 from macrostate_mj.chain.scene import Obstacle, blocked
 from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.core.errors import UserError
 
 # Head (v, omega) presets of the robotarium scenario: straight, two gentle and two tighter
 # curves (radii 0.3 and 0.15 m, wider than a 6-robot chain is long, so the Head never circles
@@ -30,6 +31,11 @@ class Grid:
 
     arena: tuple[float, float]
     shape: tuple[int, int]
+
+    def __post_init__(self) -> None:
+        if len(self.shape) != 2 or min(self.shape) < 1:
+            raise UserError(f"planner.grid must be two whole numbers of cells, each at least 1, "
+                            f"got {list(self.shape)}", "grid")
 
     @property
     def cell_size(self) -> np.ndarray:
@@ -245,6 +251,9 @@ class PsiGrid:
 
     grid: tuple[int, int]
 
+    def __post_init__(self) -> None:
+        Grid((1.0, 1.0), self.grid)          # refused when read, not at the first waypoint
+
     def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
               obstacles: tuple[Obstacle, ...] = ()) -> Planner:
         return GridPlanner(Grid(arena, self.grid), margin, reach_radius, obstacles=obstacles)
@@ -255,6 +264,9 @@ class CellWalk:
     """A new neighbouring cell centre whenever the Head enters a cell (webots, seed §3.4)."""
 
     grid: tuple[int, int]
+
+    def __post_init__(self) -> None:
+        Grid((1.0, 1.0), self.grid)
 
     def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
               obstacles: tuple[Obstacle, ...] = ()) -> Planner:

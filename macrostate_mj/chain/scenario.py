@@ -10,7 +10,7 @@ compiled MJCF, so its XML stays the single source of truth.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 from macrostate_mj.chain.motion import FollowerRule
 from macrostate_mj.chain.planners import PlannerSpec
@@ -91,10 +91,20 @@ class ScenarioConfig:
     def __post_init__(self) -> None:
         """Refuse, when the scenario is made, rates that are not whole physics steps and a
         camera that does not see the whole arena."""
+        if not isinstance(self.name, str) or not self.name:
+            raise UserError(f"the scenario's name must be a non-empty string, got {self.name!r}",
+                            "name")
         self._check_numbers()
         check_camera(self.name, self.arena, self.camera)
+        if 2 * self.wall_margin >= min(self.arena):
+            raise UserError(f"{self.name}: {named('wall_margin')} {self.wall_margin:g} m leaves "
+                            f"no floor inside the {self.arena[0]:g} x {self.arena[1]:g} m arena; "
+                            "use a margin under half its width", "wall_margin")
         for i, ob in enumerate(self.obstacles):
             problem = ob.problem(self.arena)
+            if problem is None and ob.height >= self.camera.height:
+                problem = (f"stands {ob.height:g} m tall, up to the camera at "
+                           f"{self.camera.height:g} m; lower it or raise the camera")
             if problem is not None:
                 raise UserError(f"{self.name}: arena.obstacles[{i}] {problem}", "obstacles")
         for what, hz in (("command", self.command_hz), ("log", self.log_hz)):
@@ -142,6 +152,11 @@ class ScenarioConfig:
                                 f"number, got {v!r}", key)
 
     def with_overrides(self, **kw: object) -> ScenarioConfig:
+        """A copy with fields replaced, checked as a new scenario is."""
+        unknown = sorted(set(kw) - {f.name for f in fields(self)})
+        if unknown:
+            raise UserError(f"ScenarioConfig has no field {', '.join(unknown)}; its fields are "
+                            f"{', '.join(f.name for f in fields(self))}", unknown[0])
         return replace(self, **kw)
 
 

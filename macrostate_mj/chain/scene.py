@@ -67,6 +67,14 @@ class Look:
     headlight_ambient: float = 0.35     # grey levels of MuJoCo's headlight (no specular)
     headlight_diffuse: float = 0.45
 
+    def __post_init__(self) -> None:
+        for key in ("floor_rgba", "wall_rgba"):
+            rgba = getattr(self, key)
+            if len(rgba) != 4 or not all(isinstance(v, int | float) and 0 <= v <= 1
+                                         for v in rgba):
+                raise UserError(f"look.{key} must be four numbers in [0, 1] (red, green, blue, "
+                                f"alpha), got {list(rgba)}", key)
+
 
 @dataclass(frozen=True)
 class Physics:
@@ -76,6 +84,11 @@ class Physics:
     integrator: str = "implicitfast"    # a mjtIntegrator name without its prefix
     impratio: float | None = None       # None: MuJoCo's default
     cone: str = "elliptic"              # a mjtCone name without its prefix
+
+    def __post_init__(self) -> None:
+        """Unknown MuJoCo names are refused when the scenario is read, naming the key."""
+        _enum(mujoco.mjtIntegrator, "mjINT_", self.integrator, "integrator")
+        _enum(mujoco.mjtCone, "mjCONE_", self.cone, "cone")
 
 
 @dataclass(frozen=True)
@@ -284,5 +297,5 @@ def _enum(kind: type, prefix: str, value: str, what: str) -> int:
         return getattr(kind, prefix + value.upper())
     except AttributeError:
         names = [n[len(prefix):].lower() for n in dir(kind) if n.startswith(prefix)]
-        raise UserError(f"unknown physics {what} {value!r}; choose one of "
-                        f"{', '.join(names)}") from None
+        raise UserError(f"physics.{what}: unknown {what} {value!r}; choose one of "
+                        f"{', '.join(names)}", what) from None

@@ -164,6 +164,8 @@ class ChainSim:
         self.planner = planner or self.cfg.planner.build(self.cfg.arena, self.cfg.wall_margin,
                                                          self.cfg.reach_radius, self.cfg.obstacles)
         self.k_t = self.cfg.k_t if k_t is None else k_t
+        if not (isinstance(self.k_t, int | float) and math.isfinite(self.k_t) and self.k_t > 0):
+            raise UserError(f"k_t must be a positive finite gain, got {self.k_t!r}", "k_t")
         self.rng = np.random.default_rng(0)
         self.log_phase = 0.0
         # Displacement of the Tail's destination (m), set by a data-collection policy (SRS).

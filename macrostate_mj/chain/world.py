@@ -35,6 +35,11 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
 def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
     """A chain request's checks (the scenario checked itself when made): a team of `n` robots
     that fits the arena, and a positive duration."""
+    if chain_capacity(cfg) < 2:
+        raise UserError(f"{cfg.name}: the arena has room for no chain at spacing {cfg.spacing:g} "
+                        f"m once its margin ({cfg.wall_margin:g} m) and obstacles are left "
+                        "clear; shrink the obstacles, the margin (arena.margin) or the spacing",
+                        "obstacles")
     if isinstance(n, bool) or not isinstance(n, int | np.integer):
         raise UserError(f"n (the number of robots) must be a whole number, got {n!r}", "n")
     if n < 2:
@@ -127,12 +132,24 @@ class World:
         return self.spec.to_xml()
 
 
-def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) -> World:
+def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = None) -> World:
     """Compile the scene with n robots; `start` (n, 3) poses are baked in as the default
-    qpos (the simulation resets poses itself, this matters for exported MJCF)."""
+    qpos (the simulation resets poses itself, this matters for exported MJCF). `cfg` may also
+    be a built-in scenario's name or a scenario file."""
+    from macrostate_mj.chain.scenarios import get_scenario
+
+    cfg = get_scenario(cfg)
     validate_chain(cfg, n, 1.0)      # from Python too: a team that fits, a drivable Head speed
     if start is None:
         start = place_chain(cfg, n, np.random.default_rng(0))
+    start = np.asarray(start, float)
+    if start.shape != (n, 3) or not np.isfinite(start).all():
+        raise UserError(f"start must be {n} finite poses (x, y, theta), an ({n}, 3) array; got "
+                        f"shape {start.shape}", "start")
+    if (np.abs(start[:, :2]) > np.array(cfg.arena) / 2).any():
+        raise UserError(f"start has a robot outside the {cfg.arena[0]:g} x {cfg.arena[1]:g} m "
+                        "arena (its centre at the origin); place every robot on the floor",
+                        "start")
     names = robot_names(n)
     colours = marker_colours(n)
     spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics,

@@ -52,6 +52,14 @@ def test_a_file_extends_a_builtin_and_overrides_keys(tmp_path):
     ('extends = "lab"\n[chain]\nhead_speed = 1.0\n', ["chain.head_speed", "top speed"]),
     ('extends = "lab"\n[robot]\nmodel = "rover"\n', ["mylab.toml", "robot.model", "'rover'"]),
     ('extends = "lab"\n[robot]\nmodel = "mine/robot.xml"\n', ["robot.model", "mine/robot.xml"]),
+    # an outsider's trial: each of these got past the loader and failed later, or not at all
+    ('extends = "lab"\n[arena]\nmargin = 5.0\n', ["mylab.toml", "arena.margin", "no floor"]),
+    ('extends = "lab"\nname = 5\n', ["mylab.toml", "name"]),
+    ('extends = "lab"\n[planner]\ngrid = [0, 8]\n', ["planner.grid", "at least 1"]),
+    ('extends = "lab"\n[physics]\nintegrator = "rk5"\n', ["mylab.toml", "physics.integrator"]),
+    ('extends = "lab"\n[look]\nfloor_rgba = [2, 0, 0, 1]\n', ["look.floor_rgba", "[0, 1]"]),
+    ('extends = "lab"\n[arena]\nobstacles = [{shape = "box", pos = [0.5, 0.5], '
+     'size = [0.2, 0.2, 3.0]}]\n', ["arena.obstacles[0]", "camera"]),
 ])
 def test_bad_files_are_one_line_naming_the_key(tmp_path, text, words):
     path = _write(tmp_path, text)
@@ -102,6 +110,17 @@ def test_a_relative_robot_path_is_relative_to_the_file_that_says_it(tmp_path):
     assert Path(cfg.robot) == tmp_path / "robots" / "bot.xml"
 
 
+def test_an_arena_obstacles_fill_is_named_not_the_team_size():
+    from macrostate_mj.chain.scene import Obstacle
+    from macrostate_mj.chain.world import build_world
+
+    lab = load_scenario("lab")
+    full = lab.with_overrides(obstacles=(Obstacle("box", (0.0, 0.0), (2.4, 1.8)),))
+    with pytest.raises(UserError, match="room for no chain .*arena.margin") as err:
+        build_world(full, 3)
+    assert err.value.param == "obstacles"
+
+
 def test_what_an_outsider_tried_is_refused_from_python():
     """A camera so low that "framing" the arena needs a fisheye, a fractional team, a run of
     infinite or negative length: each a ValueError naming the value."""
@@ -121,3 +140,13 @@ def test_what_an_outsider_tried_is_refused_from_python():
     for bad in (math.inf, math.nan, -1.0):
         with pytest.raises(ValueError, match="seconds"):
             sim.run(bad, [])
+    import numpy as np
+
+    with pytest.raises(ValueError, match="no field bogus"):
+        lab.with_overrides(bogus=1)
+    for start in (np.zeros((2, 3)), np.full((3, 3), 9.0), np.full((3, 3), np.nan)):
+        with pytest.raises(ValueError, match="start"):
+            build_world(lab, 3, start=start)
+    with pytest.raises(ValueError, match="k_t"):
+        ChainSim(build_world(lab, 3), k_t=math.nan)
+    assert build_world("lab", 3).scenario == lab          # a name resolves as everywhere else
