@@ -38,8 +38,13 @@ def unseen_errors(est_xy: np.ndarray, truth_xy: np.ndarray) -> np.ndarray:
 def evaluate_chain(module: Module, world: np.ndarray) -> dict:
     """Errors (cm) of every robot the Tail cannot see in chains (B, S, N, 3) of true poses (m,
     rad, file order): per robot, per step, and their mean."""
-    est = predict_chain(module, world)
-    n_robots, first = world.shape[2], first_estimate(module.history)
+    return chain_report(predict_chain(module, world), world, module.history)
+
+
+def chain_report(est: np.ndarray, world: np.ndarray, history: int) -> dict:
+    """`evaluate_chain`'s report of estimates `est` (`predict_chain`'s layout) made by a module
+    with `history` steps."""
+    n_robots, first = world.shape[2], first_estimate(history)
     names = report_names(n_robots)
     file_names = robot_names(n_robots)[::-1]
     unseen = CM_PER_M * unseen_errors(est[:, first:, ::-1, :2], world[:, first:, ::-1, :2])

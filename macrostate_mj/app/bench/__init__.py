@@ -11,8 +11,8 @@ from __future__ import annotations
 FIELDS = ("name", "value", "unit", "limit", "ratio", "config")
 
 
-def figure(name: str, value: float, unit: str, limit: float | None = None, *, config: str,
-           lower_is_better: bool = False, **extra: object) -> dict:
+def figure(name: str, value: float, unit: str, limit: float | None = None, *,
+           config: str | dict, lower_is_better: bool = False, **extra: object) -> dict:
     """One bench figure in the shared schema (extra keys, e.g. a stage's share, follow)."""
     ratio = None
     if limit is not None:
