@@ -44,3 +44,28 @@ def test_a_quick_caging_estimator_is_not_reused_by_a_full_run(tmp_path, monkeypa
         task = caging.EstimatorTask(cfg)
         cache.cached(task.stage, task.key(), task.compute)
     assert trained == [20, 200]       # more seeds reuse it; more epochs retrain
+
+
+def test_experiment_all_runs_keeps_and_skips_into_one_index(tmp_path, monkeypatch):
+    """The quick profile of a cheap experiment runs; one whose real data is absent is skipped
+    and said so; a second run keeps what finished; the index lists what each produced."""
+    import json
+
+    monkeypatch.setenv("MACROSTATE_REFERENCE_DATA", str(tmp_path / "no-data"))
+    out = tmp_path / "all"
+    args = ["experiment", "all", "--profile", "quick", "--only", "retlo-sim", "--only", "oc",
+            "--out", str(out)]
+    res = cli(*args)
+    assert res.returncode == 0, res.stderr
+    index = json.loads((out / "index.json").read_text())["experiments"]
+    assert index["retlo-sim"]["status"] == "finished"
+    assert "results.json" in index["retlo-sim"]["products"]
+    assert index["oc"]["status"] == "skipped" and "no-data" in index["oc"]["reason"]
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "finished" and manifest["command"] == "experiment all"
+    again = cli(*args, "--overwrite")
+    assert again.returncode == 0, again.stderr
+    assert json.loads((out / "index.json").read_text())["experiments"]["retlo-sim"][
+        "status"] == "kept"
+    bad = cli("experiment", "all", "--only", "nope", "--out", str(tmp_path / "x"))
+    assert bad.returncode == 2 and "nope" in bad.stderr and not (tmp_path / "x").exists()

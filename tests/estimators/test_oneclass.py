@@ -258,7 +258,7 @@ def test_evaluate_on_a_held_apart_unstable_set_with_intervals_and_a_baseline(tmp
 
 
 def test_significance_marks_need_every_split_to_agree():
-    from macrostate_mj.app.experiments.oneclass import significance_marks
+    from macrostate_mj.app.experiments.oc import significance_marks
 
     def t(diff, p):
         return {"diff": diff, "p": p}
@@ -398,7 +398,7 @@ def test_a_probe_watches_every_epoch_and_never_chooses(fitted):
     as they are, and its curve at the epoch that stable-only selection kept is the model's AUC;
     the best epoch on test can only be as good or better."""
     from estimators.oneclass.model import Probe
-    from macrostate_mj.app.experiments.oneclass import selection_on_test
+    from macrostate_mj.app.experiments.oc import selection_on_test
 
     model, x = fitted
     cfg = replace(TINY, dsvdd_epochs=3, cls_epochs=3)

@@ -22,6 +22,7 @@ SUITES: dict[str, str] = {
     "flow": "macrostate_mj.app.bench.flow:bench_flow",
     "iogen": "macrostate_mj.app.bench.iogen:bench_iogen",
     "srs": "macrostate_mj.app.bench.srs:bench_srs",
+    "ensemble": "macrostate_mj.app.bench.ensemble:bench_ensemble",
 }
 
 

@@ -8,6 +8,8 @@ from typing import Any
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
+from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Switch
+from macrostate_mj.app.experiments import names
 
 
 @experiment_app.command("list")
@@ -31,3 +33,28 @@ def launch(name: str, config: Any, out: Path, overwrite: bool, workers: int = 1,
         lines = execute(name, config, out, overwrite, workers, ray, report)
     for line in lines:
         typer.echo(line)
+
+
+EXPERIMENTS = tuple(n for n in names() if n != "all")
+
+
+@experiment_app.command("all")
+def experiment_all(
+    profile: str = Choice("full", "full: the dissertation's sizes; quick: a smoke run of "
+                          "every figure.", ("full", "quick")),
+    only: list[str] = Choice(None, "Run only this experiment (repeatable); default all.",
+                             EXPERIMENTS, "--only"),
+    workers: int = Count(1, "Local worker processes for every experiment's tasks.",
+                         max=MAX_WORKERS),
+    ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
+    out: Path = OutputDir(..., "Output folder: one sub-folder per experiment, and index.json."),
+    overwrite: bool = Switch(False, "Run again after a finished `experiment all` (experiments "
+                             "that finished with the same config are kept; delete a "
+                             "sub-folder to redo it)."),
+) -> None:
+    """Every experiment (ReTLo ch. 2, caging, sim-to-real, SRS ch. 3, one-class ch. 4) with one
+    profile, each in its own sub-folder; resumes after an interruption; writes index.json.
+    Experiments whose real data is absent are skipped and said so."""
+    from macrostate_mj.app.experiments.all import Config
+
+    launch("all", Config(profile, tuple(only or ())), out, overwrite, workers, ray)

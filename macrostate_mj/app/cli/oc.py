@@ -253,7 +253,7 @@ def experiment_oc(
         raise UserError("--splits and --ms take comma-separated integers, e.g. 1,2,3") from None
     from estimators.oneclass.train import OCConfig
     from macrostate_mj.app.cli.experiments import launch
-    from macrostate_mj.app.experiments.oneclass import Config
+    from macrostate_mj.app.experiments.oc import Config
     from macrostate_mj.formats.hsants import open_dataset
 
     d = open_dataset(data)

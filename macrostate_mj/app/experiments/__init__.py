@@ -41,6 +41,7 @@ class Progress:
     report: Callable[..., None] = lambda stage, done, total=1.0: None
     workers: int = 1
     ray: str | None = None
+    overwrite: bool = False     # the command's --overwrite (`experiment all` passes it on)
     cache: TaskCache = field(init=False)
 
     def __post_init__(self) -> None:
@@ -55,15 +56,17 @@ class Progress:
         self.run.record(**extra)
 
 
+def names() -> list[str]:
+    """Every experiment's command name, from its module's (`retlo_sim` -> `retlo-sim`), without
+    importing any (the CLI lists them while parsing)."""
+    return sorted(info.name.replace("_", "-") for info in pkgutil.iter_modules(__path__)
+                  if not info.name.startswith("_"))
+
+
 def registry() -> dict[str, ModuleType]:
-    """Every experiment module of this package by its command name (`retlo_sim` ->
-    `retlo-sim`)."""
-    found = {}
-    for info in pkgutil.iter_modules(__path__):
-        if not info.name.startswith("_"):
-            module = importlib.import_module(f"{__name__}.{info.name}")
-            found[getattr(module, "NAME", info.name.replace("_", "-"))] = module
-    return dict(sorted(found.items()))
+    """Every experiment module of this package by its command name."""
+    return {name: importlib.import_module(f"{__name__}.{name.replace('-', '_')}")
+            for name in names()}
 
 
 def experiment(name: str) -> ModuleType:
@@ -88,7 +91,7 @@ def execute(name: str, config: Any, out: Path, overwrite: bool = False, workers:
     module = experiment(name)
     with Run(out, f"experiment {name}", config, getattr(config, "seed", None), module.PRODUCTS,
              overwrite) as run:
-        progress = Progress(run, report or Progress.report, workers, ray)
+        progress = Progress(run, report or Progress.report, workers, ray, overwrite)
         lines = module.run(config, Path(out), progress)
         run.record(products=module.PRODUCTS, workers=workers, ray=ray)
     return lines

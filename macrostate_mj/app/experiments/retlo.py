@@ -65,6 +65,12 @@ class Config:
 PROFILES = {"full": Config(), "quick": Config(seeds=1, epochs=1)}
 
 
+def missing(cfg: Config) -> str | None:
+    """The input this run cannot start without, if it is absent (`experiment all` skips it)."""
+    absent = [p for p in (*cfg.train, cfg.val, *cfg.test) if not Path(p).is_file()]
+    return f"the ThymioLoc file {absent[0]}" if absent else None
+
+
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train, test, plot, draw; return summary lines."""
     from viz.lab_backdrop import write_lab_video

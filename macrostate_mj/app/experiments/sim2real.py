@@ -67,6 +67,11 @@ PROFILES = {
 }
 
 
+def missing(config: Config) -> str | None:
+    """The input this run cannot start without, if it is absent (`experiment all` skips it)."""
+    return None if Path(config.real).is_dir() else f"the real ThymioLoc folder {config.real}"
+
+
 def cv_blocks(n: int, folds: int, fold: int, val_share: float
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(train pool, validation, test) instance indices: test is contiguous block `fold` of

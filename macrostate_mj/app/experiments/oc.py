@@ -30,7 +30,6 @@ PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.
             "fig4_9_flows.png", "fig4_10_distances.png", "gradcam"]
 
 
-NAME = "oc"
 
 
 @dataclass(frozen=True)
@@ -53,6 +52,11 @@ class Config:
 PROFILES = {"full": Config(),
             "quick": Config(config=OCConfig().scaled(0.03), max_train=200)}
 RUN_VERSION = 1    # bump when a run's report changes for the same inputs
+
+
+def missing(exp: Config) -> str | None:
+    """The input this run cannot start without, if it is absent (`experiment all` skips it)."""
+    return None if exp.data.is_dir() else f"the ant flow dataset {exp.data}"
 
 
 def _inputs(d: AntFlowData, split: int, m: int, max_train: int | None, seed: int):

@@ -1,0 +1,92 @@
+"""`experiment all`: every chapter's experiments in one command, each in its own sub-folder.
+
+Each experiment of the registry runs with the same profile (`full` or `quick`) under its own
+run lifecycle in `<out>/<name>/`, with its own task cache there, on the command's workers or
+Ray cluster. A rerun after a kill skips what finished (a finished run of the same config is
+kept as it is) and resumes the one that was cut short from its cached tasks. An experiment
+whose input data is absent (the dissertation's real data is never part of the project: see
+`core.paths.reference_data`) is skipped and said so; one that fails is recorded and the others
+still run. `index.json` lists what each produced, its status, config hash and wall time.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from macrostate_mj.app.experiments import Progress, execute, registry
+from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.run import MANIFEST, config_hash, run_finished
+
+INDEX = "index.json"
+
+
+def _members() -> dict:
+    return {name: module for name, module in registry().items() if name != "all"}
+
+
+def __getattr__(name: str) -> list[str]:
+    # PRODUCTS: the index and one folder per experiment (computed, as the registry is)
+    if name == "PRODUCTS":
+        return [INDEX, *_members()]
+    raise AttributeError(name)
+
+
+@dataclass(frozen=True)
+class Config:
+    """Which profile every experiment runs with, and optionally which experiments."""
+
+    profile: str = "full"
+    only: tuple[str, ...] = ()       # empty: every experiment
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.only) - set(_members()))
+        if unknown:
+            raise UserError(f"only names {', '.join(unknown)}, not an experiment; choose from "
+                            f"{', '.join(_members())}", "only")
+
+
+PROFILES = {"full": Config("full"), "quick": Config("quick")}
+
+
+def run(config: Config, out: Path, progress: Progress) -> list[str]:
+    """Run (or keep, or skip) every chosen experiment; write the index; summary lines."""
+    chosen = {n: m for n, m in _members().items() if not config.only or n in config.only}
+    index: dict = {"profile": config.profile, "experiments": {}}
+    failed = []
+    for n, (name, module) in enumerate(chosen.items()):
+        progress.report("experiments", n, len(chosen))
+        sub = module.PROFILES[config.profile]
+        folder = out / name
+        entry: dict = {"folder": name, "config_hash": config_hash(sub)}
+        absent = getattr(module, "missing", lambda _: None)(sub)
+        t0 = time.perf_counter()
+        if absent is not None:
+            entry |= {"status": "skipped", "reason": f"needs {absent}"}
+        elif run_finished(folder, sub):
+            entry |= {"status": "kept", "reason": "finished before with this config"}
+        else:
+            try:
+                with progress.stage(name):
+                    entry["summary"] = execute(name, sub, folder, progress.overwrite,
+                                               progress.workers, progress.ray, progress.report)
+                entry["status"] = "finished"
+            except (RunFailure, UserError) as err:
+                entry |= {"status": "failed", "reason": " ".join(str(err).split())[:300]}
+                failed.append(name)
+        entry["wall_s"] = round(time.perf_counter() - t0, 1)
+        entry["products"] = sorted(p for p in module.PRODUCTS if (folder / p).exists())
+        if (folder / MANIFEST).exists():
+            entry["manifest"] = f"{name}/{MANIFEST}"
+        index["experiments"][name] = entry
+        write_json_atomic(out / INDEX, index)       # after each: a kill keeps the index so far
+    progress.report("experiments", len(chosen), len(chosen))
+    progress.record(experiments={n: e["status"] for n, e in index["experiments"].items()})
+    lines = [f"{n:<10} {e['status']:<9} {e['wall_s']:>8.0f} s  {e.get('reason', '')}".rstrip()
+             for n, e in index["experiments"].items()]
+    if failed:
+        raise RunFailure(f"experiment all: {', '.join(failed)} failed (see {out / INDEX}); the "
+                         "others are kept, and a rerun resumes the failed ones")
+    return [*lines, f"index: {out / INDEX}"]
