@@ -32,23 +32,30 @@ def _norm(v: np.ndarray) -> float:
 
 def pull(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
     """(|p - q| - d)(q - p): toward q when farther than d, away when nearer."""
+    return pulls(np.asarray(p, float)[None], np.asarray(q, float)[None], d)[0]
+
+
+def pulls(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
+    """`pull` of each row (m, 2) of p toward its row of q; each row bit for bit `pull`'s (the
+    norms one by one, as `np.linalg.norm` takes them; the rest elementwise)."""
     diff = np.asarray(q, float) - np.asarray(p, float)
-    return (_norm(diff) - d) * diff
+    dist = np.array([_norm(row) for row in diff])
+    return (dist - d)[:, None] * diff
 
 
 def follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
                       k_f: float) -> np.ndarray:
     """Follower rule: keep distance d to both neighbours with gain k_f (1 / (m s))."""
-    return k_f * (pull(p, ahead, d) + pull(p, behind, d))
+    return TwoNeighbours().velocities(*(np.asarray(a, float)[None] for a in (p, ahead, behind)),
+                                      d, k_f)[0]
 
 
 def waiting_follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
                               k_f: float, slack: float) -> np.ndarray:
     """Lab Follower (seed §2.6.2.1): regulate the distance to the robot ahead; regulate the one
     behind only by stopping (not backing up) while it lags more than d + slack."""
-    if _norm(np.asarray(behind, float) - np.asarray(p, float)) > d + slack:
-        return np.zeros(2)
-    return k_f * pull(p, ahead, d)
+    return WaitForBehind(slack).velocities(
+        *(np.asarray(a, float)[None] for a in (p, ahead, behind)), d, k_f)[0]
 
 
 def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray:
@@ -57,19 +64,20 @@ def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.
 
 
 class FollowerRule(Protocol):
-    """How a Follower turns its two neighbours into a reference velocity."""
+    """How Followers turn their two neighbours into reference velocities: rows (m, 2) of
+    positions, the robots ahead and the robots behind."""
 
-    def velocity(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
-                 k_f: float) -> np.ndarray: ...
+    def velocities(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                   k_f: float) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
 class TwoNeighbours:
     """Seed §2.3: regulate the distance d to both neighbours."""
 
-    def velocity(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
-                 k_f: float) -> np.ndarray:
-        return follower_velocity(p, ahead, behind, d, k_f)
+    def velocities(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                   k_f: float) -> np.ndarray:
+        return k_f * (pulls(p, ahead, d) + pulls(p, behind, d))
 
 
 @dataclass(frozen=True)
@@ -79,9 +87,12 @@ class WaitForBehind:
 
     slack: float
 
-    def velocity(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
-                 k_f: float) -> np.ndarray:
-        return waiting_follower_velocity(p, ahead, behind, d, k_f, self.slack)
+    def velocities(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
+                   k_f: float) -> np.ndarray:
+        lag = np.array([_norm(row) for row in behind - p]) > d + self.slack
+        out = k_f * pulls(p, ahead, d)
+        out[lag] = 0.0
+        return out
 
 
 def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: float, k_f: float,
@@ -96,8 +107,8 @@ def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: f
     out = np.zeros_like(p)
     if head_target is not None:
         out[0] = head_velocity(p[0], head_target, head_gain)
-    for i in range(1, n - 1):
-        out[i] = followers.velocity(p[i], p[i - 1], p[i + 1], d, k_f)
+    if n > 2:
+        out[1:n - 1] = followers.velocities(p[1:n - 1], p[:n - 2], p[2:], d, k_f)
     out[n - 1] = tail_velocity(p[n - 1], p[n - 2], d, k_t)
     return out
 
