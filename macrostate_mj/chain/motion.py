@@ -133,6 +133,8 @@ def steer_around(positions: np.ndarray, vel: np.ndarray, obstacles: tuple[Obstac
     p = np.asarray(positions, float)
     out = np.array(vel, float)
     for ob in obstacles:
+        if not ob.within(p, radius):
+            continue                # no robot near it: it adds nothing (to the last bit)
         dist, normal = ob.distance(p)
         w = np.clip((radius - dist) / radius, 0.0, 1.0)[:, None]
         into = np.minimum(np.sum(out * normal, axis=1), 0.0)[:, None]

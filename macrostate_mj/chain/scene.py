@@ -148,6 +148,12 @@ class Obstacle:
             return self.size[0] / 2, self.size[1] / 2
         return self.size[0] / 2, self.size[0] / 2
 
+    def within(self, xy: np.ndarray, radius: float) -> bool:
+        """Is any point (k, 2) nearer than `radius` to the footprint (or inside it)? Cheaper
+        than `distance`, from a bound of it: a box's largest per-axis gap never exceeds the
+        distance to it."""
+        return bool((-self.depth(xy) < radius).any())
+
     def depth(self, xy: np.ndarray) -> np.ndarray:
         """How deep (k,) points (k, 2) lie inside the footprint (m; 0 or less: outside, not
         the exact distance there). The health check's test, kept cheaper than `distance`: it

@@ -126,6 +126,10 @@ def test_the_health_checks_depth_agrees_with_the_signed_distance(ob):
     dist, depth = ob.distance(xy)[0], ob.depth(xy)
     assert np.array_equal(depth > 0, dist < 0)
     assert np.allclose(depth[dist < 0], -dist[dist < 0])
+    assert (-depth <= dist + 1e-12).all()          # a bound of the distance outside too
+    for radius in (0.05, 0.3):       # `within` may err only on the side of looking closer
+        near = dist < radius
+        assert ob.within(xy[near], radius) and not ob.within(xy[-depth >= radius], radius)
 
 
 def test_a_centre_inside_an_obstacle_is_a_health_fault(cfg):
