@@ -252,7 +252,9 @@ def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
         assert (out / name).stat().st_size > 1000
     results = json.loads((out / "results.json").read_text())
     cfg = results["configs"]
-    assert cfg["ro_0"]["1.0000"]["head_cm"] == cfg["passive"]["1.0000"]["head_cm"]
+    for metric in ("all_predictions_cm", "head_cm"):      # the text's metric, and the Head's
+        assert cfg["ro_0"]["1.0000"][metric] == cfg["passive"]["1.0000"][metric]
+    assert results["baseline"] == "ro_0.75"
     ro = read_csv(out / "data" / "ro_0.75_d0" / "instances.csv").poses
     srs = read_csv(out / "data" / "srs_max_d0" / "instances.csv").poses
     m = results["profile"]["ro_instances"]

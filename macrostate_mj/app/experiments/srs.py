@@ -190,7 +190,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     Configurations run one after another (their datasets, then their models), Fig 3.5b's
     first, so a run cut short leaves whole configurations done."""
     from estimators.retlo.files import read_world
-    from viz.srs_figures import plot_budgets, plot_distances, plot_sigma, plot_stepwise
+    from viz.srs_figures import plot_all
 
     t0 = time.perf_counter()
     data = out / "data"
@@ -233,11 +233,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     results["distances"] = distances
     write_json_atomic(out / "results.json", results)
     with progress.stage("figures"):
-        plot_sigma(results, out / "fig3_4.png")
-        plot_budgets(results, [f"srs_{p}" for p in config.picks], out / "fig3_5a.png")
-        plot_budgets(results, ["passive", f"ro_{RO_SIGMA:g}", "srs_med"], out / "fig3_5b.png")
-        plot_stepwise(results, out / "fig3_6.png")
-        plot_distances(results, out / "fig3_7.png")
+        plot_all(results, out, list(config.picks))
     progress.record(scenario=SCENARIO, models=len(cells),
                     models_distinct=len({c.key for c in cells}),
                     models_trained=len(trained))
@@ -252,13 +248,14 @@ def _budgets(config: Config, name: str) -> tuple[float, ...]:
 
 
 def _results(config: Config, cells: list[_Cell]) -> dict:
-    """Per configuration and budget: Head and mean error (cm) mean ± std over datasets and
-    models, and the step-wise Head and F2 errors."""
+    """Per configuration and budget: the error of all predictions (F2, F3 and Head on the
+    5-robot test: the dissertation's metric for Fig 3.4-3.5, §2.6.3.1) and the Head's alone
+    (cm), mean ± std over datasets and models, and the step-wise Head and F2 errors."""
     grouped: dict[str, dict[str, list[dict]]] = {}
     for c in cells:
         grouped.setdefault(c.config, {}).setdefault(f"{c.budget:.4f}",
                                                     []).append(c.report)
-    out: dict = {"profile": asdict(config), "configs": {}}
+    out: dict = {"profile": asdict(config), "baseline": f"ro_{RO_SIGMA:g}", "configs": {}}
     for name, per_budget in grouped.items():
         out["configs"][name] = {}
         for budget, reps in sorted(per_budget.items()):
@@ -271,7 +268,7 @@ def _results(config: Config, cells: list[_Cell]) -> dict:
             out["configs"][name][budget] = {
                 "instances": int(round(float(budget) * config.train)),
                 "head_cm": mean_std([r["per_robot_cm"]["H"] for r in reps]),
-                "mean_cm": mean_std([r["mean_error_cm"] for r in reps]),
+                "all_predictions_cm": mean_std([r["mean_error_cm"] for r in reps]),
                 "per_step_cm": steps,
                 "first_step": reps[0]["first_step"], "step_s": reps[0]["step_s"]}
     return out
@@ -292,7 +289,8 @@ def _distances(sets: list[_Dataset], config: Config) -> dict[str, list[float]]:
 def _summary(results: dict, timings: dict[str, float]) -> list[str]:
     lines = []
     for name, per_budget in results["configs"].items():
-        cells = [f"{c['instances']} inst. H {c['head_cm']['mean']:.1f} ± {c['head_cm']['std']:.1f}"
+        cells = [f"{c['instances']} inst. all {c['all_predictions_cm']['mean']:.1f} ± "
+                 f"{c['all_predictions_cm']['std']:.1f}, H {c['head_cm']['mean']:.1f}"
                  for c in per_budget.values()]
         lines.append(f"{name:<10} " + "; ".join(cells) + " cm")
     lines.append(f"datasets {timings['datasets']:.0f} s, models {timings['models']:.0f} s, "
