@@ -13,7 +13,8 @@ from estimators.retlo.chain import Module
 from estimators.retlo.files import read_world
 from estimators.retlo.models import RetloNet
 from estimators.retlo.report import evaluate_chain
-from estimators.retlo.train import TrainConfig, train
+from estimators.retlo.train import TrainConfig, sample_weights, train
+from macrostate_mj.core.errors import UserError
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 Data = str | os.PathLike | np.ndarray   # a ThymioLoc CSV, or chains (B, S, N, 3) in metres
@@ -26,13 +27,32 @@ def as_world(data: Data, px_per_cm: float = DEFAULT_PX_PER_CM) -> np.ndarray:
 
 def fit(train_data: Sequence[Data], val: Data, cfg: TrainConfig, *,
         px_per_cm: float = DEFAULT_PX_PER_CM, init: RetloNet | None = None,
+        mix: Sequence[Data] = (), mix_weight: float = 0.5,
         progress: bool = False, on_epoch: Callable[[int, float], None] | None = None,
         ) -> tuple[RetloNet, dict]:
     """Train `cfg.model` on the training chains, select and stop early on `val` (see
-    `train.train`; `init`: fine-tune a copy of that network). Returns the network and its
-    training record (best validation error in cm, epochs, curve)."""
-    return train([as_world(d, px_per_cm) for d in train_data], as_world(val, px_per_cm), cfg,
-                 progress=progress, on_epoch=on_epoch, init=init)
+    `train.train`). `init`: fine-tune a copy of that network (pre-trained on the testbed,
+    say). `mix`: more chains (simulated, say) trained on together with the training ones,
+    their samples counting `mix_weight` of the loss and the training ones the rest. Returns the
+    network and its training record (best validation error in cm, epochs, curve)."""
+    worlds = [as_world(d, px_per_cm) for d in train_data]
+    weights = None
+    if mix:
+        if not 0.0 < mix_weight < 1.0:
+            raise UserError(f"mix_weight must be in (0, 1), the mixed data's share of the "
+                            f"loss; got {mix_weight}", "mix_weight")
+        extra = [as_world(d, px_per_cm) for d in mix]
+        shares = ([(1 - mix_weight) * _share(w, worlds) for w in worlds]
+                  + [mix_weight * _share(w, extra) for w in extra])
+        worlds += extra
+        weights = sample_weights(worlds, shares, cfg.model)
+    return train(worlds, as_world(val, px_per_cm), cfg, progress=progress,
+                 on_epoch=on_epoch, init=init, weights=weights)
+
+
+def _share(world: np.ndarray, group: list[np.ndarray]) -> float:
+    """A file's share of its group, by instances."""
+    return len(world) / sum(len(w) for w in group)
 
 
 def evaluate(module: Module, data: Data, px_per_cm: float = DEFAULT_PX_PER_CM) -> dict:

@@ -53,6 +53,11 @@ class TrainConfig:
     chained: bool = True   # and with the Follower seen as a chained module sees it (see below)
     mirror: bool = True  # reflect a random half of every batch (see `mirror_signs`)
     model: ModelConfig = field(default_factory=ModelConfig)
+    frozen: tuple[str, ...] = ()   # parameter-name prefixes kept fixed (fine-tuning: ENCODER)
+
+
+ENCODER = ("f_obs.", "f_hist.")    # what a fine-tuning may freeze: the observation and history
+#                                    encoders, leaving the fusion layer and the heads to train
 
 
 def _append(parts: dict[str, list[np.ndarray]], x: Features, truth: np.ndarray, k: int, t: int,
@@ -98,16 +103,20 @@ def mean_spacing(worlds: list[np.ndarray]) -> float:
 
 
 def _loss(net: RetloNet, batch: dict[str, torch.Tensor], angle_weight: float) -> torch.Tensor:
-    """Euclidean position error (in spacing units) + angle MAE, as §2.6.2.3 prescribes."""
+    """Euclidean position error (in spacing units) + angle MAE, as §2.6.2.3 prescribes; with
+    per-sample weights `batch["w"]` (mixed data), their weighted mean."""
     pos, ang = net(batch["obs"], batch["hist"])
-    pos_loss = torch.linalg.vector_norm(pos - batch["pos"] / net.pos_scale, dim=-1).mean()
+    pos_err = torch.linalg.vector_norm(pos - batch["pos"] / net.pos_scale, dim=-1)
     if net.cfg.cos_sin:
         target = torch.stack([torch.cos(batch["ang"]), torch.sin(batch["ang"])], dim=-1)
-        ang_loss = (ang - target).abs().mean()
+        ang_err = (ang - target).abs()
     else:
-        ang_loss = (torch.remainder(ang - batch["ang"] + torch.pi, 2 * torch.pi) - torch.pi).abs()
-        ang_loss = ang_loss.mean()
-    return pos_loss + angle_weight * ang_loss
+        ang_err = (torch.remainder(ang - batch["ang"] + torch.pi, 2 * torch.pi) - torch.pi).abs()
+    if "w" in batch:
+        w = batch["w"]
+        per = pos_err + angle_weight * ang_err.reshape(len(w), -1).mean(dim=1)
+        return (w * per).sum() / w.sum()
+    return pos_err.mean() + angle_weight * ang_err.mean()
 
 
 def as_chained(world: np.ndarray, est: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -133,16 +142,21 @@ def _predict_recorded(net: RetloNet, world: np.ndarray, samples: dict[str, list[
 
 
 def _with_feedback(net: RetloNet, worlds: list[np.ndarray], data: dict[str, torch.Tensor],
-                   chained: bool, rng: np.random.Generator) -> dict[str, torch.Tensor]:
+                   chained: bool, rng: np.random.Generator,
+                   weights: list[float] | None = None) -> dict[str, torch.Tensor]:
     """Add the samples the current model would meet at test time: histories holding its own
     fed-back predictions, frames built from its own estimates, paired with the true targets.
     Teacher forcing alone leaves the LSTM blind to its own drift (errors grow step after step);
     this is DAgger-style data aggregation, refreshed every epoch."""
     samples: dict[str, list[np.ndarray]] = {}
-    for world in worlds:
+    for j, world in enumerate(worlds):
+        before = sum(len(a) for a in samples.get("obs", []))
         est = _predict_recorded(net, world, samples)
         if chained:
             _predict_recorded(net, as_chained(world, est, rng), samples)
+        if weights is not None:      # this file's samples keep its weight
+            added = sum(len(a) for a in samples["obs"]) - before
+            samples.setdefault("w", []).append(np.full(added, weights[j]))
     extra = {k: torch.from_numpy(np.concatenate(v).astype(np.float32)) for k, v in samples.items()}
     return {k: torch.cat([data[k], extra[k]]) for k in data}
 
@@ -161,7 +175,7 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
         if cfg.mirror:
             flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
             batch = {k: torch.where(flip.view(-1, *[1] * (v.dim() - 1)), v * signs[k], v)
-                     for k, v in batch.items()}
+                     if k in signs else v for k, v in batch.items()}
         loss = _loss(net, batch, cfg.angle_weight)
         opt.zero_grad()
         loss.backward()
@@ -171,14 +185,26 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
     return total, batches
 
 
+def sample_weights(worlds: list[np.ndarray], shares: list[float], cfg: ModelConfig
+                   ) -> list[float]:
+    """Per training file, the weight of each of its samples so that the files' losses count
+    with `shares` (mixing sim and real data: a share per file, summing to 1 per group the caller
+    forms): a file's share over its sample count."""
+    counts = [len(make_samples([w[:1]], cfg)["obs"]) * len(w) for w in worlds]
+    return [share / count for share, count in zip(shares, counts, strict=True)]
+
+
 def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
           progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
-          init: RetloNet | None = None) -> tuple[RetloNet, dict]:
+          init: RetloNet | None = None, weights: list[float] | None = None
+          ) -> tuple[RetloNet, dict]:
     """Train with Adam on chains (B, S, N, 3) in metres, file order; keep the best closed-loop
     validation checkpoint, stop early.
 
     `init`: fine-tune a copy of this network (its sizes and spacing scale) instead of a fresh
-    one; `cfg.model` must describe it.
+    one; `cfg.model` must describe it, and `cfg.frozen` names the parameters kept fixed.
+    `weights`: per training file, the weight of each of its samples in the loss (see
+    `sample_weights`); None weighs every sample alike.
 
     `progress` shows a bar of its own; a caller with its own bar passes `on_epoch(epoch, val_cm)`.
     Ctrl-C after the first validated epoch stops training and returns the best checkpoint so
@@ -187,14 +213,28 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     for i, w in enumerate(train_worlds):
         check_chain(w.shape, cfg.model.history, what=f"training file {i + 1}")
     check_chain(val_world.shape, cfg.model.history, what="validation file")
+    if init is not None and init.cfg != cfg.model:
+        raise UserError(f"the initial model is a {_describe(init.cfg)}, not the "
+                        f"{_describe(cfg.model)} asked for; pass the model's own settings")
+    if weights is not None and (len(weights) != len(train_worlds)
+                                or not all(np.isfinite(w) and w > 0 for w in weights)):
+        raise UserError("weights must be one positive number per training file")
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    base = make_samples(train_worlds, cfg.model)
+    if weights is None:
+        base = make_samples(train_worlds, cfg.model)
+    else:
+        parts = [make_samples([w], cfg.model) for w in train_worlds]
+        base = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        base["w"] = np.concatenate([np.full(len(p["obs"]), wt, np.float32)
+                                    for p, wt in zip(parts, weights, strict=True)])
     signs = {k: torch.from_numpy(v).float() for k, v in mirror_signs(cfg.model).items()}
     net = (RetloNet(cfg.model, CM_PER_M * mean_spacing(train_worlds)) if init is None
            else copy.deepcopy(init).train())
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    for name, p in net.named_parameters():
+        p.requires_grad_(not name.startswith(cfg.frozen) if cfg.frozen else True)
+    opt = torch.optim.Adam([p for p in net.parameters() if p.requires_grad], lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
     best = (float("inf"), -1, copy.deepcopy(net.state_dict()))
     curve: list[dict] = []
@@ -209,7 +249,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
             for epoch in range(cfg.epochs):
                 data = {k: torch.from_numpy(v) for k, v in base.items()}
                 if cfg.feedback:
-                    data = _with_feedback(net, train_worlds, data, cfg.chained, rng)
+                    data = _with_feedback(net, train_worlds, data, cfg.chained, rng, weights)
                 n = len(data["obs"])
                 total, done = _train_epoch(net, opt, data, signs, rng, cfg)
                 batches += done
@@ -235,6 +275,14 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
             "batches": batches, "interrupted": interrupted,
             "curve": curve}
     return net, info
+
+
+def _describe(cfg: ModelConfig) -> str:
+    direction = "" if cfg.kind != "lstm" else (" bidirectional" if cfg.bidirectional
+                                                else " unidirectional")
+    return (f"{cfg.kind}{direction} model (history {cfg.history}, "
+            f"{'cos/sin' if cfg.cos_sin else 'radian'} angles, "
+            f"{'rotated' if cfg.rotate else 'compass'} frame)")
 
 
 def checkpoint_bytes(net: RetloNet, px_per_cm: float, train_cfg: TrainConfig,

@@ -114,36 +114,70 @@ def train_retlo(
                                  "Tail→Follower)."),
     history: int = History,
     chained: bool = Chained,
+    init: Path = InputFile(None, "Fine-tune this checkpoint (from `train retlo`, on simulated "
+                           "data say) instead of a fresh network; the model flags must "
+                           "describe it.", (".pt",)),
+    lr: float = Positive(2e-3, "Adam's learning rate at the start of the cosine schedule "
+                         "(fine-tuning: try 5e-4).", "--lr", max=1.0),
+    freeze_encoder: bool = Switch(False, "With --init: keep the observation and history "
+                                  "encoders fixed, train the fusion layer and the heads."),
+    mix: list[Path] = InputFile(None, "More training chains (simulated, say) trained on "
+                                "together with --train (repeatable).", CSV, flag="--mix"),
+    mix_weight: float = Positive(0.5, "The --mix data's share of the loss, in (0, 1); --train's "
+                                 "is the rest.", "--mix-weight", max=1.0),
     px_per_cm: float = PxPerCm,
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
-    """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint."""
+    """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint.
+    Sim-to-real: pre-train on testbed data, then fine-tune on your own (--init), or train on
+    both at once (--mix)."""
     from estimators.retlo.api import fit
     from estimators.retlo.files import read_world
     from estimators.retlo.models import ModelConfig
-    from estimators.retlo.train import TrainConfig, save_checkpoint
+    from estimators.retlo.train import ENCODER, TrainConfig, load_checkpoint, save_checkpoint
+    from macrostate_mj.core.errors import UserError
     from macrostate_mj.core.io import check_writable_file
     from macrostate_mj.core.run import Run
 
-    cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained,
+    if freeze_encoder and init is None:
+        raise UserError("--freeze-encoder fine-tunes a model: pass --init MODEL.pt too")
+    cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained, lr=lr,
+                      frozen=ENCODER if freeze_encoder else (),
                       model=ModelConfig(kind=model, bidirectional=not unidirectional,
                                         cos_sin=cos_sin, rotate=not compass_frame,
                                         history=history))
+    start = None
+    if init is not None:
+        start, _ = load_checkpoint(init)
+        if start.cfg != cfg.model:
+            raise UserError(f"--init {init} is a different model from the one the flags ask "
+                            f"for ({_differences(start.cfg, cfg.model)}); pass its settings")
     check_writable_file(out, overwrite, "--out")
     with Run(out.parent, "train retlo", cfg, seed, [out.name], overwrite,
              manifest=out.name + ".manifest.json") as run:
         worlds = [read_world(p, px_per_cm) for p in train]
         val_world = read_world(val, px_per_cm)
         with run.stage("train"):
-            net, info = fit(worlds, val_world, cfg, progress=True)
+            net, info = fit(worlds, val_world, cfg, progress=True, init=start,
+                            mix=[read_world(p, px_per_cm) for p in mix or ()],
+                            mix_weight=mix_weight)
         save_checkpoint(out, net, px_per_cm, cfg, info)
-        run.record(inputs=[str(p) for p in [*train, val]])
+        run.record(inputs=[str(p) for p in [*train, val]], init=str(init) if init else None,
+                   mix=[str(p) for p in mix or ()], mix_weight=mix_weight if mix else None)
         typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
                    f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
         if info["interrupted"]:  # the best checkpoint so far is saved; say so and stop as Ctrl-C
             typer.echo(f"interrupted after epoch {info['epochs_run']}; kept the best checkpoint",
                        err=True)
             raise KeyboardInterrupt
+
+
+def _differences(have: object, want: object) -> str:
+    """`name: have -> want` of every field two model configs disagree on."""
+    from dataclasses import fields
+
+    return ", ".join(f"{f.name}: it has {getattr(have, f.name)!r}, not {getattr(want, f.name)!r}"
+                     for f in fields(have) if getattr(have, f.name) != getattr(want, f.name))
 
 
 @evaluate_app.command("retlo")
