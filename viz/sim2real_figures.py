@@ -18,7 +18,10 @@ def plot_curve(results: dict, path: str | os.PathLike) -> None:
 
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     for arm, label, style in (("real", "real only", "o-"),
-                              ("finetune", "sim pre-trained, fine-tuned", "s-")):
+                              ("finetune", "sim pre-trained, fine-tuned", "s-"),
+                              ("mixed", "sim and real mixed", "^-")):
+        if arm not in results["arms"]:          # results written before the mixed arm
+            continue
         cells = results["arms"][arm]
         x = np.array([float(f) * 100 for f in cells])
         m = np.array([c["head_cm"]["mean"] for c in cells.values()])

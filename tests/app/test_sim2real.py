@@ -47,17 +47,17 @@ def test_experiment_sim2real_quick(tmp_path, monkeypatch):
     res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out))
     assert res.returncode == 0, res.stderr
     results = json.loads((out / "results.json").read_text())
-    assert set(results["arms"]) == {"sim", "real", "finetune"}
-    for arm in ("real", "finetune"):
+    assert set(results["arms"]) == {"sim", "real", "finetune", "mixed"}
+    for arm in ("real", "finetune", "mixed"):
         assert set(results["arms"][arm]) == {"0.5", "1"}
         assert all(c["head_cm"]["n"] == 2 and c["head_cm"]["mean"] > 0
                    for c in results["arms"][arm].values())
     assert results["sim_over_real"] > 0
     assert (out / "sim2real.png").stat().st_size > 1000
     manifest = json.loads((out / "manifest.json").read_text())
-    assert manifest["models"] == manifest["models_trained"] == 2 + 2 * 2 * 2
+    assert manifest["models"] == manifest["models_trained"] == 2 + 3 * 2 * 2
     models = sorted((out / "cache" / "sim2real-model").iterdir())
-    assert len(models) == 10 and sum((m / "model.pt").is_file() for m in models) == 2
+    assert len(models) == 14 and sum((m / "model.pt").is_file() for m in models) == 2
     # a rerun takes every model from the cache and writes the same results
     before = (out / "results.json").read_bytes()
     res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out),

@@ -37,7 +37,7 @@ from macrostate_mj.core.paths import reference_data
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png"]
-ARMS = ("sim", "real", "finetune")
+ARMS = ("sim", "real", "finetune", "mixed")
 REAL_FILES = ("Train.csv", "Val.csv")
 
 
@@ -50,6 +50,7 @@ class Config:
     epochs: int = 60
     finetune_epochs: int = 30
     finetune_lr: float = 5e-4
+    mix_weight: float = 0.5        # the mixed arm: the lab data's share of the loss
     sim_minutes: float = 100.0
     sim_seed: int = 31
     episode_minutes: float = 5.0
@@ -139,17 +140,20 @@ Data = Path | np.ndarray
 
 
 class ModelTask:
-    """One model of one arm: trained on `train` (or fine-tuned from the sim checkpoint `init`),
-    selected on `val`, tested on the real block `test`. Keyed by its training settings and the
-    bytes of its data; a sim model also outputs its checkpoint (`model.pt`)."""
+    """One model of one arm: trained on `train` (fine-tuned from the sim checkpoint `init`, or
+    with the sim data `mix` weighing `mix_weight` of the loss), selected on `val`, tested on
+    the real block `test`. Keyed by its training settings and the bytes of its data; a sim
+    model also outputs its checkpoint (`model.pt`)."""
 
     stage: ClassVar[str] = "sim2real-model"
     version: ClassVar[int] = 1
 
     def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
-                 test: np.ndarray, lr: float | None = None, init: Path | None = None):
+                 test: np.ndarray, lr: float | None = None, init: Path | None = None,
+                 mix: Data | None = None, mix_weight: float = 0.5):
         self.arm, self.seed, self.epochs, self.lr = arm, seed, epochs, lr
         self.train, self.val, self.test, self.init = train, val, test, init
+        self.mix, self.mix_weight = mix, mix_weight
         self._key: str | None = None
 
     def train_config(self) -> Any:
@@ -161,9 +165,12 @@ class ModelTask:
 
     def key(self) -> str:
         if self._key is None:
-            inputs = [self.train, self.val, self.test, *([self.init] if self.init else [])]
-            self._key = task_key(self.stage, self.version,
-                                 {"arm": self.arm, "train": self.train_config()}, inputs)
+            inputs = [self.train, self.val, self.test, *([self.init] if self.init else []),
+                      *([self.mix] if self.mix is not None else [])]
+            config = {"arm": self.arm, "train": self.train_config()}
+            if self.mix is not None:        # keys of the other arms stay as they were
+                config["mix_weight"] = self.mix_weight
+            self._key = task_key(self.stage, self.version, config, inputs)
         return self._key
 
     def compute(self) -> dict[str, bytes]:
@@ -173,7 +180,9 @@ class ModelTask:
 
         cfg = self.train_config()
         init = None if self.init is None else load_checkpoint(self.init)[0]
-        net, info = fit([self.train], self.val, cfg, init=init)
+        mix = [] if self.mix is None else [self.mix]
+        net, info = fit([self.train], self.val, cfg, init=init, mix=mix,
+                        mix_weight=self.mix_weight)
         report = evaluate(TorchPredictor(net), self.test)
         files = {"report.json": json.dumps({
             "head_cm": report["per_robot_cm"]["H"], "mean_cm": report["mean_error_cm"],
@@ -195,7 +204,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         sim = _sim_data(config, out / "data" / "sim", progress.workers, progress.ray)
     first: list[tuple[dict, ModelTask]] = []
     blocks = []
-    total = config.seeds * (1 + 2 * len(config.fractions))
+    total = config.seeds * (1 + (len(ARMS) - 1) * len(config.fractions))
     for i in range(config.seeds):
         s = config.seed + i
         pool, val, test = cv_blocks(len(pooled), config.folds, i % config.folds,
@@ -216,6 +225,10 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                         ("finetune", config.finetune_epochs, config.finetune_lr, checkpoint)):
                     second.append(({"arm": arm, "fraction": f, "count": count, "seed": s},
                                    ModelTask(arm, s, epochs, pool[:count], val, test, lr, init)))
+                second.append(({"arm": "mixed", "fraction": f, "count": count, "seed": s},
+                               ModelTask("mixed", s, config.epochs, pool[:count], val, test,
+                                         mix=sim / "Train.csv",
+                                         mix_weight=config.mix_weight)))
         done |= _train(second, progress, total, len(first))
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
                for meta, task in [*first, *second]]
