@@ -12,7 +12,6 @@ A run that cannot fit (the 1,600-step straight test: 1.6 m of travel plus a 0.4 
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -96,15 +95,6 @@ def fit_start(cfg: ScenarioConfig, n: int, twists: np.ndarray, n_headings: int =
             best = (room, straight_chain(path[0] + np.array([*shift, 0.0]), n, cfg.spacing))
     assert best is not None
     return best[1], best[0]
-
-
-def open_floor(world: World) -> World:
-    """The same world without its walls (MuJoCo's floor plane is unbounded for contact)."""
-    spec = world.spec
-    for geom in list(spec.geoms):
-        if geom.name.startswith("wall"):
-            spec.delete(geom)
-    return dataclasses.replace(world, spec=spec, model=spec.compile())
 
 
 def run_chain(world: World, start: np.ndarray, steps: int, k_t: float,

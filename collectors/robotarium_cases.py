@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from collectors.robotarium import fit_start, open_floor, run_chain, twists_of
+from collectors.robotarium import fit_start, run_chain, twists_of
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.world import build_world
 
@@ -56,10 +56,8 @@ def case_run(cfg: ScenarioConfig, n: int, path: str, steps: int) -> tuple[np.nda
     floor it ran on ("arena", or "open" when the run cannot fit between the walls)."""
     sched = schedule(path, steps)
     start, room = fit_start(cfg, n, twists_of(sched, steps))
-    world = build_world(cfg, n, start)
     walls = room >= 0
-    if not walls:
-        world = open_floor(world)
+    world = build_world(cfg if walls else cfg.with_overrides(walls=None), n, start)
     return run_chain(world, start, steps, cfg.k_t, sched, walls=walls), \
         "arena" if walls else "open"
 

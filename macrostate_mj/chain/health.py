@@ -89,7 +89,9 @@ class PhysicsMonitor:
         self.limits = limits or HealthLimits()
         self.body = world.body
         self.rest_z = model.qpos0[world.qpos_adr + 2].copy()
-        self.half = np.array(world.scenario.arena) / 2
+        # Escaping is leaving the walls: an open floor (walls = None) has none to leave.
+        self.half = (np.array(world.scenario.arena) / 2 if world.scenario.walls is not None
+                     else np.full(2, np.inf))
         self.obstacles = world.scenario.obstacles
         self.min_up = float(np.cos(np.radians(self.limits.max_tilt_deg)))
         self.stats = HealthStats()

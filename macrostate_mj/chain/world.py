@@ -146,9 +146,9 @@ def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = No
     if start.shape != (n, 3) or not np.isfinite(start).all():
         raise UserError(f"start must be {n} finite poses (x, y, theta), an ({n}, 3) array; got "
                         f"shape {start.shape}", "start")
-    if (np.abs(start[:, :2]) > np.array(cfg.arena) / 2).any():
+    if cfg.walls is not None and (np.abs(start[:, :2]) > np.array(cfg.arena) / 2).any():
         raise UserError(f"start has a robot outside the {cfg.arena[0]:g} x {cfg.arena[1]:g} m "
-                        "arena (its centre at the origin); place every robot on the floor",
+                        "walls (their centre at the origin); place every robot inside them",
                         "start")
     names = robot_names(n)
     colours = marker_colours(n)

@@ -187,3 +187,13 @@ def test_the_online_chain_estimates_what_the_offline_one_does(comm_every):
         assert t == max(0, s - (n - 2))
         assert np.array_equal(head, offline[t, -1], equal_nan=True)
     assert np.array_equal(live.pos, offline, equal_nan=True)
+
+
+def test_the_straight_test_chain_runs_on_an_open_floor():
+    """Fig 2.2's 1,600-step straight run cannot fit between the robotarium walls: it runs with
+    no walls (its start poses lie beyond them, which a walled world refuses)."""
+    from collectors.robotarium_cases import case_run
+    from macrostate_mj.chain.scenarios import get_scenario
+
+    poses, floor = case_run(get_scenario("robotarium"), 6, "straight", 1600)
+    assert floor == "open" and poses.shape == (1600, 6, 3) and np.isfinite(poses).all()
