@@ -20,7 +20,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
@@ -112,6 +112,18 @@ class Task(Protocol):
         after the other tasks finish."""
 
 
+class GroupedTask(Task, Protocol):
+    """A task that can be computed together with others of its `group()` (same-shape models
+    trained as one: `estimators.retlo.ensemble`). `compute_group(tasks)` returns each task's
+    outputs, in order."""
+
+    def group(self) -> Hashable:
+        """Tasks with equal groups (and type) may be computed together."""
+
+    @classmethod
+    def compute_group(cls, tasks: list[Any]) -> list[Mapping[str, bytes]]: ...
+
+
 class TaskFailed(Exception):
     """A task that could not produce its outputs (the physics left its valid regime)."""
 
@@ -130,29 +142,61 @@ def _compute(task: Task) -> tuple[dict[str, bytes] | None, str | None]:
         return None, str(err)
 
 
-def _indexed(item: tuple[int, Task]) -> tuple[int, dict[str, bytes] | None, str | None]:
-    index, task = item
-    return (index, *_compute(task))
+def _unit(items: list[tuple[int, Task]]) -> list[tuple[int, dict[str, bytes] | None,
+                                                       str | None]]:
+    """One unit of work: a task alone, or a group computed together (all fail together)."""
+    if len(items) == 1:
+        index, task = items[0]
+        return [(index, *_compute(task))]
+    tasks = [task for _, task in items]
+    try:
+        outputs = type(tasks[0]).compute_group(tasks)
+    except TaskFailed as err:
+        return [(index, None, str(err)) for index, _ in items]
+    return [(index, dict(files), None) for (index, _), files in zip(items, outputs, strict=True)]
+
+
+def _units(todo: list[tuple[int, Task]], group_size: int) -> list[list[tuple[int, Task]]]:
+    """Tasks in units of work: with `group_size` > 1, tasks of one type and `group()` in
+    chunks of that size, in task order; the rest alone. The chunks depend on the task list
+    alone (never on workers or on what is cached), so a model's numbers do too."""
+    if group_size <= 1:
+        return [[item] for item in todo]
+    groups: dict[Hashable, list[tuple[int, Task]]] = {}
+    for i, task in todo:
+        group = task.group() if hasattr(task, "group") else None
+        groups.setdefault((type(task), group) if group is not None else (i,), []).append(
+            (i, task))
+    return [members[k:k + group_size] for members in groups.values()
+            for k in range(0, len(members), group_size)]
 
 
 def run_tasks(cache: TaskCache, tasks: Sequence[Task], workers: int = 1,
-              ray: str | None = None) -> Iterator[Outcome]:
+              ray: str | None = None, group_size: int = 1) -> Iterator[Outcome]:
     """Every task's outcome, cached ones first, the rest as workers finish them (in any
-    order); a key shared by several tasks is computed once."""
-    todo: dict[str, tuple[int, Task]] = {}
+    order); a key shared by several tasks is computed once. With `group_size` > 1, tasks
+    that share a `group()` (`GroupedTask`) are computed `group_size` at a time; a group is
+    cached whole or not at all, so a resumed run computes the same groups as an uninterrupted
+    one."""
+    first: dict[str, tuple[int, Task]] = {}
     waiting: dict[str, list[Task]] = {}
     for i, task in enumerate(tasks):
         key = task.key()
-        folder = cache.get(task.stage, key)
-        if folder is not None:
-            yield Outcome(task, folder)
-            continue
         waiting.setdefault(key, []).append(task)
-        todo.setdefault(key, (i, task))
-    keys = {i: k for k, (i, _) in todo.items()}
-    for index, files, failure in runner_for(ray)(_indexed, list(todo.values()), workers):
-        key = keys[index]
-        stage = todo[key][1].stage
-        folder = None if files is None else cache.put(stage, key, files)
-        for task in waiting[key]:
-            yield Outcome(task, folder, failure)
+        first.setdefault(key, (i, task))
+    keys = {i: k for k, (i, _) in first.items()}
+    units = []
+    for unit in _units(list(first.values()), group_size):
+        folders = [cache.get(task.stage, keys[i]) for i, task in unit]
+        if all(f is not None for f in folders):
+            for (i, _), folder in zip(unit, folders, strict=True):
+                for task in waiting[keys[i]]:
+                    yield Outcome(task, folder)
+        else:
+            units.append(unit)
+    for results in runner_for(ray)(_unit, units, workers):
+        for index, files, failure in results:
+            key = keys[index]
+            folder = None if files is None else cache.put(first[key][1].stage, key, files)
+            for task in waiting[key]:
+                yield Outcome(task, folder, failure)

@@ -106,3 +106,30 @@ def test_the_runner_computes_each_key_once_and_reports_failures(tmp_path, worker
         {Square(2).key(), Square(3).key()})          # no partial folder left
     again = list(run_tasks(cache, [Square(3)], workers))
     assert again[0].folder is not None and Square(3).key() in cache.hits
+
+
+@dataclass(frozen=True)
+class GroupedSquare(Square):
+    """Squares that know their group (parity) and count the groups computed together."""
+
+    def group(self) -> int:
+        return self.x % 2
+
+    @classmethod
+    def compute_group(cls, tasks: list) -> list[dict[str, bytes]]:
+        return [{"y.json": json.dumps(t.x * t.x).encode(),
+                 "with.json": json.dumps(sorted(u.x for u in tasks)).encode()} for t in tasks]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_grouped_tasks_are_computed_in_fixed_groups_and_cached_whole(tmp_path, workers):
+    cache = TaskCache(tmp_path)
+    tasks = [GroupedSquare(x) for x in (1, 2, 3, 4, 5, 6, 7)]
+    out = {o.task.x: json.loads((o.folder / "with.json").read_text())
+           if (o.folder / "with.json").exists() else [o.task.x]    # alone: plain `compute`
+           for o in run_tasks(cache, tasks, workers, group_size=3)}
+    # by group (odd, even), in task order, 3 at a time: whatever the workers
+    assert out == {1: [1, 3, 5], 3: [1, 3, 5], 5: [1, 3, 5], 7: [7],
+                   2: [2, 4, 6], 4: [2, 4, 6], 6: [2, 4, 6]}
+    assert len(list(run_tasks(cache, tasks, workers, group_size=3))) == 7
+    assert len(cache.hits) == 7                    # a rerun computes nothing

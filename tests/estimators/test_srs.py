@@ -289,3 +289,23 @@ def test_experiment_srs_profiles_are_the_cli_choices():
     from macrostate_mj.app.experiments.srs import PROFILES
 
     assert set(PROFILE_NAMES) == set(PROFILES)
+
+
+def test_srs_models_trained_as_a_group_report_as_when_trained_alone(tmp_path):
+    """`--group K`: the chapter's models of one shape train together (estimators.retlo.ensemble),
+    each report within float rounding of its model trained alone."""
+    from estimators.retlo.files import world_to_pixels
+    from estimators.retlo.synthetic import synthetic_chains
+    from macrostate_mj.app.experiments.srs import ModelTask
+    from macrostate_mj.formats.thymioloc import write_csv
+
+    val = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(6, 3, 9), 3.0))
+    test = write_csv(tmp_path / "test.csv", world_to_pixels(synthetic_chains(4, 5, 8), 3.0))
+    tasks = [ModelTask(synthetic_chains(10, 3, j), val, test, epochs=2, seed=s)
+             for j in (0, 1) for s in (0, 1)]
+    assert len({t.group() for t in tasks}) == 1
+    together = ModelTask.compute_group(tasks)
+    for task, files in zip(tasks, together, strict=True):
+        grouped = json.loads(files["report.json"])
+        alone = json.loads(task.compute()["report.json"])
+        assert grouped["mean_error_cm"] == pytest.approx(alone["mean_error_cm"], rel=1e-3)

@@ -25,6 +25,9 @@ def experiment_srs(
     workers: int = Count(1, "Local worker processes (collections and trainings).",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
+    group: int = Count(1, "Models of one shape trained together, this many at a time (for a "
+                       "GPU; on a CPU chapter 3's LSTM gains ~1.1x: `bench --only ensemble`).",
+                       max=64),
     out: Path = OutputDir(..., "Output folder (datasets and models are cached in it)."),
     overwrite: bool = Switch(False, "Replace the figures and results of a finished run (cached "
                              "datasets and models are kept; delete the folder to start "
@@ -34,5 +37,5 @@ def experiment_srs(
     5 robots) and Fig 3.7 (distance histograms); resumes after an interruption."""
     from macrostate_mj.app.experiments import profile as chosen
 
-    config = replace(chosen("srs", "quick" if quick else profile), seed=seed)
+    config = replace(chosen("srs", "quick" if quick else profile), seed=seed, group=group)
     launch("srs", config, out, overwrite, workers, ray)

@@ -58,6 +58,8 @@ class Config:
     epochs: int = 60
     episode_minutes: float = 5.0
     seed: int = 0          # dataset j of every configuration is collected with seed*1000 + j
+    group: int = 1         # models trained together (`estimators.retlo.ensemble`): for a GPU;
+    #                        on a CPU chapter 3's LSTM gains ~1.1x (`bench --only ensemble`)
 
 
 PROFILES = {
@@ -166,12 +168,30 @@ class ModelTask:
         return self._key
 
     def compute(self) -> dict[str, bytes]:
-        from estimators.retlo.api import evaluate, fit
-        from estimators.retlo.models import TorchPredictor
+        from estimators.retlo.api import fit
 
         net, info = fit([self.train], self.val, self.train_config())
+        return self._report(net, info)
+
+    def _report(self, net: Any, info: dict) -> dict[str, bytes]:
+        from estimators.retlo.api import evaluate
+        from estimators.retlo.models import TorchPredictor
+
         report = {**evaluate(TorchPredictor(net), self.test), "best_val_cm": info["best_val_cm"]}
         return {"report.json": json.dumps(report).encode()}
+
+    def group(self) -> tuple:
+        """Models of one shape on data of one shape train together (seeds and datasets)."""
+        return (self.train.shape, str(self.val), str(self.test), self.epochs)
+
+    @classmethod
+    def compute_group(cls, tasks: list[ModelTask]) -> list[dict[str, bytes]]:
+        from estimators.retlo.ensemble import Job, train_many
+        from estimators.retlo.files import read_world
+
+        val = read_world(tasks[0].val)
+        trained = train_many([Job([t.train], val, t.train_config()) for t in tasks])
+        return [t._report(net, info) for t, (net, info) in zip(tasks, trained, strict=True)]
 
 
 @dataclass(frozen=True)
@@ -217,7 +237,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         reports: dict[int, dict] = {}         # id(task) -> its report
         with progress.stage("models"):
             for outcome in run_tasks(progress.cache, [t for _, t in mine], progress.workers,
-                                     progress.ray):
+                                     progress.ray, config.group):
                 if outcome.folder is None:
                     raise RunFailure(f"a model of {name} failed: {outcome.failure}")
                 if outcome.task.key() not in progress.cache.hits:
