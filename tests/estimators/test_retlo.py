@@ -191,6 +191,15 @@ def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsy
     assert int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 3 * 26
     video.release()
     assert "lstm" in stdout and "% below FC" in stdout
+    # --group 2: the two seeds of each model train together, to float rounding the same
+    code, _, err = _cli(capsys, "experiment", "retlo", "--train", str(train_csv), "--val",
+                        str(val_csv), "--test", str(five), "--holdout", "0.25", "--seeds", "2",
+                        "--epochs", "1", "--group", "2", "--out", str(tmp_path / "grouped"))
+    assert code == 0, err
+    grouped = json.loads((tmp_path / "grouped" / "results.json").read_text())
+    for kind in ("fc", "lstm"):
+        assert grouped["results"]["five.csv"][kind]["per_seed_cm"] == pytest.approx(
+            results["results"]["five.csv"][kind]["per_seed_cm"], rel=1e-3)
 
 
 def _data(tmp_path):

@@ -15,7 +15,7 @@ import json
 import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -52,6 +52,7 @@ class Config:
     video_instances: int = 3
     model: ModelConfig = ModelConfig()  # its kind is set per run; history, LSTM direction, angles
     seed: int = 0
+    group: int = 1         # seeds of one kind trained together (`estimators.retlo.ensemble`)
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
@@ -86,7 +87,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
              for seed in range(cfg.seed, cfg.seed + cfg.seeds) for kind in LEARNED]
     folders: dict[int, Path] = {}
     with progress.stage("train"):
-        for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray):
+        for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray,
+                                 cfg.group):
             folders[tasks.index(outcome.task)] = outcome.folder
             progress.report("train", len(folders), len(tasks))
     train_s: dict[str, list[float]] = {kind: [] for kind in LEARNED}
@@ -135,8 +137,22 @@ class TrainTask:
 
     def compute(self) -> dict[str, bytes]:
         net, info = fit(self.trains, self.val, self.cfg)
+        return self._files(net, info)
+
+    def _files(self, net: Any, info: dict) -> dict[str, bytes]:
         return {"model.pt": checkpoint_bytes(net, self.px, self.cfg, info),
                 "timing.json": json.dumps({"seconds": info["train_seconds"]}).encode()}
+
+    def group(self) -> tuple:
+        """Models of one kind and settings (seeds apart) train together (`--group`)."""
+        return (replace(self.cfg, seed=0), self.px)
+
+    @classmethod
+    def compute_group(cls, tasks: list[TrainTask]) -> list[dict[str, bytes]]:
+        from estimators.retlo.ensemble import Job, train_many
+
+        trained = train_many([Job(t.trains, t.val, t.cfg) for t in tasks])
+        return [t._files(net, info) for t, (net, info) in zip(tasks, trained, strict=True)]
 
 
 def _read(cfg: Config) -> tuple[list[np.ndarray], np.ndarray, list[dict]]:
