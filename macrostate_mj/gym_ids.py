@@ -16,7 +16,10 @@ ENVS: dict[str, dict[str, Any]] = {
     "macrostate_mj/ExploreTail-v0": {"task": "explore"},
     "macrostate_mj/CagingTail-v0": {"task": "caging", "scenario": "robotarium", "robots": 6,
                                     "time_limit": 90.0},
+    "macrostate_mj/LocalizeTail-v0": {"scenario": "webots", "robots": 5},
 }
+# An id made by another factory than `ENTRY_POINT` (one that needs an estimator).
+ENTRY_POINTS = {"macrostate_mj/LocalizeTail-v0": "macrostate_mj.app.envs:localize_tail"}
 
 
 def register() -> bool:
@@ -27,5 +30,6 @@ def register() -> bool:
         return False
     for env_id, kwargs in ENVS.items():
         if env_id not in gymnasium.registry:    # a re-import would warn of overriding it
-            gymnasium.register(id=env_id, entry_point=ENTRY_POINT, kwargs=dict(kwargs))
+            gymnasium.register(id=env_id, entry_point=ENTRY_POINTS.get(env_id, ENTRY_POINT),
+                               kwargs=dict(kwargs))
     return True

@@ -9,9 +9,16 @@ from __future__ import annotations
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
+from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.env.task import TailTask
 
 BREAK_SPACINGS = 2.5
+
+
+def chain_broken(sim: ChainSim) -> bool:
+    """A neighbour gap over `BREAK_SPACINGS` × d: the chain has come apart."""
+    gaps = np.linalg.norm(np.diff(sim.poses[:, :2], axis=0), axis=1)
+    return bool(gaps.max() > BREAK_SPACINGS * sim.cfg.spacing)
 
 
 class ExploreTask(TailTask):
@@ -29,10 +36,7 @@ class ExploreTask(TailTask):
         return reward
 
     def get_termination(self, physics: dm_mujoco.Physics) -> float | None:
-        gaps = np.linalg.norm(np.diff(self.sim.poses[:, :2], axis=0), axis=1)
-        if gaps.max() > BREAK_SPACINGS * self.sim.cfg.spacing:
-            return 0.0
-        return super().get_termination(physics)
+        return 0.0 if chain_broken(self.sim) else super().get_termination(physics)
 
     def _relative_position(self) -> np.ndarray:
         tail, neighbour = self._tail[-1], self._neighbour[-1]

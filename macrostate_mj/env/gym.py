@@ -29,12 +29,12 @@ class TailEnv(gymnasium.Env):
 
     def __init__(self, task: str = "explore", scenario: str = "lab", robots: int = 3,
                  history: int = 10, observe: str = "truth", time_limit: float = 60.0,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, **options: Any):
         if render_mode not in (None, "rgb_array"):
             raise gymnasium.error.Error(f"render_mode {render_mode!r}; only 'rgb_array' or None")
         self.render_mode = render_mode
         self.environment: control.Environment = load(task, scenario, robots, history, observe,
-                                                     time_limit)
+                                                     time_limit, **options)
         self.metadata = {**self.metadata, "render_fps": self.task.sim.cfg.command_hz}
         spec = self.environment.action_spec()
         self.action_space = spaces.Box(np.broadcast_to(spec.minimum, spec.shape).astype(np.float32),

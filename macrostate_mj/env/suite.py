@@ -14,9 +14,11 @@ from macrostate_mj.chain.world import build_world, validate_chain
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.env.caging import CagingTask
 from macrostate_mj.env.explore import ExploreTask
+from macrostate_mj.env.localize import LocalizeTask
 from macrostate_mj.env.task import TailTask
 
-SUITE: dict[str, type[TailTask]] = {"explore": ExploreTask, "caging": CagingTask}
+SUITE: dict[str, type[TailTask]] = {"explore": ExploreTask, "caging": CagingTask,
+                                    "localize": LocalizeTask}
 
 
 def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history: int = 10,

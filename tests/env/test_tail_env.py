@@ -101,8 +101,9 @@ def test_bad_input():
 def test_the_suite_names_each_task_once_and_gymnasium_reaches_it_publicly():
     """`SUITE` is the one registry; the Gymnasium view exposes its task (and simulation), and
     seeding through it repeats the task's own draws."""
-    assert set(SUITE) == {"explore", "caging"}
-    for env_id, name in ((ID, "explore"), ("macrostate_mj/CagingTail-v0", "caging")):
+    assert set(SUITE) == {"explore", "caging", "localize"}
+    for env_id, name in ((ID, "explore"), ("macrostate_mj/CagingTail-v0", "caging"),
+                         ("macrostate_mj/LocalizeTail-v0", "localize")):
         env = gymnasium.make(env_id, time_limit=5.0)
         try:
             env.reset(seed=3)
@@ -116,7 +117,8 @@ def test_the_suite_names_each_task_once_and_gymnasium_reaches_it_publicly():
     assert np.array_equal(env.reset().observation["tail"], first)
 
 
-@pytest.mark.parametrize("env_id", [ID, "macrostate_mj/CagingTail-v0"])
+@pytest.mark.parametrize("env_id", [ID, "macrostate_mj/CagingTail-v0",
+                                    "macrostate_mj/LocalizeTail-v0"])
 def test_a_short_ppo_run_trains_without_error(env_id):
     sb3 = pytest.importorskip("stable_baselines3")   # an optional extra
     env = gymnasium.wrappers.FlattenObservation(gymnasium.make(env_id))

@@ -1,0 +1,72 @@
+"""LocalizeTail-v0 (§5.2): the Tail carries a frozen estimator and is rewarded by minus its
+Head error; Gymnasium's checker, seeding, the reward's meaning, a checkpoint and bad input."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import macrostate_mj  # noqa: F401  (registers the ids)
+
+ID = "macrostate_mj/LocalizeTail-v0"
+
+
+def _rollout(env, seed: int, steps: int) -> tuple[list, list, list]:
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    observations, rewards, errors = [obs], [], []
+    for _ in range(steps):
+        action = rng.uniform(env.action_space.low, env.action_space.high)
+        obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
+        observations.append(obs)
+        rewards.append(reward)
+        errors.append(info["head_error_m"])
+        if terminated or truncated:
+            break
+    return observations, rewards, errors
+
+
+def test_it_passes_gymnasiums_checker_from_a_fresh_id():
+    env = gymnasium.make(f"macrostate_mj:{ID}", time_limit=10.0)
+    check_env(env.unwrapped)
+    env.close()
+
+
+def test_the_reward_is_minus_the_estimators_head_error_and_repeats_with_its_seed():
+    env = gymnasium.make(ID, time_limit=20.0)
+    observations, rewards, errors = _rollout(env, 7, 40)
+    first = next(i for i, e in enumerate(errors) if e is not None)
+    task = env.unwrapped.task
+    # no estimate before ℓ log steps and the chain's n - 2 steps of delay: reward 0, obs zeros
+    assert first >= task.history and all(r == 0.0 for r in rewards[:first])
+    assert not observations[1]["estimate"].any()
+    assert all(r == pytest.approx(-e) and e >= 0 for r, e in zip(rewards, errors, strict=True)
+               if e is not None)
+    assert observations[-1]["estimate"][2] == 1.0
+    again = _rollout(gymnasium.make(ID, time_limit=20.0), 7, 40)
+    assert rewards == again[1] and all(
+        all(np.array_equal(a[k], b[k]) for k in a)
+        for a, b in zip(observations, again[0], strict=True))
+
+
+def test_a_trained_checkpoint_is_the_estimator_and_a_bad_one_is_refused(tmp_path):
+    from estimators.retlo.models import ModelConfig
+    from estimators.retlo.synthetic import synthetic_chains
+    from estimators.retlo.train import TrainConfig, save_checkpoint, train
+
+    cfg = TrainConfig(epochs=1, model=ModelConfig(kind="fc", k=8, d=8))
+    net, info = train([synthetic_chains(8, 3, 1)], synthetic_chains(4, 3, 2), cfg,
+                      progress=False)
+    path = save_checkpoint(tmp_path / "fc.pt", net, 3.0, cfg, info)
+    env = gymnasium.make(ID, checkpoint=str(path), time_limit=15.0)
+    _, rewards, errors = _rollout(env, 1, 30)
+    assert any(e is not None for e in errors) and all(np.isfinite(rewards))
+    (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(ValueError, match="not a readable torch checkpoint"):
+        gymnasium.make(ID, checkpoint=str(tmp_path / "bad.pt"))
+    with pytest.raises(ValueError, match="time_limit"):
+        gymnasium.make(ID, time_limit=-1.0)
+    with pytest.raises(gymnasium.error.InvalidAction):
+        env.step(np.array([5.0, 0.0], np.float32))
