@@ -41,18 +41,21 @@ def experiment_sim2real(
     workers: int = Count(1, "Local worker processes (collection and trainings).",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
+    mix_weight: float = Positive(0.5, "The mixed arm: the lab data's share of the loss, in "
+                                 "(0, 1).", "--mix-weight", max=1.0),
     out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
     overwrite: bool = Switch(False, "Replace the figure and results of a finished run (cached "
                              "models and lab data are kept; delete the folder to start over)."),
 ) -> None:
-    """Sim only, real only and sim pre-trained then fine-tuned, on 10-100 % of the real data:
-    Head error on held-out real folds (one per seed), the curve and the real data saved."""
+    """Sim only, real only, sim pre-trained then fine-tuned, and sim and real mixed, on 10-100 %
+    of the real data: Head error on held-out real folds (one per seed), the curve and the real
+    data saved."""
     from macrostate_mj.app.experiments import profile as chosen
     from macrostate_mj.app.experiments.sim2real import validate
     from macrostate_mj.core.errors import UserError
 
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
-                     randomize=randomize, seed=seed)
+                     randomize=randomize, seed=seed, mix_weight=mix_weight)
     if sim_minutes is not None:
         if sim is not None:
             raise UserError("--sim-minutes sizes the lab collection this command makes; drop "

@@ -120,6 +120,9 @@ def validate(config: Config) -> np.ndarray:
                             "drop it or --sim")
     if config.randomize is not None:
         Randomization.parse(config.randomize)
+    if not 0.0 < config.mix_weight < 1.0:
+        raise UserError(f"--mix-weight {config.mix_weight:g}: the lab data's share of the "
+                        "mixed arm's loss must be in (0, 1)")
     return pooled
 
 
