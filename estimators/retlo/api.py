@@ -13,7 +13,7 @@ from estimators.retlo.chain import Module
 from estimators.retlo.files import read_world
 from estimators.retlo.models import RetloNet
 from estimators.retlo.report import evaluate_chain
-from estimators.retlo.train import TrainConfig, sample_weights, train
+from estimators.retlo.train import TrainConfig, train
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
@@ -36,7 +36,7 @@ def fit(train_data: Sequence[Data], val: Data, cfg: TrainConfig, *,
     their samples counting `mix_weight` of the loss and the training ones the rest. Returns the
     network and its training record (best validation error in cm, epochs, curve)."""
     worlds = [as_world(d, px_per_cm) for d in train_data]
-    weights = None
+    shares = None
     if mix:
         if not 0.0 < mix_weight < 1.0:
             raise UserError(f"mix_weight must be in (0, 1), the mixed data's share of the "
@@ -45,9 +45,8 @@ def fit(train_data: Sequence[Data], val: Data, cfg: TrainConfig, *,
         shares = ([(1 - mix_weight) * _share(w, worlds) for w in worlds]
                   + [mix_weight * _share(w, extra) for w in extra])
         worlds += extra
-        weights = sample_weights(worlds, shares, cfg.model)
     return train(worlds, as_world(val, px_per_cm), cfg, progress=progress,
-                 on_epoch=on_epoch, init=init, weights=weights)
+                 on_epoch=on_epoch, init=init, shares=shares)
 
 
 def _share(world: np.ndarray, group: list[np.ndarray]) -> float:

@@ -185,26 +185,17 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
     return total, batches
 
 
-def sample_weights(worlds: list[np.ndarray], shares: list[float], cfg: ModelConfig
-                   ) -> list[float]:
-    """Per training file, the weight of each of its samples so that the files' losses count
-    with `shares` (mixing sim and real data: a share per file, summing to 1 per group the caller
-    forms): a file's share over its sample count."""
-    counts = [len(make_samples([w[:1]], cfg)["obs"]) * len(w) for w in worlds]
-    return [share / count for share, count in zip(shares, counts, strict=True)]
-
-
 def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
           progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
-          init: RetloNet | None = None, weights: list[float] | None = None
+          init: RetloNet | None = None, shares: list[float] | None = None
           ) -> tuple[RetloNet, dict]:
     """Train with Adam on chains (B, S, N, 3) in metres, file order; keep the best closed-loop
     validation checkpoint, stop early.
 
     `init`: fine-tune a copy of this network (its sizes and spacing scale) instead of a fresh
     one; `cfg.model` must describe it, and `cfg.frozen` names the parameters kept fixed.
-    `weights`: per training file, the weight of each of its samples in the loss (see
-    `sample_weights`); None weighs every sample alike.
+    `shares`: per training file, its share of the loss (mixing sim and real data): each of its
+    samples weighs the share over the file's sample count; None weighs every sample alike.
 
     `progress` shows a bar of its own; a caller with its own bar passes `on_epoch(epoch, val_cm)`.
     Ctrl-C after the first validated epoch stops training and returns the best checkpoint so
@@ -216,16 +207,18 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     if init is not None and init.cfg != cfg.model:
         raise UserError(f"the initial model is a {_describe(init.cfg)}, not the "
                         f"{_describe(cfg.model)} asked for; pass the model's own settings")
-    if weights is not None and (len(weights) != len(train_worlds)
-                                or not all(np.isfinite(w) and w > 0 for w in weights)):
-        raise UserError("weights must be one positive number per training file")
+    if shares is not None and (len(shares) != len(train_worlds)
+                               or not all(np.isfinite(s) and s > 0 for s in shares)):
+        raise UserError("shares must be one positive number per training file")
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    if weights is None:
+    weights = None
+    if shares is None:
         base = make_samples(train_worlds, cfg.model)
     else:
         parts = [make_samples([w], cfg.model) for w in train_worlds]
+        weights = [s / len(p["obs"]) for s, p in zip(shares, parts, strict=True)]
         base = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         base["w"] = np.concatenate([np.full(len(p["obs"]), wt, np.float32)
                                     for p, wt in zip(parts, weights, strict=True)])

@@ -35,7 +35,8 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
 def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
     """A chain request's checks (the scenario checked itself when made): a team of `n` robots
     that fits the arena, and a positive duration."""
-    if chain_capacity(cfg) < 2:
+    capacity = chain_capacity(cfg)
+    if capacity < 2:
         raise UserError(f"{cfg.name}: the arena has room for no chain at spacing {cfg.spacing:g} "
                         f"m once its margin ({cfg.wall_margin:g} m) and obstacles are left "
                         "clear; shrink the obstacles, the margin (arena.margin) or the spacing",
@@ -45,9 +46,9 @@ def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
     if n < 2:
         raise UserError(f"n (the number of robots) must be at least 2 (a Head and a Tail), "
                         f"got {n}", "n")
-    if n > chain_capacity(cfg):
+    if n > capacity:
         raise UserError(f"{n} robots do not fit the {cfg.name} arena (at most "
-                        f"{chain_capacity(cfg)} at spacing {cfg.spacing} m); use fewer robots",
+                        f"{capacity} at spacing {cfg.spacing} m); use fewer robots",
                         "n")
     if not (isinstance(seconds, int | float) and seconds > 0 and seconds < float("inf")):
         raise UserError(f"seconds must be a positive finite number, got {seconds!r}", "seconds")
