@@ -9,7 +9,7 @@ import typer
 
 from macrostate_mj.app.cli.app import experiment_app
 from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Switch
-from macrostate_mj.app.experiments import names
+from macrostate_mj.app.experiments.all import MEMBERS
 
 
 @experiment_app.command("list")
@@ -35,15 +35,12 @@ def launch(name: str, config: Any, out: Path, overwrite: bool, workers: int = 1,
         typer.echo(line)
 
 
-EXPERIMENTS = tuple(n for n in names() if n != "all")
-
-
 @experiment_app.command("all")
 def experiment_all(
     profile: str = Choice("full", "full: the dissertation's sizes; quick: a smoke run of "
                           "every figure.", ("full", "quick")),
     only: list[str] = Choice(None, "Run only this experiment (repeatable); default all.",
-                             EXPERIMENTS, "--only"),
+                             MEMBERS, "--only"),
     workers: int = Count(1, "Local worker processes for every experiment's tasks.",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),

@@ -15,23 +15,18 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from macrostate_mj.app.experiments import Progress, execute, registry
+from macrostate_mj.app.experiments import Progress, execute, names, registry
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.run import MANIFEST, config_hash, run_finished
 
 INDEX = "index.json"
+MEMBERS = tuple(name for name in names() if name != "all")     # listed without imports
+PRODUCTS = [INDEX, *MEMBERS]                                   # the index, a folder each
 
 
 def _members() -> dict:
-    return {name: module for name, module in registry().items() if name != "all"}
-
-
-def __getattr__(name: str) -> list[str]:
-    # PRODUCTS: the index and one folder per experiment (computed, as the registry is)
-    if name == "PRODUCTS":
-        return [INDEX, *_members()]
-    raise AttributeError(name)
+    return {name: module for name, module in registry().items() if name in MEMBERS}
 
 
 @dataclass(frozen=True)
