@@ -36,6 +36,7 @@ from estimators.retlo.train import (
     TrainConfig,
     _append,
     as_chained,
+    errors,
     make_samples,
     mean_spacing,
     mirror_signs,
@@ -192,15 +193,9 @@ def _feedback(predictor: StackedPredictor, jobs: list[Job], rngs: list[np.random
 def _loss(pos: torch.Tensor, ang: torch.Tensor, batch: dict[str, torch.Tensor],
           net: StackedNet, angle_weight: float) -> torch.Tensor:
     """`train._loss` of each model (K,), on its own batch (K, b, ...)."""
-    target = batch["pos"] / net.pos_scale.view(-1, 1, 1)
-    pos_loss = torch.linalg.vector_norm(pos - target, dim=-1).mean(dim=1)
-    if net.cfg.cos_sin:
-        t = torch.stack([torch.cos(batch["ang"]), torch.sin(batch["ang"])], dim=-1)
-        ang_loss = (ang - t).abs().mean(dim=(1, 2, 3))
-    else:
-        diff = torch.remainder(ang - batch["ang"] + torch.pi, 2 * torch.pi) - torch.pi
-        ang_loss = diff.abs().mean(dim=(1, 2))
-    return pos_loss + angle_weight * ang_loss
+    pos_err, ang_err = errors(pos, ang, batch, net.pos_scale.view(-1, 1, 1), net.cfg.cos_sin)
+    return (pos_err.mean(dim=1)
+            + angle_weight * ang_err.mean(dim=tuple(range(1, ang_err.dim()))))
 
 
 def train_many(jobs: list[Job]) -> list[tuple[RetloNet, dict]]:

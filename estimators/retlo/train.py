@@ -102,16 +102,23 @@ def mean_spacing(worlds: list[np.ndarray]) -> float:
                                          .ravel() for w in worlds])))
 
 
+def errors(pos: torch.Tensor, ang: torch.Tensor, batch: dict[str, torch.Tensor],
+           pos_scale: torch.Tensor, cos_sin: bool) -> tuple[torch.Tensor, torch.Tensor]:
+    """The loss's terms per sample (§2.6.2.3): the Euclidean position error in spacing units
+    and the absolute error of each angle output (radians wrapped, or cos/sin)."""
+    pos_err = torch.linalg.vector_norm(pos - batch["pos"] / pos_scale, dim=-1)
+    if cos_sin:
+        target = torch.stack([torch.cos(batch["ang"]), torch.sin(batch["ang"])], dim=-1)
+        return pos_err, (ang - target).abs()
+    return pos_err, (torch.remainder(ang - batch["ang"] + torch.pi, 2 * torch.pi)
+                     - torch.pi).abs()
+
+
 def _loss(net: RetloNet, batch: dict[str, torch.Tensor], angle_weight: float) -> torch.Tensor:
     """Euclidean position error (in spacing units) + angle MAE, as §2.6.2.3 prescribes; with
     per-sample weights `batch["w"]` (mixed data), their weighted mean."""
     pos, ang = net(batch["obs"], batch["hist"])
-    pos_err = torch.linalg.vector_norm(pos - batch["pos"] / net.pos_scale, dim=-1)
-    if net.cfg.cos_sin:
-        target = torch.stack([torch.cos(batch["ang"]), torch.sin(batch["ang"])], dim=-1)
-        ang_err = (ang - target).abs()
-    else:
-        ang_err = (torch.remainder(ang - batch["ang"] + torch.pi, 2 * torch.pi) - torch.pi).abs()
+    pos_err, ang_err = errors(pos, ang, batch, net.pos_scale, net.cfg.cos_sin)
     if "w" in batch:
         w = batch["w"]
         per = pos_err + angle_weight * ang_err.reshape(len(w), -1).mean(dim=1)
