@@ -16,12 +16,9 @@ they locally encounter").
 
 from __future__ import annotations
 
-import collections
-
 import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
-from dm_env import specs
 
 from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
 from macrostate_mj.chain.sim import ChainSim
@@ -83,15 +80,8 @@ class CagingTask(TailTask):
         if self.caged_at is None and self.caged:
             self.caged_at = self.sim.time
 
-    def observation_spec(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
-        spec = super().observation_spec(physics)
-        spec["object"] = specs.Array((3,), np.float64, name="object")
-        return spec
-
-    def get_observation(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
-        obs = super().get_observation(physics)
-        obs["object"] = self.sense_object(self.sim.poses[-1, :2])
-        return obs
+    def extra_observations(self) -> dict[str, np.ndarray]:
+        return {"object": self.sense_object(self.sim.poses[-1, :2])}
 
     def sense_object(self, position: np.ndarray) -> np.ndarray:
         """(dx, dy, 1): the object's centre relative to `position` when its surface lies within

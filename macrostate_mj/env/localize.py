@@ -18,14 +18,12 @@ when the chain breaks or the physics faults, as in `explore`.
 
 from __future__ import annotations
 
-import collections
 from collections.abc import Callable
 from typing import Protocol
 
 import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
-from dm_env import specs
 
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import World
@@ -99,17 +97,10 @@ class LocalizeTask(TailTask):
             return None
         return float(np.linalg.norm(xy - self.truth[step]))
 
-    def observation_spec(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
-        spec = super().observation_spec(physics)
-        spec["estimate"] = specs.Array((3,), np.float64, name="estimate")
-        return spec
-
-    def get_observation(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
-        obs = super().get_observation(physics)
+    def extra_observations(self) -> dict[str, np.ndarray]:
         step, xy = self.localizer.head
         seen = step > 0 and np.all(np.isfinite(xy))
-        obs["estimate"] = (np.append(xy - self._tail[-1][:2], 1.0) if seen else np.zeros(3))
-        return obs
+        return {"estimate": np.append(xy - self._tail[-1][:2], 1.0) if seen else np.zeros(3)}
 
     def get_reward(self, physics: dm_mujoco.Physics) -> float:
         error = self.head_error()

@@ -112,15 +112,23 @@ class TailTask(base.Task):
         b = self.max_offset
         return specs.BoundedArray((2,), np.float64, -b, b, name="tail_destination_offset_m")
 
+    def extra_observations(self) -> dict[str, np.ndarray]:
+        """What a task lets the Tail observe besides the poses (name -> float array of a fixed
+        shape; the spec is read off it)."""
+        return {}
+
     def observation_spec(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
         shape = (self.history, 3)
-        return collections.OrderedDict(
+        spec = collections.OrderedDict(
             tail=specs.Array(shape, np.float64, name="tail"),
             neighbour=specs.Array(shape, np.float64, name="neighbour"))
+        for name, value in self.extra_observations().items():
+            spec[name] = specs.Array(np.shape(value), np.float64, name=name)
+        return spec
 
     def get_observation(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
         return collections.OrderedDict(tail=np.array(self._tail), neighbour=np.array(
-            self._neighbour))
+            self._neighbour), **self.extra_observations())
 
     def get_termination(self, physics: dm_mujoco.Physics) -> float | None:
         """Every task ends (discount 0) when the physics faults."""
