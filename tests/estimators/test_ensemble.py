@@ -78,5 +78,6 @@ def test_the_ensemble_bench_reports_a_speedup_per_k_in_the_common_schema():
         ("lstm", 1), ("lstm", 2), ("fc", 1), ("fc", 2)]
     for f in figs:
         assert set(FIELDS) <= set(f) and f["name"] == "speedup"
-        assert f["value"] == pytest.approx(f["config"]["alone_s"] / f["config"]["together_s"],
-                                           rel=0.01)
+        alone, together = f["config"]["alone_s"], f["config"]["together_s"]   # to 1 ms
+        assert (alone - 6e-4) / (together + 6e-4) <= f["value"] <= (
+            (alone + 6e-4) / (together - 6e-4))
