@@ -1,6 +1,9 @@
-import json, sys, time
+import json
+import sys
+import time
 from dataclasses import replace
 from pathlib import Path
+
 from estimators.retlo.api import evaluate, fit
 from estimators.retlo.files import read_world
 from estimators.retlo.models import ModelConfig, TorchPredictor
@@ -13,7 +16,8 @@ def main():
     model = ModelConfig(history=10, bidirectional=False, cos_sin=True)
     base = TrainConfig(epochs=60, seed=0, model=model)
     variants = {"ours": base, "no_feedback": replace(base, feedback=False),
-                "no_chained": replace(base, chained=False), "no_mirror": replace(base, mirror=False),
+                "no_chained": replace(base, chained=False),
+                "no_mirror": replace(base, mirror=False),
                 "no_mark": replace(base, model=replace(model, mark_estimates=False)),
                 "compass_frame": replace(base, model=replace(model, rotate=False)),
                 "text_like": replace(base, feedback=False, chained=False, mirror=False,

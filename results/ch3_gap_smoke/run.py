@@ -1,8 +1,13 @@
-import json, sys, time
+import json
+import sys
+import time
 from pathlib import Path
+
 import macrostate_mj.app.experiments.srs as srs
-from macrostate_mj.chain.scenarios import get_scenario
 from estimators.retlo.files import read_world
+from macrostate_mj.chain.scenarios import get_scenario
+
+
 def main():
     variant, out = sys.argv[1], Path(sys.argv[2])
     srs.SCENARIO = get_scenario(variant)
@@ -16,7 +21,8 @@ def main():
     task = srs.ModelTask(read_world(sets[0].csv), sets[1].csv, sets[2].csv, epochs=60, seed=0)
     rep = json.loads(task.compute()["report.json"])
     line = {"variant": variant, "all_cm": rep["mean_error_cm"], "per_robot_cm": rep["per_robot_cm"],
-            "best_val_cm": rep["best_val_cm"], "collect_s": round(t1 - t0), "train_s": round(time.perf_counter() - t1)}
+            "best_val_cm": rep["best_val_cm"], "collect_s": round(t1 - t0),
+            "train_s": round(time.perf_counter() - t1)}
     print(json.dumps(line), flush=True)
     with open("/tmp/ch3/results.jsonl", "a") as f:
         f.write(json.dumps(line) + "\n")

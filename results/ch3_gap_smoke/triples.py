@@ -1,5 +1,6 @@
 import json
 from pathlib import Path
+
 from estimators.retlo.api import evaluate, fit
 from estimators.retlo.files import read_world
 from estimators.retlo.models import ModelConfig, TorchPredictor
