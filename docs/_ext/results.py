@@ -1,0 +1,483 @@
+"""Numbers on the results pages, read from the committed `results/` files when the docs build.
+
+A page never types a measured number. It names where the number lives:
+
+- inline, the role ``{n}`json(srs_full/results.json, configs/passive/1.0000/head_cm, .1f)` ``;
+- a table, the directive ``{results-table} srs(srs_full, all_predictions_cm)``;
+- a chapter's claims, ``{claims} chapter3``: `docs/reproduction/claims.toml` gives per figure
+  the dissertation's value (the one number typed by hand, from the text), where ours lives, the
+  rule that says whether they agree, the command and the finding;
+- a folder's provenance, ``{provenance} srs_full``: its command and kind from
+  `results/index.toml`, its date, machine and wall time from its manifest.
+
+`tests/docs/test_docs.py` builds the pages and fails on any number a results page shows that
+neither a results file nor `claims.toml` holds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import statistics
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from functools import cache
+from importlib import import_module
+from pathlib import Path
+
+from docutils import nodes
+from docutils.parsers.rst import Directive
+from sphinx.util.docutils import SphinxRole
+
+REPO = Path(__file__).resolve().parents[2]
+RESULTS = REPO / "results"
+CLAIMS = REPO / "docs" / "reproduction" / "claims.toml"
+
+
+@dataclass(frozen=True)
+class Q:
+    """A measured quantity: a value, an optional spread, and how to print it."""
+
+    value: float
+    std: float | None = None
+    fmt: str = ".2f"
+    unit: str = ""
+
+    def __str__(self) -> str:
+        text = format(self.value, self.fmt)
+        if self.std is not None:
+            text += " ± " + format(self.std, self.fmt)
+        return text + (f" {self.unit}" if self.unit else "")
+
+    def __float__(self) -> float:
+        return float(self.value)
+
+    def _v(self, other: object) -> float:
+        return float(other)  # type: ignore[arg-type]
+
+    def __lt__(self, other: object) -> bool:
+        return self.value < self._v(other)
+
+    def __le__(self, other: object) -> bool:
+        return self.value <= self._v(other)
+
+    def __gt__(self, other: object) -> bool:
+        return self.value > self._v(other)
+
+    def __ge__(self, other: object) -> bool:
+        return self.value >= self._v(other)
+
+    def __sub__(self, other: object) -> float:
+        return self.value - self._v(other)
+
+    def __rsub__(self, other: object) -> float:
+        return self._v(other) - self.value
+
+    def __truediv__(self, other: object) -> float:
+        return self.value / self._v(other)
+
+    def __rtruediv__(self, other: object) -> float:
+        return self._v(other) / self.value
+
+    def __mul__(self, other: object) -> float:
+        return self.value * self._v(other)
+
+    __rmul__ = __mul__
+
+    def __abs__(self) -> float:
+        return abs(self.value)
+
+
+Table = list[list[str]]
+SOURCES: dict[str, Callable[..., object]] = {}
+
+
+def source(fn: Callable[..., object]) -> Callable[..., object]:
+    """Register a function pages may call by name."""
+    SOURCES[fn.__name__] = fn
+    return fn
+
+
+@cache
+def load(path: str) -> object:
+    """A results file (JSON, or JSON lines as a list), once per build."""
+    file = RESULTS / path
+    if not file.is_file():
+        raise ValueError(f"results/{path} does not exist")
+    text = file.read_text()
+    if file.suffix == ".jsonl":
+        return [json.loads(line) for line in text.splitlines() if line.strip()]
+    return json.loads(text)
+
+
+def dig(data: object, keypath: str) -> object:
+    """`a/b/0/c` into nested dicts and lists."""
+    for key in filter(None, keypath.split("/")):
+        data = data[int(key)] if isinstance(data, list) else data[key]  # type: ignore[index]
+    return data
+
+
+@cache
+def index() -> dict:
+    """`results/index.toml`: per folder its command, kind and what it shows."""
+    return tomllib.loads((RESULTS / "index.toml").read_text())
+
+
+def call(expression: str) -> object:
+    """Evaluate `name(arg, arg, ...)` with bare-word arguments (no quotes needed)."""
+    match = re.fullmatch(r"\s*(\w+)\((.*)\)\s*", expression, re.S)
+    if not match or match[1] not in SOURCES:
+        raise ValueError(f"not a results source: {expression!r} (one of {sorted(SOURCES)})")
+    args = [a.strip() for a in match[2].split(",")] if match[2].strip() else []
+    return SOURCES[match[1]](*args)
+
+
+# Sources of single quantities ------------------------------------------------------------------
+
+@source
+def json_value(path: str, keypath: str, fmt: str = ".2f", unit: str = "", scale: str = "1") -> Q:
+    """One number of a JSON results file (times `scale`, e.g. 100 for a metre value in cm)."""
+    return Q(float(dig(load(path), keypath)) * float(scale), None, fmt, unit)
+
+
+SOURCES["json"] = json_value
+
+
+@source
+def meanstd(path: str, keypath: str, fmt: str = ".3f", unit: str = "") -> Q:
+    """A `{mean, std}` object of a results file."""
+    d = dig(load(path), keypath)
+    return Q(float(d["mean"]), float(d["std"]), fmt, unit)  # type: ignore[index]
+
+
+@source
+def count(path: str, keypath: str) -> Q:
+    """How many entries a list or object holds."""
+    return Q(len(dig(load(path), keypath)), None, "d")  # type: ignore[arg-type]
+
+
+@source
+def oc_marks(folder: str, sign: str) -> Q:
+    """Fig 4.8's paired tests, IO-GEN against DSVDD over every run and bin: how many cells
+    IO-GEN wins (`above`), loses (`below`) or neither (`level`) at p < .05."""
+    runs = dig(load(f"{folder}/results.json"), "runs")
+    counts = {"above": 0, "below": 0, "level": 0}
+    for run in runs.values():  # type: ignore[union-attr]
+        for test in run["iogen_vs_dsvdd"]["bins"].values():
+            key = "level" if test["p"] >= 0.05 else ("above" if test["diff"] > 0 else "below")
+            counts[key] += 1
+    return Q(counts[sign], None, "d")
+
+
+@source
+def srs_cell(folder: str, config: str, budget: str, metric: str) -> Q:
+    """Chapter 3: one configuration's error (cm) at a budget share (`1.0000`, `0.6667`, ...),
+    mean ± std over its datasets and model seeds."""
+    ms = dig(load(f"{folder}/results.json"), f"configs/{config}/{budget}/{metric}")
+    return Q(float(ms["mean"]), float(ms["std"]), ".1f", "cm")  # type: ignore[index]
+
+
+@source
+def srs_step(folder: str, config: str, robot: str, step: str) -> Q:
+    """Chapter 3, Fig 3.6: one robot's error (cm) at the k-th prediction (1-based), full budget."""
+    per_step = dig(load(f"{folder}/results.json"), f"configs/{config}/1.0000/per_step_cm/{robot}")
+    return Q(float(per_step[int(step) - 1]), None, ".1f", "cm")  # type: ignore[index]
+
+
+@source
+def quantile(path: str, keypath: str, q: str, fmt: str = ".1f", unit: str = "") -> Q:
+    """A quantile of a list of numbers in a results file."""
+    values = sorted(float(v) for v in dig(load(path), keypath))  # type: ignore[union-attr]
+    return Q(statistics.quantiles(values, n=1000, method="inclusive")[round(float(q) * 1000) - 1]
+             if float(q) < 1 else values[-1], None, fmt, unit)
+
+
+@source
+def share_above(path: str, keypath: str, threshold: str) -> Q:
+    """The share (%) of a list of numbers in a results file above a threshold."""
+    values = [float(v) for v in dig(load(path), keypath)]  # type: ignore[union-attr]
+    return Q(100 * sum(v > float(threshold) for v in values) / len(values), None, ".1f", "%")
+
+
+@source
+def caging_cell(folder: str, tail: str, field: str) -> Q:
+    """A caging arm: `caged` (% of seeds), `seeds`, or `time` (mean ± std s, caged runs)."""
+    arm = dig(load(f"{folder}/results.json"), f"table/{tail}")
+    if field == "caged":
+        return Q(100 * float(arm["success_rate"]), None, ".0f", "%")  # type: ignore[index]
+    if field == "seeds":
+        return Q(arm["seeds"], None, "d")  # type: ignore[index]
+    time = arm["time_to_cage_s"]  # type: ignore[index]
+    return Q(float(time["mean"]), float(time["std"]), ".1f", "s")
+
+
+# Tables ------------------------------------------------------------------------------------------
+
+def _ms(values: list[float], fmt: str) -> str:
+    if not values:
+        return ""
+    sd = statistics.stdev(values) if len(values) > 1 else 0.0
+    return f"{statistics.fmean(values):{fmt}} ± {sd:{fmt}}"
+
+
+@source
+def srs(folder: str, metric: str) -> Table:
+    """Chapter 3: per configuration, the error (cm) at each budget share of the largest."""
+    data = load(f"{folder}/results.json")
+    configs = data["configs"]  # type: ignore[index]
+    budgets = sorted({b for c in configs.values() for b in c}, key=float)
+    rows = [["configuration", *[f"{float(b) * 100:.0f} % of budget" for b in budgets]]]
+    for name, by_budget in configs.items():
+        rows.append([name, *[_stat(by_budget[b][metric], ".1f") if b in by_budget else ""
+                             for b in budgets]])
+    return rows
+
+
+@source
+def oc_table42(folder: str) -> Table:
+    """Table 4.2: AUC on all unstable samples, mean ± std over the folder's runs."""
+    data = load(f"{folder}/results.json")
+    rows = [["method", "AUC"]]
+    for method, ms in data["table4_2_auc_m2"].items():  # type: ignore[index]
+        rows.append([method, f"{ms['mean']:.3f} ± {ms['std']:.3f}"])
+    return rows
+
+
+@source
+def oc_fig48(folder: str) -> Table:
+    """Fig 4.8: AUC by time bin, mean ± std over the folder's runs."""
+    data = load(f"{folder}/results.json")["fig4_8_auc_by_bin_m2"]  # type: ignore[index]
+    bins = list(next(iter(data.values())))
+    order = sorted(bins, key=lambda b: int(re.findall(r"\d+", b)[0]))
+    rows = [["method", *order]]
+    for method, by_bin in data.items():
+        rows.append([method, *[f"{by_bin[b]['mean']:.3f} ± {by_bin[b]['std']:.3f}"
+                               for b in order]])
+    return rows
+
+
+@source
+def oc_runs(folder: str) -> Table:
+    """The runs behind a one-class folder: m, split, seed and each method's AUC."""
+    runs = load(f"{folder}/results.json")["runs"]  # type: ignore[index]
+    methods = list(next(iter(runs.values())))
+    methods = [m for m in methods if m != "iogen_vs_dsvdd"]
+    rows = [["run", *methods]]
+    for name, run in runs.items():
+        rows.append([name, *[f"{run[m]['auc_all']:.3f}" for m in methods]])
+    return rows
+
+
+@source
+def s2r(folder: str) -> Table:
+    """Sim-to-real: each arm's real-test Head error (cm) by share of the real pool."""
+    data = load(f"{folder}/results.json")
+    arms = data["arms"]  # type: ignore[index]
+    fractions = sorted({f for arm in arms.values() for f in arm}, key=float)
+    rows = [["arm", *[f"{float(f) * 100:.0f} % real" for f in fractions]]]
+    for arm, by_fraction in arms.items():
+        cells = []
+        for f in fractions:
+            ms = by_fraction.get(f, {}).get("head_cm")
+            cells.append(f"{ms['mean']:.2f} ± {ms['std']:.2f}" if ms else "")
+        rows.append([arm, *cells])
+    return rows
+
+
+@source
+def retlo_sim(folder: str) -> Table:
+    """Fig 2.2: per case, the chained MLPs' mean and max error (cm) and the 2X heuristic's."""
+    cases = load(f"{folder}/results.json")["cases"]  # type: ignore[index]
+    robots = sorted({r for c in cases.values() for r in c["per_robot"]}, key=_robot_order)
+    rows = [["case", "all, mean", "all, max", *[f"{r}, mean" for r in robots], "2X, all mean"]]
+    for key, case in cases.items():
+        per = case["per_robot"]
+        rows.append([f"{key}: {case['title']}", f"{case['all']['mean_error'] * 100:.1f}",
+                     f"{case['all']['max_error'] * 100:.1f}",
+                     *[f"{per[r]['mean_error'] * 100:.1f}" if r in per else "" for r in robots],
+                     f"{case['heuristic2x']['all']['mean_error'] * 100:.1f}"])
+    return rows
+
+
+def _robot_order(name: str) -> tuple[int, int]:
+    return (1, 0) if name == "H" else (0, -int(name[1:]))
+
+
+@source
+def caging(folder: str) -> Table:
+    """Every Tail of a caging run: caged seeds, time to cage, spacing CV, the Head estimate."""
+    table = load(f"{folder}/results.json")["table"]  # type: ignore[index]
+    rows = [["Tail", "caged", "time to cage (s)", "final spacing CV", "Head estimate (cm)"]]
+    for tail, arm in table.items():
+        caged = round(arm["success_rate"] * arm["seeds"])
+        rows.append([tail, f"{caged} / {arm['seeds']}", _stat(arm["time_to_cage_s"], ".1f"),
+                     _stat(arm["spacing_cv"], ".3f"),
+                     _stat(arm.get("head_estimate_error_m", {}), ".1f", 100)])
+    return rows
+
+
+def _stat(ms: dict, fmt: str, scale: float = 1.0) -> str:
+    if not ms or ms.get("mean") is None:
+        return ""
+    return f"{ms['mean'] * scale:{fmt}} ± {ms['std'] * scale:{fmt}}"
+
+
+@source
+def soak(folder: str) -> Table:
+    """A soak's summary: runs, simulated time and every fault count."""
+    summary = load(f"{folder}/soak.json")["summary"]  # type: ignore[index]
+    keys = ["scenario", "robots", "runs", "seconds", "tips", "nans", "escapes", "climbs",
+            "intrusions", "warnings", "max_tilt_deg", "max_lift_mm"]
+    rows = [["figure", "value"]]
+    for key in keys:
+        if key in summary:
+            value = summary[key]
+            rows.append([key, f"{value:.2f}" if isinstance(value, float) and not
+                         float(value).is_integer() else str(int(value) if isinstance(value, float)
+                                                            else value)])
+    return rows
+
+
+@source
+def bench(path: str) -> Table:
+    """`bench --json` lines: suite, figure, value, limit and ratio."""
+    rows = [["suite", "figure", "value", "limit", "ratio", "config"]]
+    for line in load(path):  # type: ignore[union-attr]
+        config = line.get("config")
+        config = json.dumps(config) if isinstance(config, dict) else (config or "")
+        rows.append([line["suite"], line["name"], _num(line["value"]) + f" {line['unit']}",
+                     _num(line.get("limit")), _num(line.get("ratio")), config])
+    return rows
+
+
+def _num(value: object) -> str:
+    if value is None:
+        return ""
+    value = float(value)  # type: ignore[arg-type]
+    if math.isfinite(value) and value.is_integer():
+        return str(int(value))
+    return f"{value:.3g}" if abs(value) < 100 else f"{value:.0f}"
+
+
+# Docutils glue -------------------------------------------------------------------------------------
+
+def table_node(rows: Table) -> nodes.table:
+    """A plain docutils table: first row the header."""
+    table = nodes.table(classes=["results-table"])
+    group = nodes.tgroup(cols=len(rows[0]))
+    table += group
+    group.extend(nodes.colspec(colwidth=1) for _ in rows[0])
+    for part, chunk in ((nodes.thead(), rows[:1]), (nodes.tbody(), rows[1:])):
+        for cells in chunk:
+            row = nodes.row()
+            for cell in cells:
+                entry = nodes.entry()
+                entry += nodes.paragraph(text=str(cell))
+                row += entry
+            part += row
+        group += part
+    return table
+
+
+class NumberRole(SphinxRole):
+    """``{n}`source(args)` ``: one quantity, printed as its source formats it."""
+
+    def run(self) -> tuple[list[nodes.Node], list[nodes.system_message]]:
+        try:
+            text = str(call(self.text))
+        except (ValueError, KeyError, IndexError, TypeError) as exc:
+            msg = self.inliner.reporter.error(f"{self.text}: {exc}", line=self.lineno)
+            return [nodes.problematic(self.rawtext, self.rawtext)], [msg]
+        return [nodes.inline(self.rawtext, text, classes=["measured"])], []
+
+
+class ResultsTable(Directive):
+    """``{results-table} source(args)``: a table computed from results files."""
+
+    required_arguments = 1
+    final_argument_whitespace = True
+
+    def run(self) -> list[nodes.Node]:
+        try:
+            rows = call(self.arguments[0])
+        except (ValueError, KeyError, IndexError, TypeError) as exc:
+            raise self.error(f"{self.arguments[0]}: {exc}") from exc
+        return [table_node(rows)]  # type: ignore[arg-type]
+
+
+class Claims(Directive):
+    """``{claims} chapter``: the chapter's claims, the text's value against ours."""
+
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        claims = tomllib.loads(CLAIMS.read_text()).get(self.arguments[0])
+        if not claims:
+            raise self.error(f"no [[{self.arguments[0]}]] claims in {CLAIMS.name}")
+        rows = [["figure", "claim", "dissertation", "ours", "verdict", "command", "finding"]]
+        for claim in claims:
+            if "text_from" in claim:
+                module, _, keypath = claim["text_from"].partition(":")
+                constants = vars(import_module(module))
+                claim["text"] = str(dig(constants, keypath))
+            if "text_value" not in claim and re.search(r"\d", claim.get("text", "")):
+                claim["text_value"] = float(re.findall(r"[\d.]+", claim["text"])[0])
+            try:
+                ours = call(claim["ours"]) if claim.get("ours") else None
+                verdict = _verdict(claim, ours)
+            except (ValueError, KeyError, IndexError, TypeError) as exc:
+                raise self.error(f"{claim.get('figure')}: {exc}") from exc
+            rows.append([claim["figure"], claim["claim"], claim.get("text", ""),
+                         "" if ours is None else str(ours), verdict,
+                         claim.get("command", ""), claim.get("finding", "")])
+        return [table_node(rows)]
+
+
+def _verdict(claim: dict, ours: object) -> str:
+    """`agree` or `disagree` by the claim's rule, evaluated on the numbers, never typed."""
+    rule = claim.get("agree_if")
+    if rule is None:
+        return claim.get("verdict", "not measured")
+    scope = {name: (lambda *a, _f=fn: _f(*a)) for name, fn in SOURCES.items()}
+    values = {k: call(v) for k, v in claim.get("values", {}).items()}
+    ok = eval(rule, {"__builtins__": {"abs": abs, "min": min, "max": max, "all": all}},  # noqa: S307
+              {**scope, **values, "ours": ours, "text": claim.get("text_value")})
+    return ("agree" if ok else "disagree") + f" ({claim.get('rule', rule)})"
+
+
+class Provenance(Directive):
+    """``{provenance} folder``: where a results folder comes from and what kind of figure it is."""
+
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        folder = self.arguments[0]
+        entry = index().get(folder)
+        if entry is None:
+            raise self.error(f"results/{folder} is not in results/index.toml")
+        parts = [f"results/{folder}", entry["kind"]]
+        manifest = RESULTS / folder / "manifest.json"
+        if manifest.is_file():
+            data = json.loads(manifest.read_text())
+            when = datetime.fromtimestamp(data["created_unix"], UTC).strftime("%Y-%m-%d")
+            parts.append(when)
+            machine = data.get("machine")
+            if isinstance(machine, dict):
+                parts.append(str(machine.get("cpu") or machine.get("processor") or ""))
+            if "total" in data.get("timings_s", {}):
+                parts.append(f"wall {data['timings_s']['total'] / 60:.0f} min")
+        para = nodes.paragraph(classes=["provenance"])
+        para += nodes.emphasis(text=" · ".join(p for p in parts if p) + ". ")
+        para += nodes.literal(text=entry["command"])
+        return [para]
+
+
+def setup(app: object) -> dict:
+    app.add_role("n", NumberRole())  # type: ignore[attr-defined]
+    app.add_directive("results-table", ResultsTable)  # type: ignore[attr-defined]
+    app.add_directive("claims", Claims)  # type: ignore[attr-defined]
+    app.add_directive("provenance", Provenance)  # type: ignore[attr-defined]
+    return {"parallel_read_safe": True, "version": "1"}
