@@ -8,7 +8,7 @@ A page never types a measured number. It names where the number lives:
   the dissertation's value (the one number typed by hand, from the text), where ours lives, the
   rule that says whether they agree, the command and the finding;
 - a folder's provenance, ``{provenance} srs_full``: its command and kind from
-  `results/index.toml`, its date, machine and wall time from its manifest.
+  `results/index.toml`, its date and machine from its manifest.
 
 `tests/docs/test_docs.py` builds the pages and fails on any number a results page shows that
 neither a results file nor `claims.toml` holds.
@@ -362,7 +362,7 @@ def _num(value: object) -> str:
     return f"{value:.3g}" if abs(value) < 100 else f"{value:.0f}"
 
 
-# Docutils glue -------------------------------------------------------------------------------------
+# Docutils glue -------------------------------------------------------------------------------
 
 def table_node(rows: Table) -> nodes.table:
     """A plain docutils table: first row the header."""
@@ -443,8 +443,9 @@ def _verdict(claim: dict, ours: object) -> str:
         return claim.get("verdict", "not measured")
     scope = {name: (lambda *a, _f=fn: _f(*a)) for name, fn in SOURCES.items()}
     values = {k: call(v) for k, v in claim.get("values", {}).items()}
-    ok = eval(rule, {"__builtins__": {"abs": abs, "min": min, "max": max, "all": all}},  # noqa: S307
-              {**scope, **values, "ours": ours, "text": claim.get("text_value")})
+    names = {**scope, **values, "ours": ours, "text": claim.get("text_value"),
+             "__builtins__": {"abs": abs, "min": min, "max": max, "all": all}}
+    ok = eval(rule, names)  # noqa: S307  (rules are ours, in claims.toml)
     return ("agree" if ok else "disagree") + f" ({claim.get('rule', rule)})"
 
 
@@ -467,8 +468,6 @@ class Provenance(Directive):
             machine = data.get("machine")
             if isinstance(machine, dict):
                 parts.append(str(machine.get("cpu") or machine.get("processor") or ""))
-            if "total" in data.get("timings_s", {}):
-                parts.append(f"wall {data['timings_s']['total'] / 60:.0f} min")
         para = nodes.paragraph(classes=["provenance"])
         para += nodes.emphasis(text=" · ".join(p for p in parts if p) + ". ")
         para += nodes.literal(text=entry["command"])

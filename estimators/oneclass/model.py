@@ -368,8 +368,9 @@ def _synthetic(model: OCModel, kind: str, n: int, n_val: int, gen: torch.Generat
     The seed draws every N-GEN element from N(0, α), α one global variation of IO-GEN's codes. Our
     codes are ReLU outputs with c far from 0, so noise around 0 lies outside the stable sphere and
     the label switch inverts (AUC .18-.20 on the simulated colony); around c with one global spread
-    it still spreads over all 2048 coordinates where real codes move in few, is trivially separable
-    and inverts on the real data (.43-.47). So the noise here keeps IO-GEN's spread about c per
+    it still spreads over all 2048 coordinates where real codes move in few and is trivially
+    separable (it also inverted on the real smoke set, .43-.47: a direction only, that set weighs
+    the day bins unlike the colony). So the noise here keeps IO-GEN's spread about c per
     coordinate and the codes' sign: the ablation the seed means, noise in place of realistic
     inner outliers, with their scale but none of their structure.
     """

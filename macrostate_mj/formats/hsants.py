@@ -1,15 +1,16 @@
-"""Reader for the OpticalFlows_HsAnts layout (SPEC §8), real or simulated.
+"""Reader for the OpticalFlows_HsAnts layout (the published dataset of §4.7), real or simulated.
 
 `Stable/` and `Unstable/` hold, per sample id i and sub-frame k, `flow_x_i-k.jpg`, `flow_y_i-k.jpg`
 (64 × 64 grey, 128 = still) and `img_i-k.jpg`; `split{1,2,3}/{train,test}.csv` list stable samples
 as `Stable/00000`. Inputs stack the first m sub-frames as channels (x0, y0, x1, y1, …), channels
 first for torch: N × 2m × 64 × 64 float32 in [−1, 1].
 
-Time bins. SPEC §8 bins unstable samples by their 0-based position in the full unstable list
-(11,984 samples, ids 1333–13316). Position is computed as id − n_stable (the first unstable id of a
-complete dataset), so a dataset that ships only a subset of unstable samples, like the 48 smoke
-samples here, still puts each sample in its true day bin. A dataset with another timeline (the
-simulated colony) may say its own bins in `bins.json`: {"D+1": [first_id, end_id), …} in ids.
+Time bins. The dissertation (Fig 4.8) bins unstable samples by their 0-based position in the
+full unstable list (11,984 samples, ids 1333–13316). Position is computed as id − n_stable (the
+first unstable id of a complete dataset), so a dataset that ships only a subset of unstable
+samples, like the 48 smoke samples here, still puts each sample in its true day bin. A dataset
+with another timeline (the simulated colony) may say its own bins in `bins.json`:
+{"D+1": [first_id, end_id), …} in ids.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
 
 STEP_S = 0.5  # the published log rate is 2 Hz
-DEFAULT_PX_PER_CM = 3.0  # the real camera's scale (SPEC §4)
+DEFAULT_PX_PER_CM = 3.0  # the real camera's scale (the published ThymioLoc set)
 _INT = re.compile(r"-?\d+\Z")
 _COLUMN = re.compile(r"(\d+)_(H|T|F\d+)_([xyo])\Z")
 

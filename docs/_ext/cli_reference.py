@@ -1,0 +1,144 @@
+"""The CLI reference, generated from the typer app: ``{cli-reference}`` renders every command
+with its help, usage and options. sphinx-click cannot read this app: typer 0.29 vendors its own
+click, whose commands are not `click.Command` instances."""
+
+from __future__ import annotations
+
+from docutils import nodes
+from docutils.parsers.rst import Directive
+
+from results import table_node
+
+
+def _commands(command: object, path: list[str]) -> list[tuple[list[str], object]]:
+    """Every leaf command under `command`, with its path of names, in the app's order."""
+    children = getattr(command, "commands", None)
+    if not children:
+        return [(path, command)]
+    found: list[tuple[list[str], object]] = []
+    for name, child in children.items():
+        if not getattr(child, "hidden", False):
+            found += _commands(child, [*path, name])
+    return found
+
+
+def _default(param: object) -> str:
+    default = getattr(param, "default", None)
+    if getattr(param, "is_flag", False) or default in (None, (), [], False):
+        return ""
+    return str(default)
+
+
+class CliReference(Directive):
+    """Every command of `macrostate-mj`, a section each."""
+
+    def run(self) -> list[nodes.Node]:
+        import typer
+
+        from macrostate_mj.app.cli import app
+
+        root = typer.main.get_command(app)
+        sections = []
+        for path, command in _commands(root, []):
+            name = " ".join(path)
+            section = nodes.section(ids=[nodes.make_id("cli-" + name)])
+            section += nodes.title(text=f"macrostate-mj {name}")
+            help_text = (command.help or "").strip()
+            for paragraph in filter(None, (p.strip() for p in help_text.split("\n\n"))):
+                section += nodes.paragraph(text=" ".join(paragraph.split()))
+            rows = [["option", "help", "default"]]
+            for param in command.params:
+                opts = ", ".join([*param.opts, *getattr(param, "secondary_opts", [])])
+                if type(param).__name__.endswith("Argument"):
+                    opts = param.name.upper()
+                rows.append([opts, " ".join((getattr(param, "help", "") or "").split()),
+                             _default(param)])
+            if len(rows) > 1:
+                section += table_node(rows)
+            sections.append(section)
+        return sections
+
+
+
+
+# What each scenario-file key means; `{scenario-keys}` fails the build on a key missing here.
+MEANINGS = {
+    "name": "the scenario's name, recorded in manifests",
+    "extends": "a built-in's name or another file this one overrides",
+    "arena.size": "[x, y] floor size, m",
+    "arena.margin": "distance waypoints and start poses keep from walls and obstacles, m",
+    "arena.obstacles": "[{shape = box | cylinder, pos = [x, y], size = full extents, m}]",
+    "arena.walls": "walls on the arena's edges (false: an open floor)",
+    "arena.wall_height": "m", "arena.wall_thickness": "m",
+    "robot.model": "thymio, gritsbot, epuck, or a robot.xml path (its contract: Robot contract)",
+    "chain.spacing": "follow distance d, m",
+    "chain.head_speed": "the Head's cruise speed, m/s, at most the robot's top speed",
+    "chain.chain_speed": "the Followers' and Tail's speed cap, m/s",
+    "chain.k_f": "Follower gain", "chain.k_t": "Tail gain", "chain.k_omega": "heading gain",
+    "chain.allow_reverse": "whether robots may drive backwards",
+    "chain.reach_radius": "a waypoint counts as reached within it, m",
+    "chain.avoid_radius": "robots repel each other within it, m",
+    "chain.avoid_gain": "strength of that repulsion",
+    "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
+    "noise.marker_jitter": "white noise added to every tracked position, m (σ)",
+    "camera.height": "m above the floor's centre, looking straight down",
+    "camera.resolution": "[w, h] pixels",
+    "camera.fovy": "vertical field of view, degrees, or \"auto\" to frame the arena",
+    "camera.distortion": "the lens, OpenCV's [k1, k2, p1, p2]",
+    "physics.timestep": "s; must divide the command and log periods into whole steps",
+    "physics.integrator": "MuJoCo integrator (implicitfast, euler, rk4, implicit)",
+    "physics.impratio": "MuJoCo's frictional-to-normal impedance ratio",
+    "physics.cone": "friction cone (elliptic or pyramidal)",
+    "look.floor_rgba": "floor colour", "look.wall_rgba": "wall colour",
+    "look.light_height": "m", "look.light_diffuse": "0-1",
+    "look.headlight_ambient": "0-1", "look.headlight_diffuse": "0-1",
+    "planner.kind": "the Head's planner: psi_grid (a cell walk), cell_walk, presets",
+    "planner.grid": "[columns, rows] of the planner's grid",
+    "planner.presets": "the Head's (v, ω) schedule of the preset planner",
+    "followers.kind": "follower rule: two_neighbour, or wait_for_behind",
+    "followers.slack": "wait while the robot behind lags more than d + slack, m",
+}
+
+
+def _flat(table: dict, prefix: str = "") -> dict[str, object]:
+    out: dict[str, object] = {}
+    for key, value in table.items():
+        if isinstance(value, dict):
+            out |= _flat(value, f"{prefix}{key}.")
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+class ScenarioKeys(Directive):
+    """Every key `scenario show` writes, with each built-in's value."""
+
+    def run(self) -> list[nodes.Node]:
+        import tomllib
+
+        from macrostate_mj.chain.scenario_file import to_toml
+        from macrostate_mj.chain.scenarios import SCENARIOS
+
+        flat = {name: _flat(tomllib.loads(to_toml(cfg))) for name, cfg in SCENARIOS.items()}
+        keys = list(dict.fromkeys(k for table in flat.values() for k in table))
+        missing = [k for k in keys if k not in MEANINGS]
+        if missing:
+            raise self.error(f"scenario keys without a meaning in cli_reference.py: {missing}")
+        rows = [["key", "meaning", *flat]]
+        for key in keys:
+            rows.append([key, MEANINGS[key], *[_show(t.get(key, "")) for t in flat.values()]])
+        return [table_node(rows)]
+
+
+def _show(value: object) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, str):
+        return value
+    return str(value).replace("'", "")
+
+
+def setup(app: object) -> dict:
+    app.add_directive("cli-reference", CliReference)  # type: ignore[attr-defined]
+    app.add_directive("scenario-keys", ScenarioKeys)  # type: ignore[attr-defined]
+    return {"parallel_read_safe": True, "version": "1"}
