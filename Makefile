@@ -8,7 +8,7 @@ MUJOCO_GL ?= $(shell $(PY) -c "import os; os.environ['MUJOCO_GL']='egl'; import 
 export MUJOCO_GL
 export PYTHONHASHSEED := 0
 
-.PHONY: demo test venv lint clean
+.PHONY: demo test venv lint docs clean
 
 venv: $(STAMP)
 
@@ -26,11 +26,17 @@ lint: $(STAMP)
 	# The one-way data flow (pyproject.toml [tool.importlinter]): a forbidden import fails here.
 	$(VENV)/bin/lint-imports
 
-test: $(STAMP) lint
+# The docs site, warnings as errors: a broken cross-reference or internal link, a results page
+# naming a number its results file lacks, or an autodoc failure stops the build.
+docs: $(STAMP)
+	$(PY) -m sphinx -b html -W --keep-going -q docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
+
+test: $(STAMP) lint docs
 	$(VENV)/bin/pytest
 
 demo: $(STAMP)
 	$(PY) -m macrostate_mj.app.demo --out $(OUT)
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out docs/_build

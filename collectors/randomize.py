@@ -33,7 +33,7 @@ PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING)
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
-# flat (README): wide enough to cover the lab-vs-real gaps measured by `stats --compare` (speed,
+# flat (docs): wide enough to cover the lab-vs-real gaps measured by `stats --compare` (speed,
 # turn rate and jitter distributions).
 WIDE = {"k_f": (0.8, 1.2), "k_t": (0.8, 1.2), "k_omega": (0.8, 1.2),
         "head_speed": (0.8, 1.2), "chain_speed": (0.8, 1.2), "marker_jitter": (0.7, 1.4),
@@ -44,7 +44,7 @@ PROFILES: dict[str, dict[str, tuple[float, float]]] = {
     "wide": WIDE,
     # `wide`, with the Head's and chain's speed caps, the Tail gain and the wait rule's slack
     # reaching up to where the first `sysid` fit went (faster, tighter, more patient): the
-    # best sim-to-real transfer measured (README, "Sim-to-real").
+    # best sim-to-real transfer measured (docs: reproduction/beyond).
     "wider": {**WIDE, "k_f": (0.8, 1.3), "k_t": (0.8, 1.6), "head_speed": (0.8, 1.6),
               "chain_speed": (0.8, 1.5), "wait_slack": (0.7, 1.5)},
 }

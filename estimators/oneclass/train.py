@@ -52,7 +52,7 @@ NO_SNAPSHOTS: Snapshots = _NoSnapshots()
 @dataclass(frozen=True)
 class OCConfig:
     """Hyper-parameters. Defaults follow the published recipe, shortened for a 2-core CPU
-    except DSVDD's epochs: fewer stop while its held-out stable loss still falls (README)."""
+    except DSVDD's epochs: fewer stop while its held-out stable loss still falls (docs)."""
 
     m: int = 2
     seed: int = 0

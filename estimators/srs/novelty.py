@@ -2,7 +2,7 @@
 predictor ζ on φ(h′_t), trained jointly and self-supervised on the Rand-Only phase's data.
 
 The text gives no sizes, epochs or rates; ours (`NoveltyConfig`) are small, because the RO phase
-gives only m instances (100 by default: 1,700 windows), and chosen as documented in the README.
+gives only m instances (100 by default: 1,700 windows), and chosen as documented in the docs.
 Selection: early stopping on the reconstruction-plus-prediction loss of a held-out tenth of the
 RO instances; nothing of the SR phase or of any test set is seen.
 """
@@ -51,7 +51,7 @@ class NoveltyNet(nn.Module):
 
     Why ζ predicts a change: the step after is the last one moved a few cm, and from the code
     alone ζ learnt it worse than "nothing moves" (28.8 against 9.0 cm² on unseen webots windows);
-    adding the last step back is a departure from Fig 3.2 (README)."""
+    adding the last step back is a departure from Fig 3.2 (docs: explanation/srs)."""
 
     def __init__(self, cfg: NoveltyConfig):
         super().__init__()

@@ -3,7 +3,7 @@ a ring around it. Pure functions for the geometry and the judge, and `CagingMiss
 `ChainSim` consults each command tick to change the motion rules.
 
 The text gives no radii, gains or detection rule; ours (`CagingConfig`) are scaled to the
-robotarium scenario (spacing d = 8 cm) and documented in the README:
+robotarium scenario (spacing d = 8 cm) and documented in docs/explanation/tail-tasks.md:
 - the object (radius 4 cm) sits at the arena centre; the boundary of desired final positions is a
   circle of radius d around its centre, where six robots 60° apart are d from each neighbour;
 - the team starts along the bottom-left wall; the Head drives toward the middle of the arena

@@ -4,7 +4,7 @@ A robot is hand-written MJCF (`macrostate_mj/assets/mjcf/<name>/robot.xml`; the 
 words is `macrostate_mj/assets/mjcf/README.md`). The code finds its parts by name and trusts their
 properties: the world builder reads wheel radius, track and top speed off the wheels and motors,
 the tracker reads the `marker` mesh, the health monitor takes the free joint's authored height as
-the rest height, and the physics choices (README "Physics choices") hang on contact bits. A file
+the rest height, and the physics choices (docs: explanation/physics) hang on contact bits. A file
 that broke one of them would fail far from its cause (a KeyError deep in world assembly, or a
 wheel climbing a neighbour in minute 7 of a soak), so every load goes through `load_robot`, which
 checks the file once and names the first broken item and the file in one line.

@@ -38,7 +38,7 @@ def test_encoding_is_tsn_linear_map():
 
 
 TVL1 = pytest.param("tvl1", marks=pytest.mark.skipif(
-    not hasattr(cv2, "optflow"), reason="TV-L1 needs opencv-contrib-python-headless (README)"))
+    not hasattr(cv2, "optflow"), reason="TV-L1 needs opencv-contrib-python-headless (docs)"))
 
 
 @pytest.mark.parametrize("method", ["dis", "farneback", TVL1])

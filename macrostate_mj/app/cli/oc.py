@@ -106,7 +106,7 @@ def flow(
 
 @oc_app.command("train")
 def oc_train(
-    method: list[str] = Choice(..., "The one-class method (README: Ant colony), or all of "
+    method: list[str] = Choice(..., "The one-class method (docs: explanation/oneclass), or all of "
                                "them; repeat it to train several on shared stages.",
                                (*METHODS, "all")),
     data: Path = InputDir(..., "Dataset folder (Stable/, Unstable/, split1..3/)."),
@@ -245,7 +245,8 @@ def experiment_oc(
                               "never used to select. Runs do not resume mid-run."),
     overwrite: bool = Switch(False, "Replace earlier outputs."),
 ) -> None:
-    """Reproduce Table 4.1, Table 4.2, Fig 4.7–4.10 and Grad-CAM overlays (mean ± std)."""
+    """Reproduce Table 4.1, Table 4.2, Fig 4.7–4.10 (mean ± std) and Grad-CAM heatmaps, with
+    overlays where the unstable samples carry their frames (a dev set of flows has none)."""
     try:
         split_list = tuple(int(s) for s in splits.split(","))
         m_list = tuple(int(s) for s in ms.split(","))

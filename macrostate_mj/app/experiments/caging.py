@@ -50,7 +50,7 @@ class Config:
     epochs: int = 200          # the three MLPs (retlo-sim trains 500; 200 converge here)
     train_steps: int = 800
     rehearsals: int = 40       # passive-Tail caging runs the estimator also learns from
-    stride: int = 30           # the estimator's step in command ticks: 1 Hz (see the README)
+    stride: int = 30           # the estimator's step in command ticks: 1 Hz (docs)
     seed: int = 0
 
 

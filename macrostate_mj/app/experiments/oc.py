@@ -1,6 +1,6 @@
 """`experiment oc`: Table 4.1 (m = 1, 2, 4), Table 4.2 and Fig 4.8 (mean ± std over the splits
-and seeds), Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM overlays (Fig
-4.11–4.13).
+and seeds), Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM (Fig 4.11–4.13:
+heatmaps always, overlays only where the unstable samples carry their img frames).
 
 Each (m, split, seed) is a cached task (`OUT/cache/oc-run/<key>/report.json`) keyed by the
 config, the run's coordinates and the bytes of its inputs; its training stages are cached beside

@@ -1,0 +1,302 @@
+"""ReTLo with uncertainty: a Gaussian head calibrated on a case of known noise, point models
+unchanged, checkpoints that say what they are, ensembles, Monte Carlo along the chain with a
+known answer, ellipses, and bad input at the command line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from clitools import cli_inprocess as _cli
+
+from estimators.retlo.api import evaluate, predict
+from estimators.retlo.chain import predict_chain
+from estimators.retlo.files import world_to_pixels
+from estimators.retlo.frames import FrameEstimate, decode
+from estimators.retlo.gaussian import calibration, chi2_2dof, ellipse, mahalanobis2, moment_match
+from estimators.retlo.heads import GAUSSIAN, POINT
+from estimators.retlo.heuristic import Heuristic2X
+from estimators.retlo.mixture import GaussianEnsemble
+from estimators.retlo.models import ModelConfig, TorchPredictor
+from estimators.retlo.online import OnlineChain
+from estimators.retlo.propagate import NoUncertaintyError, predict_chain_gaussian
+from estimators.retlo.report import evaluate_chain
+from estimators.retlo.synthetic import synthetic_chains
+from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint, train
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.formats.thymioloc import write_csv
+
+TINY = dict(k=16, m=16, d=16)
+SIGMA = 0.03      # m: the known noise of the Head around the 2X extrapolation
+
+
+def _noisy(n_inst: int, seed: int) -> np.ndarray:
+    """3-robot chains whose Head sits at 2F - T plus isotropic Gaussian noise of SIGMA: the
+    best estimate is N(2F - T, SIGMA² I) exactly."""
+    world = synthetic_chains(n_inst, 3, seed=seed)
+    rng = np.random.default_rng(seed + 100)
+    world[:, :, 0, :2] = (2 * world[:, :, 1, :2] - world[:, :, 2, :2]
+                          + rng.normal(0.0, SIGMA, world[:, :, 0, :2].shape))
+    return world
+
+
+def _fit(head=GAUSSIAN, kind: str = "fc", epochs: int = 25, seed: int = 0, n: int = 40):
+    cfg = TrainConfig(epochs=epochs, patience=epochs, seed=seed, lr=1e-2,
+                      model=ModelConfig(kind=kind, **TINY))
+    net, info = train([_noisy(n, 1)], _noisy(15, 2), cfg, progress=False, head=head)
+    return net, info, cfg
+
+
+@pytest.fixture(scope="module")
+def calibrated():
+    return _fit()
+
+
+def test_gaussian_head_is_calibrated_on_known_noise(calibrated):
+    net, _, _ = calibrated
+    test = _noisy(40, 3)
+    module = TorchPredictor(net)
+    report = evaluate(module, test, calibrate=True)
+    pooled = report["calibration"]["pooled"]
+    assert pooled["n"] == 40 * 15
+    assert abs(pooled["coverage_50"] - 0.5) < 0.08, pooled
+    assert abs(pooled["coverage_90"] - 0.9) < 0.05, pooled
+    assert report["calibration"]["H"] == {k: pooled[k] for k in report["calibration"]["H"]}
+    _, cov = predict(module, test, gaussian=True)
+    cov = cov[np.isfinite(cov).all((-1, -2))]
+    sigma = np.sqrt(np.trace(cov, axis1=-2, axis2=-1).mean() / 2)
+    assert sigma == pytest.approx(SIGMA, rel=0.2)
+    # the mean is as good as the law allows: E|e| = σ √(π/2) for 2-D isotropic noise
+    assert report["mean_error_cm"] < 1.15 * 100 * SIGMA * np.sqrt(np.pi / 2)
+
+
+def test_point_models_are_unchanged(tmp_path, calibrated):
+    net, info, cfg = _fit(POINT, epochs=1)
+    assert net.head is POINT and net.g_p.out_features == 2
+    path = save_checkpoint(tmp_path / "p.pt", net, 3.0, cfg, info)
+    raw = torch.load(path, weights_only=True)
+    assert "uncertainty" not in raw      # the bytes of a point checkpoint as before heads
+    loaded, _ = load_checkpoint(path)
+    module = TorchPredictor(loaded)
+    assert not module.uncertain
+    world = synthetic_chains(4, 5, seed=3)
+    assert evaluate(module, world) == evaluate_chain(module, world)
+    est = module.estimate(module.features(_a_window(module, world)))
+    assert est.head_cov is None
+    with pytest.raises(NoUncertaintyError, match="--uncertainty gaussian"):
+        evaluate(module, world, calibrate=True)
+    assert issubclass(NoUncertaintyError, ValueError)
+
+
+def _a_window(module, world):
+    from estimators.retlo.chain import tracks_from_world, window
+
+    return window(tracks_from_world(world[:, :, ::-1], 10), 0, 10, module.history, True)
+
+
+def test_gaussian_checkpoint_records_and_checks_its_head(tmp_path, calibrated):
+    net, info, cfg = calibrated
+    path = save_checkpoint(tmp_path / "g.pt", net, 3.0, cfg, info)
+    loaded, ckpt = load_checkpoint(path)
+    assert ckpt["uncertainty"] == "gaussian" and loaded.head == GAUSSIAN
+    world = synthetic_chains(3, 3, seed=4)
+    a = predict_chain_gaussian(TorchPredictor(net), world, 8, np.random.default_rng(0))
+    b = predict_chain_gaussian(TorchPredictor(loaded), world, 8, np.random.default_rng(0))
+    assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b, strict=True))
+    for value, message in (("laplace", "unknown uncertainty 'laplace'"),
+                           (None, "does not match")):
+        bad = dict(ckpt)
+        if value is None:
+            del bad["uncertainty"]          # Gaussian weights read as a point model
+        else:
+            bad["uncertainty"] = value
+        torch.save(bad, tmp_path / "bad.pt")
+        with pytest.raises(UserError, match=message):
+            load_checkpoint(tmp_path / "bad.pt")
+
+
+def test_covariances_turn_with_the_frame():
+    est = FrameEstimate(np.zeros((1, 2)), head_cov=np.array([[[4.0, 0.0], [0.0, 1.0]]]))
+    world = decode(est, np.zeros((1, 2)), np.array([np.pi / 2]))
+    assert np.allclose(world.head_cov, [[[1.0, 0.0], [0.0, 4.0]]])
+
+
+def test_mixture_moments_and_coverage_of_exact_gaussians():
+    means = np.array([[0.0, 0.0], [2.0, 0.0]])
+    covs = np.stack([np.eye(2), 3 * np.eye(2)])
+    mu, cov = moment_match(means, covs)
+    assert np.allclose(mu, [1.0, 0.0])
+    assert np.allclose(cov, [[2.0 + 1.0, 0.0], [0.0, 2.0]])    # E Σ + spread of the means
+    rng = np.random.default_rng(0)
+    true_cov = np.array([[2.0, 0.8], [0.8, 1.0]])
+    x = rng.multivariate_normal([1.0, -1.0], true_cov, size=20000)
+    cal = calibration(x, np.broadcast_to([1.0, -1.0], x.shape),
+                      np.broadcast_to(true_cov, (len(x), 2, 2)))
+    assert cal["coverage_50"] == pytest.approx(0.5, abs=0.01)
+    assert cal["coverage_90"] == pytest.approx(0.9, abs=0.01)
+    outline = ellipse(np.zeros(2), true_cov, 0.9)
+    d2 = mahalanobis2(outline, np.zeros(2), true_cov)
+    assert np.allclose(d2, chi2_2dof(0.9))
+
+
+class NoisyHeuristic(Heuristic2X):
+    """The 2X heuristic saying its Head is N(2F - T, s² I): along a chain the Monte Carlo must
+    give the variance that law implies."""
+
+    uncertain = True
+
+    def __init__(self, s: float) -> None:
+        self.s = s
+
+    def estimate(self, x):
+        est = super().estimate(x)
+        cov = np.broadcast_to(self.s ** 2 * np.eye(2), (len(est.head_xy), 2, 2)).copy()
+        return FrameEstimate(est.head_xy, est.head_theta, est.fol_theta, head_cov=cov)
+
+
+def test_monte_carlo_carries_uncertainty_along_the_chain():
+    """x2 = 2x1 - x0 + e2, x3 = 2x̃2 - x1 + e3, x4 = 2x̃3 - x̃2 + e4 with x̃ the sampled
+    inputs: variances s², 5 s², 14 s² for F2, F3, H of a 5-robot chain."""
+    s, world = 0.01, synthetic_chains(2, 5, seed=5)
+    module = NoisyHeuristic(s)
+    est, cov = predict_chain_gaussian(module, world, 1500, np.random.default_rng(0))
+    assert np.isnan(cov[:, :, 3:]).all()        # the neighbour and the Tail: not estimated
+    var = np.nanmean(np.trace(cov[:, :, :3], axis1=-2, axis2=-1), axis=(0, 1)) / 2 / s ** 2
+    assert var == pytest.approx([14.0, 5.0, 1.0], rel=0.12)     # H, F3, F2 in file order
+    mean_chain = predict_chain(module, world)
+    assert np.allclose(est[..., :2], mean_chain[..., :2], atol=0.3 * s, equal_nan=True)
+    few = predict_chain_gaussian(module, world, 20, np.random.default_rng(0))[1]
+    again = predict_chain_gaussian(module, world, 20, np.random.default_rng(0))[1]
+    other = predict_chain_gaussian(module, world, 20, np.random.default_rng(1))[1]
+    assert np.array_equal(again, few, equal_nan=True)     # the seed decides every draw
+    assert not np.array_equal(other, few, equal_nan=True)
+
+
+def test_ensemble_mixes_members_and_refuses_point_ones(calibrated):
+    member = TorchPredictor(calibrated[0])
+    world = _noisy(6, 7)
+    alone = predict_chain_gaussian(member, world, 1, np.random.default_rng(0))
+    twice = predict_chain_gaussian(GaussianEnsemble([member, member]), world, 1,
+                                   np.random.default_rng(0))
+    assert np.allclose(alone[1], twice[1], equal_nan=True)    # identical members: no spread
+    other = TorchPredictor(_fit(epochs=3, seed=1)[0])
+    pair = predict_chain_gaussian(GaussianEnsemble([member, other]), world, 1,
+                                  np.random.default_rng(0))
+    single = [predict_chain_gaussian(m, world, 1, np.random.default_rng(0))
+              for m in (member, other)]
+    mu, cov = moment_match(np.stack([e[..., :2] for e, _ in single]),
+                           np.stack([c for _, c in single]))
+    assert np.allclose(pair[0][..., :2], mu, equal_nan=True)
+    assert np.allclose(pair[1], cov, atol=1e-9, equal_nan=True)
+    with pytest.raises(UserError, match="uncertainty"):
+        GaussianEnsemble([member, Heuristic2X()])
+    with pytest.raises(UserError, match="at least two"):
+        GaussianEnsemble([member])
+
+
+def test_online_chain_keeps_the_covariance(calibrated):
+    module = TorchPredictor(calibrated[0])
+    world = _noisy(1, 8)[0, :, ::-1]           # Tail first
+    live = OnlineChain(module, 3, len(world))
+    live.start(world[0])
+    for s in range(1, len(world)):
+        live.observe(world[s, :2, :2])
+    step, _ = live.head
+    assert np.isfinite(live.head_cov).all() and live.head_cov.shape == (2, 2) and step > 10
+    assert OnlineChain(Heuristic2X(), 3, 5).head_cov is None
+
+
+def _files(tmp_path):
+    def csv(name, world):
+        return str(write_csv(tmp_path / name, world_to_pixels(world, 3.0)))
+
+    return csv("train.csv", _noisy(30, 1)), csv("val.csv", _noisy(8, 2)), \
+        csv("five.csv", synthetic_chains(4, 5, seed=3))
+
+
+def test_train_and_evaluate_with_uncertainty_from_the_command_line(tmp_path, capsys):
+    import cv2
+
+    train_csv, val_csv, five = _files(tmp_path)
+    models = []
+    for seed in (0, 1):
+        models.append(str(tmp_path / f"g{seed}.pt"))
+        code, _, err = _cli(capsys, "train", "retlo", "--model", "fc", "--train", train_csv,
+                            "--val", val_csv, "--out", models[-1], "--seed", str(seed),
+                            "--epochs", "2", "--uncertainty", "gaussian", "--px-per-cm", "3")
+        assert code == 0, err
+    manifest = json.loads((tmp_path / "g0.pt.manifest.json").read_text())
+    assert "gaussian" in json.dumps(manifest)
+    report_path, video = tmp_path / "r.json", tmp_path / "r.mp4"
+    code, out, err = _cli(capsys, "evaluate", "retlo", "--model", models[0], "--data", five,
+                          "--out", str(report_path), "--px-per-cm", "3", "--particles", "8",
+                          "--video", str(video), "--rerun", str(tmp_path / "r.rrd"))
+    assert code == 0, err
+    assert "calibration:" in out
+    report = json.loads(report_path.read_text())
+    assert set(report["calibration"]) == {"F2", "F3", "H", "pooled", "nll_unit"}
+    assert {"coverage_50", "coverage_90", "nll"} <= set(report["calibration"]["pooled"])
+    assert report["particles"] == 8
+    capture = cv2.VideoCapture(str(video))
+    assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == 3 * 26
+    capture.release()
+    assert (tmp_path / "r.rrd").stat().st_size > 0
+    code, out, err = _cli(capsys, "evaluate", "retlo", "--model", models[0], "--model",
+                          models[1], "--data", five, "--out", str(tmp_path / "e.json"),
+                          "--px-per-cm", "3", "--particles", "8")
+    assert code == 0, err
+    ensemble = json.loads((tmp_path / "e.json").read_text())
+    assert ensemble["model"] == "ensemble of 2 fc" and "calibration" in ensemble
+    code, _, err = _cli(capsys, "evaluate", "retlo", "--model", models[0], "--data", five,
+                        "--out", str(tmp_path / "n.json"), "--no-calibration")
+    assert code == 0 and "calibration" not in json.loads((tmp_path / "n.json").read_text())
+
+
+def _point(tmp_path, capsys) -> str:
+    train_csv, val_csv, _ = _files(tmp_path)
+    path = str(tmp_path / "p.pt")
+    code, _, err = _cli(capsys, "train", "retlo", "--model", "fc", "--train", train_csv,
+                        "--val", val_csv, "--out", path, "--epochs", "1")
+    assert code == 0, err
+    return path
+
+
+BAD = {
+    "calibration of a point model": (lambda p, pt: ["evaluate", "retlo", "--model", pt,
+                                                    "--data", str(p / "five.csv"), "--out",
+                                                    str(p / "r.json"), "--calibration",
+                                                    "--video", str(p / "r.mp4")],
+                                     "calibration needs a model with uncertainty"),
+    "calibration of the heuristic": (lambda p, pt: ["evaluate", "retlo", "--model",
+                                                    "heuristic2x", "--data",
+                                                    str(p / "five.csv"), "--out",
+                                                    str(p / "r.json"), "--calibration"],
+                                     "--uncertainty gaussian"),
+    "ensemble with a point member": (lambda p, pt: ["evaluate", "retlo", "--model", pt,
+                                                    "--model", pt, "--data",
+                                                    str(p / "five.csv"), "--out",
+                                                    str(p / "r.json")],
+                                     "every ensemble member must have uncertainty"),
+    "unknown uncertainty": (lambda p, pt: ["train", "retlo", "--model", "fc", "--train",
+                                           str(p / "train.csv"), "--val", str(p / "val.csv"),
+                                           "--out", str(p / "m.pt"), "--uncertainty",
+                                           "laplace"], "'laplace' is not one of none, gaussian"),
+    "init of another head": (lambda p, pt: ["train", "retlo", "--model", "fc", "--train",
+                                            str(p / "train.csv"), "--val", str(p / "val.csv"),
+                                            "--out", str(p / "m.pt"), "--init", pt,
+                                            "--uncertainty", "gaussian"],
+                             "pass --uncertainty none"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_uncertainty_requests_exit_2_with_one_line(tmp_path, capsys, case):
+    point = _point(tmp_path, capsys)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    make_args, expected = BAD[case]
+    code, _, err = _cli(capsys, *make_args(tmp_path, point))
+    assert code == 2 and err.count("\n") == 1 and expected in err, err
+    assert "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before      # nothing written
