@@ -15,7 +15,8 @@ from conftest import REPO
 DOCS = REPO / "docs"
 RESULTS = REPO / "results"
 # Pages whose code a reader copies: every ```python block runs, in order, in one scope a page.
-TUTORIALS = [DOCS / "getting-started.md", *sorted((DOCS / "tutorials").glob("*.md"))]
+TUTORIALS = [REPO / "README.md", DOCS / "getting-started.md",
+             *sorted((DOCS / "tutorials").glob("*.md"))]
 # Pages that report measurements: none may show a number that no results file holds.
 RESULTS_PAGES = ["reproduction/chapter2", "reproduction/chapter3", "reproduction/chapter4",
                  "reproduction/beyond", "benchmarks"]
@@ -26,7 +27,7 @@ def _blocks(page: Path) -> list[str]:
     return re.findall(r"^```python\n(.*?)^```", page.read_text(), re.S | re.M)
 
 
-@pytest.mark.parametrize("page", [p for p in TUTORIALS if _blocks(p)], ids=lambda p: p.stem)
+@pytest.mark.parametrize("page", [p for p in TUTORIALS if _blocks(p)], ids=lambda p: p.stem.lower())
 def test_tutorial_code_runs_as_written(page: Path, tmp_path, monkeypatch):
     monkeypatch.chdir(REPO)             # tutorials name files of the repository (examples/)
     scope: dict = {}
