@@ -91,7 +91,7 @@ class Q:
         return abs(self.value)
 
 
-Table = list[list[str]]
+Table = list[list]    # rows of cells: text, or a docutils node (a literal)
 SOURCES: dict[str, Callable[..., object]] = {}
 
 
@@ -375,7 +375,12 @@ def table_node(rows: Table) -> nodes.table:
             row = nodes.row()
             for cell in cells:
                 entry = nodes.entry()
-                entry += nodes.paragraph(text=str(cell))
+                if isinstance(cell, nodes.Node):
+                    para = nodes.paragraph()
+                    para += cell
+                    entry += para
+                else:
+                    entry += nodes.paragraph(text=str(cell))
                 row += entry
             part += row
         group += part
@@ -409,7 +414,8 @@ class ResultsTable(Directive):
 
 
 class Claims(Directive):
-    """``{claims} chapter``: the chapter's claims, the text's value against ours."""
+    """``{claims} chapter``: the chapter's claims, the text's value against ours; the command
+    once below the table when every row shares it, else a column of its own."""
 
     required_arguments = 1
 
@@ -417,12 +423,17 @@ class Claims(Directive):
         claims = tomllib.loads(CLAIMS.read_text()).get(self.arguments[0])
         if not claims:
             raise self.error(f"no [[{self.arguments[0]}]] claims in {CLAIMS.name}")
-        rows = [["figure", "claim", "dissertation", "ours", "verdict", "command", "finding"]]
+        for claim in claims:
+            if "folder" in claim:
+                claim["command"] = index()[claim["folder"]]["command"]
+        commands = {c.get("command", "") for c in claims} - {""}
+        shared = len(commands) == 1
+        header = ["figure", "claim", "dissertation", "ours", "verdict", "finding"]
+        rows: list[list] = [header if shared else [*header[:5], "results", header[5]]]
         for claim in claims:
             if "text_from" in claim:
                 module, _, keypath = claim["text_from"].partition(":")
-                constants = vars(import_module(module))
-                claim["text"] = str(dig(constants, keypath))
+                claim["text"] = str(dig(vars(import_module(module)), keypath))
             if "text_value" not in claim and re.search(r"\d", claim.get("text", "")):
                 claim["text_value"] = float(re.findall(r"[\d.]+", claim["text"])[0])
             try:
@@ -430,10 +441,17 @@ class Claims(Directive):
                 verdict = _verdict(claim, ours)
             except (ValueError, KeyError, IndexError, TypeError) as exc:
                 raise self.error(f"{claim.get('figure')}: {exc}") from exc
-            rows.append([claim["figure"], claim["claim"], claim.get("text", ""),
-                         "" if ours is None else str(ours), verdict,
-                         claim.get("command", ""), claim.get("finding", "")])
-        return [table_node(rows)]
+            row = [claim["figure"], claim["claim"], claim.get("text", ""),
+                   "" if ours is None else str(ours), verdict, claim.get("finding", "")]
+            if not shared:
+                row.insert(5, claim.get("folder") or nodes.literal(text=claim.get("command", "")))
+            rows.append(row)
+        out: list[nodes.Node] = [table_node(rows)]
+        if shared:
+            para = nodes.paragraph(text="Command: ")
+            para += nodes.literal(text=commands.pop())
+            out.append(para)
+        return out
 
 
 def _verdict(claim: dict, ours: object) -> str:
