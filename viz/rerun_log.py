@@ -8,6 +8,10 @@ What a recording holds, and the layout it opens on (its blueprint):
 - `camera/overhead`: the camera frame at the pose rate;
 - `metrics/`: time series of neighbour spacing (m), speed (m/s) and, tracked, the tracker's
   own error (mm, against the truth at the moment it saw the robot).
+
+`log_chain_estimates` records offline ReTLo estimates instead (no simulation): the truth, the
+estimates and, for a model with uncertainty, each estimate's 90 % ellipse; `log_ellipses` draws
+such ellipses into any recording (a live run's `RerunRecorder.rec` too).
 """
 
 from __future__ import annotations
@@ -143,6 +147,13 @@ class RerunRecorder(Recorder):
                                                   labels=None if label is None else [label]),
                      static=static)
 
+    def log_ellipse(self, name: str, mean: np.ndarray, cov: np.ndarray,
+                    colour: tuple[int, ...]) -> None:
+        """An estimate's 90 % ellipse (mean (2,), cov (2, 2), metres) in the 2-D world view,
+        beside its `log_points`."""
+        log_ellipses(self.rec, f"world/{name}", np.atleast_2d(mean), np.asarray(cov)[None],
+                     np.array([colour], np.uint8))
+
     def _log_metrics(self, sim: ChainSim, poses: np.ndarray) -> None:
         rec = self.rec
         gaps = np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)
@@ -177,3 +188,54 @@ class RerunRecorder(Recorder):
         self.rec.disconnect()
         self.renderer.close()
         self._file.discard()
+
+
+def log_ellipses(rec: rr.RecordingStream, entity: str, mean: np.ndarray, cov: np.ndarray,
+                 colours: np.ndarray, p: float = 0.9) -> None:
+    """The p-regions of Gaussians N(mean (k, 2), cov (k, 2, 2)) (metres) as closed outlines,
+    the non-finite ones left out."""
+    from estimators.retlo.gaussian import ellipse
+
+    ok = np.isfinite(mean).all(-1) & np.isfinite(cov).all((-1, -2))
+    strips = [np.vstack([e, e[:1]]) for e in (ellipse(m, c, p) for m, c in
+                                              zip(mean[ok], cov[ok], strict=True))]
+    rec.log(entity, rr.LineStrips2D(strips, colors=colours[ok]))
+
+
+def log_chain_estimates(path: str | Path, world: np.ndarray, est: np.ndarray,
+                        cov: np.ndarray | None, step_s: float = 0.5) -> Path:
+    """An `.rrd` of offline ReTLo estimates: chains (B, S, N, 3) and estimates in metres, file
+    order (NaN: not estimated), one instance after another on a `sim_time` timeline at the
+    2 Hz log rate; with `cov` (B, S, N, 2, 2) the estimates' 90 % ellipses."""
+    n_inst, n_steps, n_robots = world.shape[:3]
+    colours = np.array([[230, 60, 180], *([[40, 150, 255]] * (n_robots - 2)), [255, 220, 0]],
+                       np.uint8)
+    from macrostate_mj.formats.thymioloc import robot_names
+
+    names = robot_names(n_robots)
+    rec = rr.RecordingStream("macrostate-mj")
+    out = AtomicFile(Path(path))
+    rec.save(str(out.tmp))
+    try:
+        for i in range(n_inst):
+            for t in range(n_steps):
+                rec.set_time("sim_time", duration=(i * n_steps + t) * step_s)
+                rec.log("world/truth", rr.Points2D(world[i, t, :, :2], radii=0.02,
+                                                   colors=colours, labels=names))
+                seen = np.isfinite(est[i, t, :, :2]).all(-1)
+                rec.log("world/estimates", rr.Points2D(est[i, t, seen, :2], radii=0.012,
+                                                       colors=colours[seen],
+                                                       labels=[f"{n} (est)" for n, s in
+                                                               zip(names, seen, strict=True)
+                                                               if s]))
+                if cov is not None:
+                    log_ellipses(rec, "world/ellipses_90", est[i, t, :, :2], cov[i, t],
+                                 colours)
+        rec.flush()
+        rec.disconnect()
+    except BaseException:
+        rec.disconnect()
+        out.discard()
+        raise
+    out.commit()
+    return Path(path)

@@ -90,11 +90,13 @@ def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray
                 px_per_cm: float, fps: float = 2.0,
                 backdrop: Callable[[np.ndarray], np.ndarray] | None = None,
                 frame_size: tuple[int, int] | None = None,
-                colours: list[tuple[int, int, int]] | None = None) -> Path:
+                colours: list[tuple[int, int, int]] | None = None,
+                est_cov_px: np.ndarray | None = None) -> Path:
     """Fig 2.9 as an MP4: truth as triangles, estimates as circles with heading arrows, robot
-    ids and a legend; over `backdrop(true pose px (robots, 3)) -> BGR camera frame` where one
-    is given (the lab scene rendered at the true poses, `frame_size` its width and height,
-    `colours` BGR of its robots' markers), else over a plain floor.
+    ids and a legend; with `est_cov_px` (instances, steps, robots, 2, 2; pixels², y down)
+    each estimate's 90 % ellipse too; over `backdrop(true pose px (robots, 3)) -> BGR camera
+    frame` where one is given (the lab scene rendered at the true poses, `frame_size` its
+    width and height, `colours` BGR of its robots' markers), else over a plain floor.
 
     true_px, est_px: (instances, steps, robots, 3) pixels/degrees in file order, est NaN where
     nothing is estimated. Instances play one after another at the 2 Hz log rate.
@@ -107,13 +109,40 @@ def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray
     w, h = (int(v) - int(v) % 2 for v in hi - lo)
     with Mp4Writer(path, fps, (w, h)) as writer:
         _draw(writer, true_px, est_px, lo, (w, h), size, backdrop,
-              colours or _colours(true_px.shape[2]))
+              colours or _colours(true_px.shape[2]), est_cov_px)
     return Path(path)
+
+
+def write_video_gaussian(path: str | os.PathLike, world: np.ndarray, est: np.ndarray,
+                         cov: np.ndarray | None, px_per_cm: float) -> Path:
+    """`write_video` of chains and estimates in metres (B, S, N, 3), file order, with the
+    estimates' 90 % ellipses where `cov` (B, S, N, 2, 2; m²) is given."""
+    from estimators.retlo import CM_PER_M
+    from estimators.retlo.files import world_to_pixels
+    from estimators.retlo.gaussian import scale_cov
+
+    scale = CM_PER_M * px_per_cm           # metres → pixels; image y points down
+    cov_px = None if cov is None else scale_cov(cov, scale, -scale)
+    return write_video(path, world_to_pixels(world, px_per_cm), world_to_pixels(est, px_per_cm),
+                       px_per_cm, est_cov_px=cov_px)
+
+
+def _ellipse(frame: np.ndarray, centre: tuple[float, float], cov: np.ndarray,
+             colour: tuple[int, int, int]) -> None:
+    """The 90 % region of N(centre, cov) (pixels) as a closed outline."""
+    import cv2
+
+    from estimators.retlo.gaussian import ellipse
+
+    if not np.all(np.isfinite(cov)):
+        return
+    pts = np.round(ellipse(np.asarray(centre, float), cov, 0.9)).astype(np.int32)
+    cv2.polylines(frame, [pts], True, colour, 2, cv2.LINE_AA)
 
 
 def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
           wh: tuple[int, int], size: float, backdrop,
-          colours: list[tuple[int, int, int]]) -> None:
+          colours: list[tuple[int, int, int]], est_cov_px: np.ndarray | None = None) -> None:
     """Write every frame of every instance to an open `Mp4Writer`."""
     import cv2
 
@@ -141,6 +170,8 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
                 if np.isnan(ex):
                     continue
                 c = (int(round(ex - lo[0])), int(round(ey - lo[1])))
+                if est_cov_px is not None:
+                    _ellipse(frame, (ex - lo[0], ey - lo[1]), est_cov_px[inst, step, r], colour)
                 cv2.circle(frame, c, int(size * 0.3), colour, -1, cv2.LINE_AA)
                 cv2.circle(frame, c, int(size * 0.3), (0, 0, 0), 1, cv2.LINE_AA)
                 a = np.deg2rad(eo)
@@ -149,6 +180,7 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
                 cv2.arrowedLine(frame, c, tip, (0, 0, 0), 2, cv2.LINE_AA, tipLength=0.35)
             known = "true history" if np.all(np.isnan(est_px[inst, step])) else "estimated"
             label(frame, f"instance {inst + 1}  t = {step / 2:4.1f} s  ({known})", (8, 20), 0.5)
-            label(frame, "triangle: truth   disc + arrow: ReTLo estimate and heading",
+            label(frame, "triangle: truth   disc + arrow: ReTLo estimate and heading"
+                  + ("   ring: its 90 % region" if est_cov_px is not None else ""),
                   (8, wh[1] - 10), 0.4)
             writer.write_bgr(frame)

@@ -48,19 +48,31 @@ class Tracks:
     has it (`head_theta`) and as the module that sees it as its Follower has it (`fol_theta`),
     both (B, S, N): each module reads only its own heading estimates. `known` (S + 1,) marks
     steps whose poses are true (τ and before, sync steps): no estimate overwrites them.
+
+    With an uncertain module, `cov` (B, S, N, 2, 2) holds each estimated position's covariance
+    (NaN where true or not estimated). `noise` (B, N, 2), standard normal, makes each run a Monte
+    Carlo particle (`propagate`): another module reads robot j at pos + L_j·noise_j (L_j the
+    Cholesky factor of its covariance), one draw per run and robot for all steps.
     """
 
     pos: np.ndarray
     head_theta: np.ndarray
     fol_theta: np.ndarray
     known: np.ndarray
+    cov: np.ndarray | None = None
+    noise: np.ndarray | None = None
 
 
-def empty_tracks(n_runs: int, n_steps: int, n_robots: int) -> Tracks:
-    """Nothing known yet: every value NaN, no step true."""
+def empty_tracks(n_runs: int, n_steps: int, n_robots: int, with_cov: bool = False) -> Tracks:
+    """Nothing known yet: every value NaN, no step true; `with_cov` keeps covariances too."""
     theta = np.full((n_runs, n_steps, n_robots), np.nan)
     return Tracks(np.full((n_runs, n_steps, n_robots, 2), np.nan), theta, theta.copy(),
-                  np.zeros(n_steps + 1, bool))
+                  np.zeros(n_steps + 1, bool), nan_covariances(theta.shape) if with_cov else None)
+
+
+def nan_covariances(shape: tuple[int, ...]) -> np.ndarray:
+    """Covariances (*shape, 2, 2), all NaN: nothing estimated yet."""
+    return np.full((*shape, 2, 2), np.nan)
 
 
 def tracks_from_world(world: np.ndarray, first: int) -> Tracks:
@@ -104,13 +116,29 @@ def module_steps(k: int, n_steps: int, first_step: int) -> range:
 
 
 def window(tracks: Tracks, k: int, t: int, history: int, rotate: bool) -> Window:
-    """Module k's window at step t: steps t-ℓ .. t+1 of robots k, k+1, k+2."""
+    """Module k's window at step t: steps t-ℓ .. t+1 of robots k, k+1, k+2. The reference
+    and the Follower are read as another module's inputs (`seen`); the Head's own track is its
+    module's mean recursion."""
     lo, hi = t - history, t + 2
-    fol = np.concatenate([tracks.pos[:, lo:hi, k + 1], tracks.fol_theta[:, lo:hi, k + 1, None]],
+    fol = np.concatenate([seen(tracks, k + 1, lo, hi), tracks.fol_theta[:, lo:hi, k + 1, None]],
                          axis=-1)
     head = np.concatenate([tracks.pos[:, lo:hi, k + 2],
                            tracks.head_theta[:, lo:hi, k + 2, None]], axis=-1)
-    return window_of(tracks.pos[:, lo:hi, k], fol, head, ~tracks.known[lo:t], rotate)
+    return window_of(seen(tracks, k, lo, hi), fol, head, ~tracks.known[lo:t], rotate)
+
+
+def seen(tracks: Tracks, j: int, lo: int, hi: int) -> np.ndarray:
+    """Robot j's positions at steps lo..hi-1 as the next module reads them: the estimate, or
+    in a Monte Carlo particle the estimate moved by the particle's draw where it has a
+    covariance (true positions never move)."""
+    pos = tracks.pos[:, lo:hi, j]
+    if tracks.noise is None or tracks.cov is None:
+        return pos
+    cov = tracks.cov[:, lo:hi, j]
+    has = np.isfinite(cov).all(axis=(-1, -2))
+    chol = np.linalg.cholesky(np.where(has[..., None, None], cov, np.eye(2)))
+    shift = (chol @ tracks.noise[:, None, j, :, None])[..., 0]
+    return np.where(has[..., None], pos + shift, pos)
 
 
 def module_step(module: Module, tracks: Tracks, k: int, t: int) -> tuple[Features, Window]:
@@ -122,6 +150,8 @@ def module_step(module: Module, tracks: Tracks, k: int, t: int) -> tuple[Feature
     est = decode(module.estimate(x), win.origin, win.alpha)
     if not tracks.known[t]:
         tracks.pos[:, t, k + 2] = est.head_xy
+        if tracks.cov is not None and est.head_cov is not None:
+            tracks.cov[:, t, k + 2] = est.head_cov
         if est.head_theta is not None:
             tracks.head_theta[:, t, k + 2] = est.head_theta
         if est.fol_theta is not None:
@@ -168,7 +198,13 @@ def predict_chain(module: Module, world: np.ndarray, record: Record | None = Non
     check_chain(world.shape, module.history)
     first = first_estimate(module.history)
     tracks = run_chain(module, tracks_from_world(world[:, :, ::-1], first), record)
-    est = np.full(world.shape, np.nan)
+    return chain_estimates(tracks, first)
+
+
+def chain_estimates(tracks: Tracks, first: int) -> np.ndarray:
+    """`predict_chain`'s layout (B, S, N, 3), file order, of what the chain estimated from
+    step `first` on: the unseen robots' poses and the neighbour's heading, NaN elsewhere."""
+    est = np.full((*tracks.pos.shape[:3], 3), np.nan)
     est[:, first:, 2:, :2] = tracks.pos[:, first:, 2:]
     est[:, first:, 2:, 2] = tracks.head_theta[:, first:, 2:]
     est[:, first:, 1, 2] = tracks.fol_theta[:, first:, 1]

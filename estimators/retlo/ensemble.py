@@ -53,6 +53,8 @@ class StackedNet(nn.Module):
         cfgs = {n.cfg for n in nets}
         if len(cfgs) != 1:
             raise UserError("stacked networks must share one ModelConfig")
+        if any(n.head.uncertain for n in nets):   # StackedPredictor reads a point output
+            raise UserError("stacked training is for point models; train Gaussian ones alone")
         self.cfg = nets[0].cfg
         self.k = len(nets)
         states = [n.state_dict() for n in nets]

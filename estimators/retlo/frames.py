@@ -58,13 +58,15 @@ def window_of(ref: np.ndarray, fol: np.ndarray, head: np.ndarray, estimated: np.
 @dataclass(frozen=True)
 class FrameEstimate:
     """What one module step estimates: the Head's position at t, and the headings the module
-    predicts (None: not predicted). In the module frame from `Module.estimate`, in the world
-    frame after `decode`."""
+    predicts (None: not predicted), and the Head position's covariance (B, 2, 2) where the
+    module says how sure it is (m²; None: a point estimate). In the module frame from
+    `Module.estimate`, in the world frame after `decode`."""
 
     head_xy: np.ndarray                       # (B, 2) the Head at t
     head_theta: np.ndarray | None = None      # (B,) θ_H@t
     fol_theta: np.ndarray | None = None       # (B,) θ_F@t
     fol_theta_next: np.ndarray | None = None  # (B,) θ_F@t+1
+    head_cov: np.ndarray | None = None        # (B, 2, 2) covariance of head_xy
 
 
 def decode(est: FrameEstimate, origin: np.ndarray, alpha: np.ndarray) -> FrameEstimate:
@@ -72,8 +74,13 @@ def decode(est: FrameEstimate, origin: np.ndarray, alpha: np.ndarray) -> FrameEs
     def angle(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else wrap_angle(a + alpha)
 
+    cov = None
+    if est.head_cov is not None:     # rotate the covariance with the points: R Σ Rᵀ
+        c, s = np.cos(alpha), np.sin(alpha)
+        rot = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+        cov = rot @ est.head_cov @ np.swapaxes(rot, -1, -2)
     return FrameEstimate(from_frame(est.head_xy, origin, alpha), angle(est.head_theta),
-                         angle(est.fol_theta), angle(est.fol_theta_next))
+                         angle(est.fol_theta), angle(est.fol_theta_next), cov)
 
 
 def extrapolate_2x(ref: np.ndarray | float, fol: np.ndarray) -> np.ndarray:

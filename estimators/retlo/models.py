@@ -2,7 +2,8 @@
 
 Each is a chain `Module` (`TorchPredictor`): one 3-robot module's inputs in the reference-robot
 frame (see `frames`) map to the Head's position at t and the angles (θ_F@t, θ_H@t, θ_F@t+1),
-so `chain` can apply it repeatedly along a chain of any length.
+so `chain` can apply it repeatedly along a chain of any length. With a Gaussian head
+(`heads`) the position comes with a covariance.
 
 The networks work in cm, the unit they were designed and first trained in: `net_features`
 scales the frame's metres to cm in float64, before the float32 rounding of their inputs, so
@@ -20,6 +21,7 @@ from torch import nn
 from estimators.retlo import CM_PER_M, MODEL_KINDS
 from estimators.retlo.chain import Features
 from estimators.retlo.frames import FrameEstimate, Window, history_features
+from estimators.retlo.heads import POINT, Head
 from macrostate_mj.core.errors import UserError
 
 
@@ -49,12 +51,14 @@ class RetloNet(nn.Module):
 
     With kind "fc" the LSTM is absent: two fully connected layers (k, d) on the observation alone,
     the §2.6.2.3 baseline. Positions enter and leave divided by `pos_scale` (the training data's
-    mean neighbour spacing) so that the network works on numbers of order one.
+    mean neighbour spacing) so that the network works on numbers of order one. `head` says what
+    the position output is (`heads`: a point, or a Gaussian's mean and Cholesky factor).
     """
 
-    def __init__(self, cfg: ModelConfig, pos_scale: float) -> None:
+    def __init__(self, cfg: ModelConfig, pos_scale: float, head: Head = POINT) -> None:
         super().__init__()
         self.cfg = cfg
+        self.head = head
         self.register_buffer("pos_scale", torch.tensor(float(pos_scale)))
         n_ang = 2 if cfg.cos_sin else 1
         self.f_obs = nn.Sequential(nn.Linear(4, cfg.k), nn.ReLU())
@@ -64,7 +68,7 @@ class RetloNet(nn.Module):
                                   bidirectional=cfg.bidirectional)
             width += cfg.m * (2 if cfg.bidirectional else 1)
         self.fuse = nn.Sequential(nn.Linear(width, cfg.d), nn.ReLU())
-        self.g_p = nn.Linear(cfg.d, 2)
+        self.g_p = nn.Linear(cfg.d, head.out_dim)
         self.g_theta = nn.Linear(cfg.d, 3 * n_ang)
 
     def scale_inputs(self, obs: torch.Tensor, hist: torch.Tensor) -> tuple[torch.Tensor, ...]:
@@ -75,7 +79,8 @@ class RetloNet(nn.Module):
         return obs / self.pos_scale, hist
 
     def forward(self, obs: torch.Tensor, hist: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Scaled position (B, 2) and raw angle outputs (B, 3) or (B, 3, 2) for cos/sin."""
+        """Raw position output (B, head.out_dim; scaled) and raw angle outputs (B, 3) or
+        (B, 3, 2) for cos/sin."""
         obs, hist = self.scale_inputs(obs, hist)
         feats = [self.f_obs(obs)]
         if self.cfg.kind == "lstm":
@@ -116,11 +121,22 @@ class TorchPredictor:
     def features(self, win: Window) -> Features:
         return net_features(win, self.cfg)
 
+    @property
+    def uncertain(self) -> bool:
+        """Whether its estimates carry a covariance (`FrameEstimate.head_cov`)."""
+        return self.net.head.uncertain
+
     @torch.no_grad()
     def estimate(self, x: Features) -> FrameEstimate:
         obs, hist = x
-        pos, ang = self.net(torch.as_tensor(obs, dtype=torch.float32),
+        raw, ang = self.net(torch.as_tensor(obs, dtype=torch.float32),
                             torch.as_tensor(hist, dtype=torch.float32))
-        pos = (pos * self.net.pos_scale).double().numpy() / CM_PER_M
+        head = self.net.head
+        pos = (head.mean(raw) * self.net.pos_scale).double().numpy() / CM_PER_M
         ang = decode_angles(ang, self.cfg.cos_sin).double().numpy()
-        return FrameEstimate(pos, head_theta=ang[:, 1], fol_theta=ang[:, 0])
+        tril = head.scale_tril(raw)
+        cov = None
+        if tril is not None:     # Σ = L Lᵀ, from spacing units to metres
+            tril = tril.double() * self.net.pos_scale.double() / CM_PER_M
+            cov = (tril @ tril.transpose(-1, -2)).numpy()
+        return FrameEstimate(pos, head_theta=ang[:, 1], fol_theta=ang[:, 0], head_cov=cov)

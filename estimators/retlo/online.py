@@ -14,11 +14,14 @@ class OnlineChain:
     when the team communicates (§2.5.3.2). After the observation of step s, module k runs at
     step s - 1 - k: its inputs are all there (robot k+1 at s - k came from module k-1 just
     before), so the estimates equal `estimate_chain`'s on the same observations and sync steps.
-    `head` is the latest estimate of the Head: it lags n - 2 steps."""
+    `head` is the latest estimate of the Head: it lags n - 2 steps. An uncertain module's
+    covariances are kept too (`head_cov`): each module's own, without the offline Monte Carlo
+    of `propagate` (live, one run is all there is)."""
 
     def __init__(self, module: Module, n: int, capacity: int):
         self.module, self.n = module, n
-        self.tracks: Tracks = empty_tracks(1, capacity, n)
+        self.uncertain = bool(getattr(module, "uncertain", False))
+        self.tracks: Tracks = empty_tracks(1, capacity, n, self.uncertain)
         self.step = -1
 
     @property
@@ -28,7 +31,7 @@ class OnlineChain:
 
     def start(self, poses: np.ndarray) -> None:
         """Every robot's true pose (n, 3), Tail first, at τ: step 0."""
-        self.tracks = empty_tracks(*self.tracks.head_theta.shape)
+        self.tracks = empty_tracks(*self.tracks.head_theta.shape, self.uncertain)
         self.step = 0
         self.pos[0, :2] = poses[:2, :2]
         self.share(poses)
@@ -57,3 +60,11 @@ class OnlineChain:
         """(step, position) of the latest Head estimate (step 0: the truth at τ)."""
         t = max(0, self.step - (self.n - 2))
         return t, self.pos[t, -1]
+
+    @property
+    def head_cov(self) -> np.ndarray | None:
+        """Covariance (2, 2) of `head`'s position (m²): NaN at τ and sync steps (the truth),
+        None for a point module."""
+        if self.tracks.cov is None:
+            return None
+        return self.tracks.cov[0, self.head[0], -1]

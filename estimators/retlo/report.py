@@ -14,6 +14,7 @@ import numpy as np
 from estimators.retlo import CM_PER_M
 from estimators.retlo.chain import Module, first_estimate, predict_chain, true_windows
 from estimators.retlo.frames import decode
+from estimators.retlo.gaussian import calibration
 from macrostate_mj.formats.thymioloc import STEP_S, robot_names
 
 
@@ -66,6 +67,21 @@ def chain_report(est: np.ndarray, world: np.ndarray, history: int) -> dict:
         "n_robots": n_robots,
         "csv_robot": {names[j]: file_names[j] for j in range(2, n_robots)},
     }
+
+
+def calibration_report(est: np.ndarray, cov: np.ndarray, world: np.ndarray, history: int
+                       ) -> dict:
+    """Calibration (`gaussian.calibration`, positions in cm) of Gaussian estimates (est, cov in
+    `propagate.predict_chain_gaussian`'s layout) of every robot the Tail cannot see, per robot
+    (report names) and pooled."""
+    first = first_estimate(history)
+    names = report_names(world.shape[2])
+    x = CM_PER_M * world[:, first:, ::-1, :2][:, :, 2:]
+    mean = CM_PER_M * est[:, first:, ::-1, :2][:, :, 2:]
+    cov_cm = CM_PER_M ** 2 * cov[:, first:, ::-1][:, :, 2:]
+    per = {names[j + 2]: calibration(x[:, :, j], mean[:, :, j], cov_cm[:, :, j])
+           for j in range(x.shape[2])}
+    return {**per, "pooled": calibration(x, mean, cov_cm), "nll_unit": "cm"}
 
 
 def chain_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ from estimators.retlo.chain import (
     window,
 )
 from estimators.retlo.frames import Window, module_targets
+from estimators.retlo.heads import HEADS, POINT, Head
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
 from estimators.retlo.report import evaluate_chain
 from macrostate_mj.core.errors import UserError
@@ -103,10 +104,12 @@ def mean_spacing(worlds: list[np.ndarray]) -> float:
 
 
 def errors(pos: torch.Tensor, ang: torch.Tensor, batch: dict[str, torch.Tensor],
-           pos_scale: torch.Tensor, cos_sin: bool) -> tuple[torch.Tensor, torch.Tensor]:
-    """The loss's terms per sample (§2.6.2.3): the Euclidean position error in spacing units
-    and the absolute error of each angle output (radians wrapped, or cos/sin)."""
-    pos_err = torch.linalg.vector_norm(pos - batch["pos"] / pos_scale, dim=-1)
+           pos_scale: torch.Tensor, cos_sin: bool, head: Head = POINT
+           ) -> tuple[torch.Tensor, torch.Tensor]:
+    """The loss's terms per sample (§2.6.2.3): the head's position term in spacing units (the
+    Euclidean error of a point, the NLL of a Gaussian) and the absolute error of each angle
+    output (radians wrapped, or cos/sin)."""
+    pos_err = head.position_loss(pos, batch["pos"] / pos_scale, batch.get("mean_only"))
     if cos_sin:
         target = torch.stack([torch.cos(batch["ang"]), torch.sin(batch["ang"])], dim=-1)
         return pos_err, (ang - target).abs()
@@ -118,7 +121,7 @@ def _loss(net: RetloNet, batch: dict[str, torch.Tensor], angle_weight: float) ->
     """Euclidean position error (in spacing units) + angle MAE, as §2.6.2.3 prescribes; with
     per-sample weights `batch["w"]` (mixed data), their weighted mean."""
     pos, ang = net(batch["obs"], batch["hist"])
-    pos_err, ang_err = errors(pos, ang, batch, net.pos_scale, net.cfg.cos_sin)
+    pos_err, ang_err = errors(pos, ang, batch, net.pos_scale, net.cfg.cos_sin, net.head)
     if "w" in batch:
         w = batch["w"]
         per = pos_err + angle_weight * ang_err.reshape(len(w), -1).mean(dim=1)
@@ -154,13 +157,25 @@ def _with_feedback(net: RetloNet, worlds: list[np.ndarray], data: dict[str, torc
     """Add the samples the current model would meet at test time: histories holding its own
     fed-back predictions, frames built from its own estimates, paired with the true targets.
     Teacher forcing alone leaves the LSTM blind to its own drift (errors grow step after step);
-    this is DAgger-style data aggregation, refreshed every epoch."""
+    this is DAgger-style data aggregation, refreshed every epoch.
+
+    With an uncertain head (`data` then has "mean_only"), the chained samples train its mean
+    only: their Follower carries an upstream estimate's error, which the chain's Monte Carlo
+    (`propagate`) adds itself; learnt into the covariance too it would count twice, and make
+    every module underconfident (on the known-noise case of `tests/estimators/
+    test_uncertainty.py`, σ 4.0 cm predicted for 3.0 cm true)."""
     samples: dict[str, list[np.ndarray]] = {}
     for j, world in enumerate(worlds):
         before = sum(len(a) for a in samples.get("obs", []))
         est = _predict_recorded(net, world, samples)
+        if "mean_only" in data:
+            own = sum(len(a) for a in samples["obs"]) - before
+            samples.setdefault("mean_only", []).append(np.zeros(own))
         if chained:
+            at = sum(len(a) for a in samples["obs"])
             _predict_recorded(net, as_chained(world, est, rng), samples)
+            if "mean_only" in data:
+                samples["mean_only"].append(np.ones(sum(len(a) for a in samples["obs"]) - at))
         if weights is not None:      # this file's samples keep its weight
             added = sum(len(a) for a in samples["obs"]) - before
             samples.setdefault("w", []).append(np.full(added, weights[j]))
@@ -194,8 +209,8 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
 
 def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfig,
           progress: bool = True, on_epoch: Callable[[int, float], None] | None = None,
-          init: RetloNet | None = None, shares: list[float] | None = None
-          ) -> tuple[RetloNet, dict]:
+          init: RetloNet | None = None, shares: list[float] | None = None,
+          head: Head = POINT) -> tuple[RetloNet, dict]:
     """Train with Adam on chains (B, S, N, 3) in metres, file order; keep the best closed-loop
     validation checkpoint, stop early.
 
@@ -203,6 +218,8 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     one; `cfg.model` must describe it, and `cfg.frozen` names the parameters kept fixed.
     `shares`: per training file, its share of the loss (mixing sim and real data): each of its
     samples weighs the share over the file's sample count; None weighs every sample alike.
+    `head`: the position output (`heads`); a Gaussian one is trained on its NLL, and model
+    selection stays on the closed-loop error of its mean (what a point model is chosen by).
 
     `progress` shows a bar of its own; a caller with its own bar passes `on_epoch(epoch, val_cm)`.
     Ctrl-C after the first validated epoch stops training and returns the best checkpoint so
@@ -214,6 +231,9 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     if init is not None and init.cfg != cfg.model:
         raise UserError(f"the initial model is a {_describe(init.cfg)}, not the "
                         f"{_describe(cfg.model)} asked for; pass the model's own settings")
+    if init is not None and init.head != head:
+        raise UserError(f"the initial model has uncertainty {init.head.name!r}, not the "
+                        f"{head.name!r} asked for; pass --uncertainty {init.head.name}")
     if shares is not None and (len(shares) != len(train_worlds)
                                or not all(np.isfinite(s) and s > 0 for s in shares)):
         raise UserError("shares must be one positive number per training file")
@@ -229,8 +249,10 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
         base = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         base["w"] = np.concatenate([np.full(len(p["obs"]), wt, np.float32)
                                     for p, wt in zip(parts, weights, strict=True)])
+    if head.uncertain:      # which samples train the mean only (see `_with_feedback`)
+        base["mean_only"] = np.zeros(len(base["obs"]), np.float32)
     signs = {k: torch.from_numpy(v).float() for k, v in mirror_signs(cfg.model).items()}
-    net = (RetloNet(cfg.model, CM_PER_M * mean_spacing(train_worlds)) if init is None
+    net = (RetloNet(cfg.model, CM_PER_M * mean_spacing(train_worlds), head) if init is None
            else copy.deepcopy(init).train())
     for name, p in net.named_parameters():
         p.requires_grad_(not name.startswith(cfg.frozen) if cfg.frozen else True)
@@ -288,7 +310,9 @@ def _describe(cfg: ModelConfig) -> str:
 def checkpoint_bytes(net: RetloNet, px_per_cm: float, train_cfg: TrainConfig,
                      info: dict) -> bytes:
     """Everything needed to predict: weights, scale, px/cm, config, kind, format and version
-    (tensors and plain data: `load_checkpoint` reads it with weights_only)."""
+    (tensors and plain data: `load_checkpoint` reads it with weights_only). The head's name
+    ("uncertainty") is written only for an uncertain head: a point model's bytes stay those of
+    the checkpoints written before heads existed, which read back as point models."""
     ckpt = {
         "format": FORMAT, "version": VERSION, "kind": net.cfg.kind,
         "model_config": asdict(net.cfg), "pos_scale_cm": float(net.pos_scale),
@@ -296,6 +320,8 @@ def checkpoint_bytes(net: RetloNet, px_per_cm: float, train_cfg: TrainConfig,
         "train_info": {k: v for k, v in info.items() if k != "train_seconds"},
         "state_dict": net.state_dict(),
     }
+    if net.head.uncertain:
+        ckpt["uncertainty"] = net.head.name
     buf = io.BytesIO()
     torch.save(ckpt, buf)
     return buf.getvalue()
@@ -328,9 +354,14 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:
     if ckpt.get("version") != VERSION:
         raise UserError(f"{path}: ReTLo checkpoint version {ckpt.get('version')}, this code reads "
                         f"{VERSION}; retrain with `train retlo`")
+    name = ckpt.get("uncertainty", POINT.name)
+    if name not in HEADS:
+        raise UserError(f"{path}: unknown uncertainty {name!r} (this code reads "
+                        f"{', '.join(HEADS)}); retrain with `train retlo`")
+    head = HEADS[name]
     try:
         cfg = ModelConfig(**ckpt["model_config"])
-        net = RetloNet(cfg, ckpt["pos_scale_cm"])
+        net = RetloNet(cfg, ckpt["pos_scale_cm"], head)
         net.load_state_dict(ckpt["state_dict"])
     except (KeyError, TypeError, RuntimeError) as err:
         raise UserError(f"{path}: checkpoint does not match the {ckpt.get('kind')} model "

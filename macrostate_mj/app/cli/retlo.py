@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from estimators.retlo import MODEL_KINDS
+from estimators.retlo import MODEL_KINDS, UNCERTAINTIES
 from macrostate_mj.app.cli.app import app, evaluate_app, experiment_app, train_app
 from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
@@ -32,7 +32,7 @@ HEURISTIC = "heuristic2x"
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
 PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
 Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
-                 "error, as modules k >= 1 of a longer chain see them (README: ReTLo).",
+                 "error, as modules k >= 1 of a longer chain see them (docs).",
                  "--chained/--no-chained")
 History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
                 max=24)
@@ -125,6 +125,10 @@ def train_retlo(
                                 "together with --train (repeatable).", CSV, flag="--mix"),
     mix_weight: float = Positive(0.5, "The --mix data's share of the loss, in (0, 1); --train's "
                                  "is the rest.", "--mix-weight", max=1.0),
+    uncertainty: str = Choice("none", "none: a point estimate per robot (as before); gaussian: "
+                              "a 2-D Gaussian per robot (mean and covariance), trained on its "
+                              "negative log-likelihood; `evaluate retlo` then reports its "
+                              "calibration.", UNCERTAINTIES),
     px_per_cm: float = PxPerCm,
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
@@ -133,6 +137,7 @@ def train_retlo(
     both at once (--mix)."""
     from estimators.retlo.api import fit
     from estimators.retlo.files import read_world
+    from estimators.retlo.heads import head_named
     from estimators.retlo.models import ModelConfig
     from estimators.retlo.train import ENCODER, TrainConfig, load_checkpoint, save_checkpoint
     from macrostate_mj.core.errors import UserError
@@ -146,12 +151,16 @@ def train_retlo(
                       model=ModelConfig(kind=model, bidirectional=not unidirectional,
                                         cos_sin=cos_sin, rotate=not compass_frame,
                                         history=history))
+    head = head_named(uncertainty)     # the one place the name becomes an object
     start = None
     if init is not None:
         start, _ = load_checkpoint(init)
         if start.cfg != cfg.model:
             raise UserError(f"--init {init} is a different model from the one the flags ask "
                             f"for ({_differences(start.cfg, cfg.model)}); pass its settings")
+        if start.head != head:
+            raise UserError(f"--init {init} has uncertainty {start.head.name}, not "
+                            f"{head.name}; pass --uncertainty {start.head.name}")
     check_writable_file(out, overwrite, "--out")
     with Run(out.parent, "train retlo", cfg, seed, [out.name], overwrite,
              manifest=out.name + ".manifest.json") as run:
@@ -160,10 +169,11 @@ def train_retlo(
         with run.stage("train"):
             net, info = fit(worlds, val_world, cfg, progress=True, init=start,
                             mix=[read_world(p, px_per_cm) for p in mix or ()],
-                            mix_weight=mix_weight)
+                            mix_weight=mix_weight, head=head)
         save_checkpoint(out, net, px_per_cm, cfg, info)
         run.record(inputs=[str(p) for p in [*train, val]], init=str(init) if init else None,
-                   mix=[str(p) for p in mix or ()], mix_weight=mix_weight if mix else None)
+                   mix=[str(p) for p in mix or ()], mix_weight=mix_weight if mix else None,
+                   **({"uncertainty": head.name} if head.uncertain else {}))
         typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
                    f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
         if info["interrupted"]:  # the best checkpoint so far is saved; say so and stop as Ctrl-C
@@ -182,26 +192,39 @@ def _differences(have: object, want: object) -> str:
 
 @evaluate_app.command("retlo")
 def evaluate_retlo(
-    model: str = typer.Option(..., help="A checkpoint (.pt) from `train retlo`, or heuristic2x."),
+    model: list[str] = typer.Option(..., help="A checkpoint (.pt) from `train retlo`, or "
+                                    "heuristic2x; repeat it with Gaussian checkpoints (seeds) "
+                                    "to evaluate them as one deep ensemble."),
     data: Path = InputFile(..., "ThymioLoc CSV of any chain length >= 3.", CSV),
     out: Path = OutputFile(..., "Report to write.", (".json",)),
+    calibration: bool = Switch(None, "Report calibration (coverage of the 50 % and 90 % "
+                               "regions, NLL); default: on for models with uncertainty.",
+                               "--calibration/--no-calibration"),
+    particles: int = Count(32, "Monte Carlo draws carrying uncertainty along chains longer "
+                           "than 3 robots.", max=4096),
+    seed: int = Seed(0, "Seed of the Monte Carlo draws."),
+    video: Path = OutputFile(None, "Also a video of the first instances: truth, estimates and "
+                             "their 90 % ellipses.", (".mp4",)),
+    rerun: Path = OutputFile(None, "Also a rerun recording of the same.", (".rrd",)),
     px_per_cm: float = PxPerCm,
     overwrite: bool = Switch(False, "Replace an existing report."),
 ) -> None:
-    """Errors (cm) of every robot the Tail cannot see, per robot and per step."""
-    from estimators.retlo.api import evaluate
-    from macrostate_mj.core.io import check_writable_file, write_json_atomic
+    """Errors (cm) of every robot the Tail cannot see, per robot and per step; for models
+    with uncertainty, their calibration."""
+    from macrostate_mj.app.retlo_eval import evaluate_request, outputs_checked
 
-    check_writable_file(out, overwrite, "--out")
-    pred, name = _load_predictor(model)
-    report = {"model": name, "data": str(data), "px_per_cm": px_per_cm,
-              **evaluate(pred, data, px_per_cm)}
-    write_json_atomic(out, report)
+    outputs_checked(out, video, rerun, overwrite)
+    report = evaluate_request(_load_predictor(model), data, out, px_per_cm, calibration,
+                              particles, seed, video, rerun)
     robots = ", ".join(f"{r} {v:.2f}" if r == report["csv_robot"][r] else
                        f"{r} (CSV {report['csv_robot'][r]}) {v:.2f}"
                        for r, v in report["per_robot_cm"].items())
     typer.echo(f"mean {report['mean_error_cm']:.2f} cm ({robots}) over "
                f"{report['n_instances']} instances -> {out}")
+    if "calibration" in report:
+        pooled = report["calibration"]["pooled"]
+        typer.echo(f"calibration: {pooled['coverage_50']:.2f} inside the 50 % region, "
+                   f"{pooled['coverage_90']:.2f} inside the 90 %, NLL {pooled['nll']:.2f}")
 
 
 @experiment_app.command("retlo")
@@ -254,7 +277,20 @@ def experiment_retlo(
     launch("retlo", config, out, overwrite, workers, ray)
 
 
-def _load_predictor(model: str) -> tuple[Module, str]:
+def _load_predictor(models: list[str]) -> tuple[Module, str]:
+    """`--model` values → predictor and display name: one checkpoint or heuristic2x, or several
+    Gaussian checkpoints as one deep ensemble (`estimators.retlo.mixture`)."""
+    if len(models) == 1:
+        return _load_one(models[0])
+    from estimators.retlo.mixture import GaussianEnsemble
+
+    loaded = [_load_one(m) for m in models]
+    kinds = sorted({name for _, name in loaded})
+    return (GaussianEnsemble([p for p, _ in loaded]),
+            f"ensemble of {len(loaded)} {'/'.join(kinds)}")
+
+
+def _load_one(model: str) -> tuple[Module, str]:
     """A `--model` value (a checkpoint path or heuristic2x) → predictor and display name."""
     from estimators.retlo.heuristic import Heuristic2X
     from estimators.retlo.models import TorchPredictor
