@@ -91,7 +91,8 @@ def main() -> None:
     profile = tempfile.mkdtemp()
     browser = subprocess.Popen([chromium, "--headless=new", "--no-sandbox", "--use-gl=angle",
                                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                                f"--remote-debugging-port={DEBUG_PORT}", f"--user-data-dir={profile}",
+                                f"--remote-debugging-port={DEBUG_PORT}",
+                                f"--user-data-dir={profile}",
                                 f"--window-size={WIDTH},{HEIGHT}", "about:blank"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
