@@ -16,7 +16,9 @@ import asyncio
 import base64
 import hashlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -87,7 +89,8 @@ def main() -> None:
         raise SystemExit("chromium not found: apt-get install chromium")
     server = subprocess.Popen([rerun, "--web-viewer", "--web-viewer-port", str(args.port),
                                str(args.recording)], env={"BROWSER": "true", "PATH": "/usr/bin"},
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              start_new_session=True)
     profile = tempfile.mkdtemp()
     browser = subprocess.Popen([chromium, "--headless=new", "--no-sandbox", "--use-gl=angle",
                                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
@@ -102,7 +105,7 @@ def main() -> None:
         asyncio.run(_capture(DEBUG_PORT, url, args.out, args.timeout))
     finally:
         browser.kill()
-        server.kill()
+        os.killpg(server.pid, signal.SIGKILL)   # rerun serves from a child process too
         shutil.rmtree(profile, ignore_errors=True)
 
 
