@@ -220,15 +220,7 @@ class ChainSim:
         cfg, w = self.cfg, self.world
         poses = self.poses
         self.planner.update(poses[0], self.time, self.rng)
-        vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
-                               followers=cfg.followers)
-        vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
-        if cfg.obstacles:
-            vel = steer_around(poses[:, :2], vel, cfg.obstacles, cfg.avoid_radius, cfg.avoid_gain)
-        # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
-        # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
-        gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])
-        vel[-1] += self.k_t * gap * self.tail_offset
+        vel = self.reference_velocities(poses)
         if self.mission is not None:
             self.mission.adjust(self.time, poses, vel, cfg.spacing, cfg.k_f, cfg.head_speed)
         v, omega = unicycle_commands(vel, poses[:, 2], cfg.k_omega, self._v_max, self._reverse)
@@ -239,6 +231,21 @@ class ChainSim:
         left, right = wheel_commands(v, omega, w.wheel_radius, w.track, w.max_wheel_speed)
         self.data.ctrl[w.ctrl_left] = left
         self.data.ctrl[w.ctrl_right] = right
+
+    def reference_velocities(self, poses: np.ndarray) -> np.ndarray:
+        """The motion rules' holonomic velocities (n, 2), before any mission: what a team of
+        another shape (`chain.team.BranchedSim`) redefines."""
+        cfg = self.cfg
+        vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
+                               followers=cfg.followers)
+        vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
+        if cfg.obstacles:
+            vel = steer_around(poses[:, :2], vel, cfg.obstacles, cfg.avoid_radius, cfg.avoid_gain)
+        # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
+        # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
+        gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])
+        vel[-1] += self.k_t * gap * self.tail_offset
+        return vel
 
     # -- loop ---------------------------------------------------------------------------------
     def episode(self, seconds: float, hooks: Sequence[Hook],

@@ -28,6 +28,16 @@ def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history:
     `.task.sim`); `options` go to the task's `create` (`caging=CagingConfig(...)`)."""
     if name not in SUITE:
         raise UserError(f"unknown task {name!r}; choose one of {', '.join(SUITE)}")
+    return environment(SUITE[name], scenario, robots, history, observe, time_limit, random,
+                       **options)
+
+
+def environment(task: type[TailTask], scenario: str = "lab", robots: int = 3, history: int = 10,
+                observe: str = "truth", time_limit: float = 60.0,
+                random: np.random.RandomState | int | None = None,
+                **options) -> control.Environment:
+    """`load` of a task class rather than a name: also the team tasks, which the Gymnasium view
+    cannot wrap (`env.multi` does)."""
     if not (isinstance(time_limit, int | float) and 0 < time_limit < float("inf")):
         raise UserError(f"time_limit must be a positive finite number of seconds, got "
                         f"{time_limit!r}", "time_limit")
@@ -35,6 +45,6 @@ def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history:
     validate_chain(cfg, robots, time_limit)
     world = build_world(cfg, robots)
     physics = dm_mujoco.Physics.from_model(wrapper.MjModel(world.model))
-    task = SUITE[name].create(world, physics.data.ptr, history, observe, random, **options)
-    return control.Environment(physics, task, time_limit=time_limit,
+    made = task.create(world, physics.data.ptr, history, observe, random, **options)
+    return control.Environment(physics, made, time_limit=time_limit,
                                control_timestep=1 / cfg.command_hz)

@@ -43,6 +43,11 @@ class TailTask(base.Task):
         self.max_offset = sim.cfg.spacing            # the destination moves at most d
         self.camera = None
         self.fault = None
+        # Which robot is the agent and which its neighbour: one each here; a team of several
+        # Tails (`env.caging.TeamCagingTask`) sets index arrays, and every pose, observation
+        # and action gains a leading axis of one row per Tail.
+        self.me: int | np.ndarray = -1
+        self.seen: int | np.ndarray = -2
         self._tail: collections.deque = collections.deque(maxlen=history)
         self._neighbour: collections.deque = collections.deque(maxlen=history)
 
@@ -97,10 +102,11 @@ class TailTask(base.Task):
 
     def before_step(self, action: np.ndarray, physics: dm_mujoco.Physics) -> None:
         action = np.asarray(action, np.float64)
+        shape = (*np.shape(self.me), 2)
         # a float32 action at the bound (Gymnasium's Box) rounds up by ~1e-8 m: that is inside
-        if action.shape != (2,) or not np.all(np.abs(action) <= self.max_offset * (1 + 1e-6)):
-            raise ValueError(f"action {action.tolist()} is outside the action spec: a 2-vector "
-                             f"within ±{self.max_offset:g} m")
+        if action.shape != shape or not np.all(np.abs(action) <= self.max_offset * (1 + 1e-6)):
+            raise ValueError(f"action {action.tolist()} is outside the action spec: shape "
+                             f"{shape} within ±{self.max_offset:g} m")
         self.sim.tail_offset = np.clip(action, -self.max_offset, self.max_offset)
         self.sim.command()
 
@@ -110,7 +116,8 @@ class TailTask(base.Task):
 
     def action_spec(self, physics: dm_mujoco.Physics) -> specs.BoundedArray:
         b = self.max_offset
-        return specs.BoundedArray((2,), np.float64, -b, b, name="tail_destination_offset_m")
+        return specs.BoundedArray((*np.shape(self.me), 2), np.float64, -b, b,
+                                  name="tail_destination_offset_m")
 
     def extra_observations(self) -> dict[str, np.ndarray]:
         """What a task lets the Tail observe besides the poses (name -> float array of a fixed
@@ -118,7 +125,7 @@ class TailTask(base.Task):
         return {}
 
     def observation_spec(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
-        shape = (self.history, 3)
+        shape = (*np.shape(self.me), self.history, 3)
         spec = collections.OrderedDict(
             tail=specs.Array(shape, np.float64, name="tail"),
             neighbour=specs.Array(shape, np.float64, name="neighbour"))
@@ -127,8 +134,10 @@ class TailTask(base.Task):
         return spec
 
     def get_observation(self, physics: dm_mujoco.Physics) -> collections.OrderedDict:
-        return collections.OrderedDict(tail=np.array(self._tail), neighbour=np.array(
-            self._neighbour), **self.extra_observations())
+        # (history, [tails,] 3) as recorded; (…, history, 3) as observed
+        return collections.OrderedDict(
+            tail=np.moveaxis(np.array(self._tail), 0, -2),
+            neighbour=np.moveaxis(np.array(self._neighbour), 0, -2), **self.extra_observations())
 
     def get_termination(self, physics: dm_mujoco.Physics) -> float | None:
         """Every task ends (discount 0) when the physics faults."""
@@ -137,11 +146,11 @@ class TailTask(base.Task):
     # -- what the Tail knows -----------------------------------------------------------------
     def _record(self) -> None:
         poses = self.sim.poses
-        neighbour = poses[-2]
-        if self.camera is not None:
+        neighbour = poses[self.seen]
+        if self.camera is not None:      # a neighbour the tracker misses keeps its last pose
             self.camera.capture(self.sim)
-            seen = self.camera.latest[-2]
-            neighbour = seen if np.all(np.isfinite(seen)) else (
-                self._neighbour[-1] if self._neighbour else neighbour)
-        self._tail.append(poses[-1].copy())
+            seen = self.camera.latest[self.seen]
+            held = self._neighbour[-1] if self._neighbour else neighbour
+            neighbour = np.where(np.all(np.isfinite(seen), axis=-1, keepdims=True), seen, held)
+        self._tail.append(poses[self.me].copy())
         self._neighbour.append(np.asarray(neighbour, np.float64).copy())

@@ -70,6 +70,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "experiment oc": ["--data", d, "--out", str(out)],
         "experiment srs": ["--out", str(out)],
         "experiment caging": ["--out", str(out)],
+        "experiment caging-multi": ["--out", str(out)],
         "experiment list": [],
         "experiment all": ["--out", str(out)],
         "scenario show": ["lab"],

@@ -1,4 +1,5 @@
-"""`experiment caging`: the caging mission of §2.5.4 with four Tails."""
+"""`experiment caging`: the caging mission of §2.5.4 with four Tails; `experiment caging-multi`:
+two cooperating Tails of one team (§5.2) against one."""
 
 from __future__ import annotations
 
@@ -32,3 +33,26 @@ def experiment_caging(
     config = replace(chosen("caging", "quick" if quick else profile), seed=seed,
                      **{k: v for k, v in given.items() if v is not None})
     launch("caging", config, out, overwrite)
+
+
+@experiment_app.command("caging-multi")
+def experiment_caging_multi(
+    profile: str = Choice("full", "full: 20 seeds of 90 s; quick: a smoke run (2 seeds, 40 s).",
+                          ("full", "quick")),
+    quick: bool = Switch(False, "Shorthand for --profile quick."),
+    seeds: int = Count(None, "Episodes per arm; default: the profile's."),
+    first_seed: int = Seed(0, "The first episode's seed (seeds first..first+seeds-1)."),
+    time_limit: float = Positive(None, "Simulated seconds per episode; default: the "
+                                 "profile's.", max=3600.0),
+    out: Path = OutputDir(..., "Output folder."),
+    overwrite: bool = Switch(False, "Replace existing outputs."),
+) -> None:
+    """Two cooperating scripted Tails of a Head leading two chains against the one oracle Tail
+    of `experiment caging`, and the two-chain team with passive Tails: success rate, time to
+    cage, paired by seed."""
+    from macrostate_mj.app.experiments import profile as chosen
+
+    given = {"seeds": seeds, "time_limit": time_limit}
+    config = replace(chosen("caging-multi", "quick" if quick else profile), first_seed=first_seed,
+                     **{k: v for k, v in given.items() if v is not None})
+    launch("caging-multi", config, out, overwrite)
