@@ -47,12 +47,20 @@ class PointHead:
 class GaussianHead:
     """A 2-D Gaussian per sample (see the module docstring for the parametrisation), trained on
     its negative log-likelihood. `min_log_std` keeps exp(a), exp(c) above e^-7 spacing units
-    (~0.03 mm): a floor that only guards the NLL against a collapsing variance."""
+    (~0.03 mm): a floor that only guards the NLL against a collapsing variance.
+
+    `beta`: each sample's NLL is weighted by σ^(2β), held fixed (β-NLL, Seitzer et al. 2022),
+    σ² = √det Σ. The plain NLL (β = 0) pulls the mean by Σ⁻¹(μ - y): samples it finds hard it
+    declares uncertain and then learns little from, and the mean falls behind a point model's.
+    β = ½ pulls by about (μ - y)/σ, the weighting of the point model's Euclidean loss when σ
+    follows the error's size. The weight moves no sample's optimum: Σ is still fitted to the
+    errors, so calibration is kept."""
 
     name: str = "gaussian"
     out_dim: int = 5
     uncertain: bool = True
     min_log_std: float = -7.0
+    beta: float = 0.5
 
     def mean(self, raw: torch.Tensor) -> torch.Tensor:
         return raw[..., :2]
@@ -75,7 +83,11 @@ class GaussianHead:
         tril = self.scale_tril(raw)
         if mean_only is not None:
             tril = torch.where(mean_only.view(-1, 1, 1) > 0, tril.detach(), tril)
-        return -MultivariateNormal(self.mean(raw), scale_tril=tril).log_prob(target)
+        nll = -MultivariateNormal(self.mean(raw), scale_tril=tril).log_prob(target)
+        if self.beta == 0.0:
+            return nll
+        sigma2 = (tril[..., 0, 0] * tril[..., 1, 1]).detach()    # √det Σ
+        return sigma2 ** self.beta * nll
 
 
 Head = PointHead | GaussianHead
