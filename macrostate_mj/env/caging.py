@@ -12,6 +12,9 @@ neighbour's poses, the Tail observes `object`: the object's centre relative to i
 (world axes, m) and 1, when the object's surface is within its sensor radius, else zeros: the
 local sensing the text grants Head and Tail ("follow along with the surface of an object that
 they locally encounter").
+
+`TeamCagingTask` is the same mission for a Head leading two chains (`chain.team`, §5.2), both
+Tails agents (`env.multi` serves it to PettingZoo).
 """
 
 from __future__ import annotations
