@@ -59,6 +59,7 @@ class RetloNet(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.head = head
+        self.cov_scale = 1.0   # Σ's factor fitted on validation chains (`train.recalibrate`)
         self.register_buffer("pos_scale", torch.tensor(float(pos_scale)))
         n_ang = 2 if cfg.cos_sin else 1
         self.f_obs = nn.Sequential(nn.Linear(4, cfg.k), nn.ReLU())
@@ -138,5 +139,5 @@ class TorchPredictor:
         cov = None
         if tril is not None:     # Σ = L Lᵀ, from spacing units to metres
             tril = tril.double() * self.net.pos_scale.double() / CM_PER_M
-            cov = (tril @ tril.transpose(-1, -2)).numpy()
+            cov = self.net.cov_scale * (tril @ tril.transpose(-1, -2)).numpy()
         return FrameEstimate(pos, head_theta=ang[:, 1], fol_theta=ang[:, 0], head_cov=cov)

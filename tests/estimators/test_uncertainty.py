@@ -4,6 +4,7 @@ known answer, ellipses, and bad input at the command line."""
 
 from __future__ import annotations
 
+import copy
 import json
 
 import numpy as np
@@ -24,7 +25,13 @@ from estimators.retlo.online import OnlineChain
 from estimators.retlo.propagate import NoUncertaintyError, predict_chain_gaussian
 from estimators.retlo.report import evaluate_chain
 from estimators.retlo.synthetic import synthetic_chains
-from estimators.retlo.train import TrainConfig, load_checkpoint, save_checkpoint, train
+from estimators.retlo.train import (
+    TrainConfig,
+    load_checkpoint,
+    recalibrate,
+    save_checkpoint,
+    train,
+)
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.formats.thymioloc import write_csv
 
@@ -32,13 +39,13 @@ TINY = dict(k=16, m=16, d=16)
 SIGMA = 0.03      # m: the known noise of the Head around the 2X extrapolation
 
 
-def _noisy(n_inst: int, seed: int) -> np.ndarray:
-    """3-robot chains whose Head sits at 2F - T plus isotropic Gaussian noise of SIGMA: the
-    best estimate is N(2F - T, SIGMA² I) exactly."""
+def _noisy(n_inst: int, seed: int, sigma: float = SIGMA) -> np.ndarray:
+    """3-robot chains whose Head sits at 2F - T plus isotropic Gaussian noise of `sigma`: the
+    best estimate is N(2F - T, sigma² I) exactly."""
     world = synthetic_chains(n_inst, 3, seed=seed)
     rng = np.random.default_rng(seed + 100)
     world[:, :, 0, :2] = (2 * world[:, :, 1, :2] - world[:, :, 2, :2]
-                          + rng.normal(0.0, SIGMA, world[:, :, 0, :2].shape))
+                          + rng.normal(0.0, sigma, world[:, :, 0, :2].shape))
     return world
 
 
@@ -101,20 +108,30 @@ def test_gaussian_checkpoint_records_and_checks_its_head(tmp_path, calibrated):
     path = save_checkpoint(tmp_path / "g.pt", net, 3.0, cfg, info)
     loaded, ckpt = load_checkpoint(path)
     assert ckpt["uncertainty"] == "gaussian" and loaded.head == GAUSSIAN
+    assert loaded.cov_scale == net.cov_scale == ckpt["cov_scale"] == info["cov_scale"]
     world = synthetic_chains(3, 3, seed=4)
     a = predict_chain_gaussian(TorchPredictor(net), world, 8, np.random.default_rng(0))
     b = predict_chain_gaussian(TorchPredictor(loaded), world, 8, np.random.default_rng(0))
     assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b, strict=True))
-    for value, message in (("laplace", "unknown uncertainty 'laplace'"),
-                           (None, "does not match")):
+    for key, value, message in (("uncertainty", "laplace", "unknown uncertainty 'laplace'"),
+                                ("uncertainty", None, "does not match"),
+                                ("cov_scale", -1.0, "not a positive number")):
         bad = dict(ckpt)
         if value is None:
-            del bad["uncertainty"]          # Gaussian weights read as a point model
+            del bad[key]          # Gaussian weights read as a point model
         else:
-            bad["uncertainty"] = value
+            bad[key] = value
         torch.save(bad, tmp_path / "bad.pt")
         with pytest.raises(UserError, match=message):
             load_checkpoint(tmp_path / "bad.pt")
+
+
+def test_recalibration_fits_the_covariance_to_validation_errors(calibrated):
+    net = copy.deepcopy(calibrated[0])
+    same = recalibrate(net, _noisy(30, 9), 0)
+    wider = recalibrate(net, _noisy(30, 9, sigma=2 * SIGMA), 0)
+    assert same == pytest.approx(1.0, abs=0.3)     # trained on this noise: little to fix
+    assert wider / same == pytest.approx(4.0, rel=0.25)
 
 
 def test_covariances_turn_with_the_frame():
