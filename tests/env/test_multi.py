@@ -79,6 +79,19 @@ def test_each_tail_observes_its_own_chain_and_acts_on_it():
     env.close()
 
 
+def test_through_the_camera_each_tail_sees_its_own_neighbour():
+    env = parallel_env(observe="camera", render_mode="rgb_array", time_limit=1.0)
+    env.reset(seed=2)
+    for _ in range(3):
+        obs, *_ = env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    sim = env.task.sim
+    for i, agent in enumerate(env.possible_agents):
+        seen = obs[agent]["neighbour"][-1, :2]
+        assert np.linalg.norm(seen - sim.poses[sim.neighbours[i], :2]) < 0.01
+    assert env.render().ndim == 3
+    env.close()
+
+
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"task": "explore"}, "unknown team task"),
     ({"tails": 3, "robots": 7}, "tails must be 2"),
