@@ -112,7 +112,8 @@ def test_committed_bench_lines_have_the_common_schema():
 def test_the_reference_speaks_of_the_software_not_of_its_history():
     """History lives in CHANGELOG.md and docs/decisions/; elsewhere no page speaks of issues,
     sessions or stops."""
-    pages = [p for p in DOCS.rglob("*.md") if "decisions" not in p.parts and "_build" not in p.parts]
+    pages = [p for p in DOCS.rglob("*.md")
+             if "decisions" not in p.parts and "_build" not in p.parts]
     pages.append(REPO / "README.md")
     for page in pages:
         words = re.findall(r"\b(issue|session|previous stop|last stop)s?\b", page.read_text(), re.I)
