@@ -317,3 +317,18 @@ def test_bad_uncertainty_requests_exit_2_with_one_line(tmp_path, capsys, case):
     assert code == 2 and err.count("\n") == 1 and expected in err, err
     assert "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == before      # nothing written
+
+
+def test_the_localize_env_loads_a_gaussian_checkpoint(tmp_path, calibrated):
+    import gymnasium
+
+    import macrostate_mj  # noqa: F401  (registers the ids)
+
+    net, info, cfg = calibrated
+    path = save_checkpoint(tmp_path / "g.pt", net, 3.0, cfg, info)
+    env = gymnasium.make("macrostate_mj/LocalizeTail-v0", checkpoint=str(path), time_limit=10.0)
+    env.reset(seed=0)
+    rng, space = np.random.default_rng(0), env.action_space
+    rewards = [env.step(rng.uniform(space.low, space.high).astype(np.float32))[1]
+               for _ in range(20)]
+    assert all(np.isfinite(rewards))
