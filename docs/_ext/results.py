@@ -303,7 +303,7 @@ def retlo_sim(folder: str) -> Table:
 
 
 def _robot_order(name: str) -> tuple[int, int]:
-    return (1, 0) if name == "H" else (0, -int(name[1:]))
+    return (1, 0) if name == "H" else (0, int(name[1:]))
 
 
 @source
