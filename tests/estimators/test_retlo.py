@@ -182,6 +182,11 @@ def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsy
     assert [t["n_robots"] for t in results["tests"]] == [3, 5]
     lstm = results["results"]["five.csv"]["lstm"]
     assert len(lstm["per_seed_cm"]) == 2 and set(lstm["per_robot_cm"]) == {"F2", "F3", "H"}
+    curves = results["fig2_9"]               # Fig 2.9's claims, on the 5-robot test
+    assert curves["test"] == "five.csv"
+    assert set(curves["lstm"]["inside_cm"]) == {"F2", "F3", "H", "pooled"}
+    shares = curves["lstm"]["largest_error_share"]
+    assert abs(sum(v["mean"] for v in shares.values()) - 1.0) < 1e-9
     for name in ("results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4",
                  "models/lstm_seed1.pt"):
         assert (out / name).stat().st_size > 0

@@ -21,6 +21,7 @@ import numpy as np
 
 from estimators.retlo.api import evaluate, fit
 from estimators.retlo.chain import predict_chain
+from estimators.retlo.curves import inside_bias, largest_error_share
 from estimators.retlo.files import read_world, world_to_pixels
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
@@ -82,6 +83,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         trains, val, tests = _read(cfg)
     models_dir = check_writable_dir(out / "models")
     reports = {t["name"]: {HEURISTIC: [evaluate(Heuristic2X(), t["world"])]} for t in tests}
+    big = max(tests, key=lambda t: t["world"].shape[2])
+    curves: dict[str, list[dict]] = {kind: [] for kind in LEARNED}
     tasks = [TrainTask(trains, val, TrainConfig(epochs=cfg.epochs, seed=seed,
                                                 model=replace(cfg.model, kind=kind)), px)
              for seed in range(cfg.seed, cfg.seed + cfg.seeds) for kind in LEARNED]
@@ -100,17 +103,20 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         for t in tests:
             reports[t["name"]].setdefault(kind, []).append(
                 evaluate(TorchPredictor(net), t["world"]))
+        curves[kind].append(_fig2_9(predict_chain(TorchPredictor(net), big["world"]),
+                                    big["world"]))
     results = {
         "tests": [{"name": t["name"], "n_robots": int(t["world"].shape[2]),
                    "n_instances": int(t["world"].shape[0])} for t in tests],
         "results": {name: {m: _aggregate(r) for m, r in per.items()}
                     for name, per in reports.items()},
         "seeds": cfg.seeds, "px_per_cm": px,
+        "fig2_9": {"test": big["name"], **{kind: _aggregate_curves(per)
+                                            for kind, per in curves.items()}},
     }
     write_json_atomic(out / "results.json", results)
     with progress.stage("draw"):
         plot_overall(results, out / "fig2_7.png")
-        big = max(tests, key=lambda t: t["world"].shape[2])
         plot_stepwise(results, big["name"], out / "fig2_8.png")
         lstm, _ = load_checkpoint(models_dir / f"lstm_seed{cfg.seed}.pt")
         shown = big["world"][:cfg.video_instances]
@@ -193,6 +199,22 @@ def _aggregate(reports: list[dict]) -> dict:
                                   for i in range(n_steps)] for b in robots},
         "first_step": reports[0]["first_step"], "step_s": reports[0]["step_s"],
     }
+
+
+def _fig2_9(est: np.ndarray, world: np.ndarray) -> dict:
+    """Fig 2.9's two claims on one model's estimates (`estimators.retlo.curves`)."""
+    return {"inside_bias": inside_bias(est, world),
+            "largest_error": largest_error_share(est, world)}
+
+
+def _aggregate_curves(per_seed: list[dict]) -> dict:
+    """Mean ± std over seeds of the inside bias (cm) and of each robot's largest-error share."""
+    robots = list(per_seed[0]["inside_bias"])
+    return {"inside_cm": {r: mean_std([p["inside_bias"][r]["inside_cm"] for p in per_seed])
+                          for r in robots},
+            "curved_steps": {r: per_seed[0]["inside_bias"][r]["steps"] for r in robots},
+            "largest_error_share": {r: mean_std([p["largest_error"][r] for p in per_seed])
+                                    for r in per_seed[0]["largest_error"]}}
 
 
 def _summary(results: dict, train_s: dict[str, list[float]]) -> list[str]:
