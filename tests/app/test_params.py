@@ -71,6 +71,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "experiment srs": ["--out", str(out)],
         "experiment caging": ["--out", str(out)],
         "experiment caging-multi": ["--out", str(out)],
+        "experiment learned-tail": ["--out", str(out)],
         "experiment list": [],
         "experiment all": ["--out", str(out)],
         "scenario show": ["lab"],

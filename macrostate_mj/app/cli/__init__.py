@@ -15,6 +15,7 @@ from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers comm
 from macrostate_mj.app.cli import caging as _caging  # noqa: F401
 from macrostate_mj.app.cli import collect as _collect  # noqa: F401
 from macrostate_mj.app.cli import experiments as _experiments  # noqa: F401
+from macrostate_mj.app.cli import learned_tail as _learned_tail  # noqa: F401
 from macrostate_mj.app.cli import oc as _oc  # noqa: F401
 from macrostate_mj.app.cli import params
 from macrostate_mj.app.cli import retlo as _retlo  # noqa: F401

@@ -1,0 +1,190 @@
+"""`experiment learned-tail`: a Tail that learns its own motion to help its estimator (seed
+§5.2) on `LocalizeTail-v0`, against scripted Tails, through the Gymnasium API only.
+
+PPO (stable-baselines3, the `rl` extra; `MultiInputPolicy` on the Tail's and its neighbour's
+pose histories and the latest Head estimate) learns the destination offset that SRS perturbs,
+rewarded by minus the frozen estimator's Head error (m) each step (the 2X heuristic, or a
+`train retlo` checkpoint), on training seeds from 1000 up. A chain break costs the steps it cut
+short (`tail_rl`). Then every Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive,
+Rand-Only (σ = 75 % of the robot size), the scripted chain-offset Tail (tuned on seeds 500 up)
+and the learned one. Per Tail: the estimator's mean Head error over the episode and over every
+robot it estimates (mean ± std over seeds), the Wilcoxon signed-rank test against passive
+paired by seed, the mean neighbour spacing, and the episodes a chain break ended.
+
+SRS-Med's Tail is left out: it needs the SR phase's novelty models, trained on an RO collection
+(`experiment srs`'s pipeline), for this robot count and scenario.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.io import write_json_atomic
+
+POLICIES = ("passive", "random", "chain_offset", "learned")
+PRODUCTS = ["results.json", "learning_curve.png"]
+TUNE_SEEDS = 500          # the scripted Tail's tuning seeds start here (evaluation: 0..seeds-1)
+GRID = tuple((a, b) for a in (-0.1, 0.0, 0.1) for b in (-0.1, 0.0, 0.1))    # (along, left) m
+CHECKPOINTS = "checkpoints"
+
+
+@dataclass(frozen=True)
+class Config:
+    timesteps: int = 245_760        # 240 rollouts: ~35 min at ~115 steps/s on one core here
+    envs: int = 4                   # vector environments (what the rollouts hold)
+    n_steps: int = 256              # per environment per rollout
+    batch_size: int = 128
+    save_every: int = 10_240
+    seeds: int = 20                 # evaluation seeds 0..seeds-1
+    tune_seeds: int = 4
+    time_limit: float = 60.0
+    sigma: float = 0.75             # Rand-Only's σ, a fraction of the robot size
+    checkpoint: str | None = None   # a `train retlo` .pt; None: the 2X heuristic
+    policies: tuple[str, ...] = POLICIES
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("timesteps", "envs", "n_steps", "batch_size", "save_every", "seeds",
+                     "tune_seeds"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise UserError(f"{name} must be a positive whole number, got {value!r}", name)
+        if not 0 < self.time_limit < float("inf"):
+            raise UserError(f"time_limit must be positive, got {self.time_limit!r}",
+                            "time_limit")
+        unknown = sorted(set(self.policies) - set(POLICIES))
+        if unknown or "passive" not in self.policies:
+            raise UserError(f"policies must include passive and name only "
+                            f"{', '.join(POLICIES)}; got {', '.join(self.policies)}", "policy")
+        if self.seeds > TUNE_SEEDS:
+            raise UserError(f"seeds must be at most {TUNE_SEEDS}: evaluation seeds 0..seeds-1 "
+                            "stay below the tuning and training seeds", "seeds")
+
+    def ppo(self) -> object:
+        from macrostate_mj.app.tail_rl import PPOSpec
+
+        return PPOSpec(self.timesteps, self.envs, self.n_steps, self.batch_size,
+                       save_every=self.save_every, time_limit=self.time_limit, seed=self.seed)
+
+
+PROFILES = {"full": Config(),
+            "quick": Config(timesteps=512, envs=2, n_steps=128, batch_size=64, save_every=256,
+                            seeds=2, tune_seeds=1, time_limit=20.0)}
+
+
+def missing(cfg: Config) -> str | None:
+    """What `experiment all` lacks to run this: the `rl` extra."""
+    import importlib.util
+
+    if importlib.util.find_spec("stable_baselines3") is None:
+        return "stable-baselines3 (the `rl` extra)"
+    return None
+
+
+def check_checkpoint(cfg: Config) -> None:
+    """Refuse a bad estimator checkpoint before training (one line)."""
+    if cfg.checkpoint is not None:
+        from estimators.retlo.train import load_checkpoint
+
+        try:
+            load_checkpoint(cfg.checkpoint)
+        except UserError as err:
+            raise UserError(str(err), "checkpoint") from None
+
+
+def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
+    """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
+    learning_curve.png; summary lines."""
+    from macrostate_mj.app import tail_eval, tail_rl
+    from viz.learned_tail_figures import plot_learning_curve
+
+    check_checkpoint(cfg)
+    spec = cfg.ppo()
+    model, training = None, {"steps": 0, "curve": [], "resumed_from": 0, "steps_run_now": 0}
+    if "learned" in cfg.policies:
+        tail_rl.require_sb3()
+        with progress.stage("train_ppo"):
+            t0 = time.perf_counter()
+            folder = tail_rl.folder_for(out / CHECKPOINTS, spec, cfg.checkpoint)
+            model, training = tail_rl.train(spec, cfg.checkpoint, folder, progress.workers,
+                                            lambda d, t: progress.report("timesteps", d, t))
+            wall = time.perf_counter() - t0
+            training |= {"wall_s": round(wall, 1), "folder": str(folder.relative_to(out)),
+                         "steps_per_s": (round(training["steps_run_now"] / wall, 1)
+                                         if training["steps_run_now"] else None)}
+        progress.record(ppo_steps=training["steps"], resumed_from=training["resumed_from"],
+                        steps_run_now=training["steps_run_now"])
+    tuned = None
+    if "chain_offset" in cfg.policies:
+        with progress.stage("tune_chain_offset"):
+            tuned = tail_eval.tune_chain_offset(
+                GRID, range(TUNE_SEEDS, TUNE_SEEDS + cfg.tune_seeds), cfg.checkpoint,
+                cfg.time_limit)
+    episodes = _evaluate(cfg, model, tuned, progress)
+    by = {p: [e for e in episodes if e["policy"] == p] for p in cfg.policies}
+    table = {p: _summary(eps, by["passive"]) for p, eps in by.items()}
+    results = {"config": asdict(cfg), "ppo": asdict(spec), "training": training,
+               "chain_offset": tuned, "table": table, "episodes": episodes,
+               "srs_med": "not run: needs the SR phase's novelty models (experiment srs)"}
+    write_json_atomic(out / "results.json", results)
+    plot_learning_curve(training["curve"], float(np.mean([e["return"] for e in by["passive"]])),
+                        out / "learning_curve.png")
+    lines = [f"{p:<12} Head error {_fmt(t['head_error_m'])} m, vs passive p = "
+             f"{_p(t['vs_passive']['wilcoxon_p'])}, spacing {_fmt(t['spacing_m'])} m, breaks "
+             f"{t['breaks']}/{t['seeds']}" for p, t in table.items()]
+    return [*lines, f"PPO: {training['steps']} steps ({training['steps_run_now']} run now)"]
+
+
+def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
+              ) -> list[dict]:
+    from macrostate_mj.app import tail_eval
+
+    def tail_for(policy: str, seed: int) -> Callable[[Any], tail_eval.Tail]:
+        if policy == "passive":
+            return lambda env: tail_eval.Passive()
+        if policy == "random":
+            rng = np.random.default_rng([cfg.seed, seed, 11])
+            return lambda env: tail_eval.RandOnly(rng, cfg.sigma,
+                                                  float(env.action_space.high[0]))
+        if policy == "chain_offset" and tuned is not None:
+            return lambda env: tail_eval.ChainOffset(tuned["along"], tuned["left"])
+        return lambda env: tail_eval.Learned(model)
+
+    episodes, done = [], 0
+    for policy in cfg.policies:
+        with progress.stage(f"episodes_{policy}"):
+            for seed in range(cfg.seeds):
+                ep = tail_eval.run_episode(tail_for(policy, seed), seed, cfg.checkpoint,
+                                           cfg.time_limit)
+                episodes.append({"policy": policy, **ep})
+                done += 1
+                progress.report("episodes", done, len(cfg.policies) * cfg.seeds)
+    return episodes
+
+
+def _summary(eps: list[dict], passive: list[dict]) -> dict:
+    from macrostate_mj.app.tail_eval import paired_vs
+
+    return {"seeds": len(eps), "head_error_m": mean_std([e["head_error_m"] for e in eps]),
+            "all_error_m": mean_std([e["all_error_m"] for e in eps]),
+            "spacing_m": mean_std([e["spacing_m"] for e in eps]),
+            "breaks": sum(e["broken"] for e in eps),
+            "faults": sum(e["fault"] is not None for e in eps),
+            "vs_passive": paired_vs(passive, eps)}
+
+
+def _fmt(s: dict) -> str:
+    return "-" if s["mean"] is None else f"{s['mean']:.3f} ± {s['std']:.3f}"
+
+
+def _p(p: float | None) -> str:
+    return "-" if p is None else f"{p:.3g}"
+

@@ -1,0 +1,67 @@
+"""`experiment learned-tail`: the quick profile end to end through the CLI, a rerun that reuses
+the trained policy, a killed training that continues from its last save, and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from clitools import assert_clean_error, cli
+
+pytest.importorskip("stable_baselines3")
+
+
+def test_quick_runs_end_to_end_then_reuses_its_policy(tmp_path):
+    out = tmp_path / "lt"
+    res = cli("experiment", "learned-tail", "--quick", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    results = json.loads((out / "results.json").read_text())
+    table = results["table"]
+    assert set(table) == {"passive", "random", "chain_offset", "learned"}
+    for row in table.values():
+        assert row["seeds"] == 2 and row["head_error_m"]["n"] == 2
+        assert row["spacing_m"]["mean"] > 0 and 0 <= row["breaks"] <= 2
+    assert table["passive"]["vs_passive"]["mean_difference"] == 0.0
+    assert {e["seed"] for e in results["episodes"]} == {0, 1}          # held out from training
+    assert (out / "learning_curve.png").stat().st_size > 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "finished" and manifest["steps_run_now"] == 512
+
+    again = cli("experiment", "learned-tail", "--quick", "--out", str(out), "--overwrite")
+    assert again.returncode == 0, again.stderr
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["steps_run_now"] == 0 and manifest["resumed_from"] == 512
+    assert json.loads((out / "results.json").read_text())["table"]["learned"] == table["learned"]
+
+
+def test_a_killed_training_continues_from_its_last_save(tmp_path):
+    from macrostate_mj.app.tail_rl import PPOSpec, train
+
+    spec = PPOSpec(timesteps=768, envs=2, n_steps=128, batch_size=64, save_every=256,
+                   time_limit=10.0)
+
+    def kill(done: int, total: int) -> None:
+        if done >= 512:                  # after the save at 256, before the one at 512
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train(spec, None, tmp_path, report=kill)
+    assert json.loads((tmp_path / "state.json").read_text())["steps"] == 256
+    _, record = train(spec, None, tmp_path)
+    assert record["resumed_from"] == 256 and record["steps"] == 768
+    assert record["steps_run_now"] == 512
+    assert [p.name for p in tmp_path.glob("*.zip")] == ["model_768.zip"]
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["--policy", "bogus"], ["--policy", "bogus"]),
+    (["--timesteps", "-5"], ["--timesteps"]),
+    (["--checkpoint", "BAD"], ["--checkpoint"]),
+])
+def test_bad_input_is_one_line_exit_2(tmp_path, args, words):
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a checkpoint")
+    args = [str(bad) if a == "BAD" else a for a in args]
+    res = cli("experiment", "learned-tail", "--quick", *args, "--out", str(tmp_path / "o"))
+    assert_clean_error(res, *words)
+    assert not (tmp_path / "o").exists()
