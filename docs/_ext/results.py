@@ -214,6 +214,27 @@ def caging_cell(folder: str, tail: str, field: str) -> Q:
     return Q(float(time["mean"]), float(time["std"]), ".1f", "s")
 
 
+@source
+def retlo_gain(folder: str, test: str) -> Q:
+    """Fig 2.7: how much lower the LSTM's mean error is than FC's on a test set (%)."""
+    per = dig(load(f"{folder}/results.json"), f"results/{test}")
+    lstm, fc = per["lstm"]["mean_error_cm"]["mean"], per["fc"]["mean_error_cm"]["mean"]  # type: ignore[index]
+    return Q(100 * (1 - lstm / fc), None, ".0f", "%")
+
+
+@source
+def retlo_steps_below(folder: str, test: str, robot: str, better: str, worse: str) -> Q:
+    """Fig 2.8: the share (%) of steps at which one model's mean error on a robot is below
+    another's (or, with `worse` a robot name, below that robot's under the same model)."""
+    per = dig(load(f"{folder}/results.json"), f"results/{test}")
+    a = [s["mean"] for s in per[better]["per_robot_step_cm"][robot]]  # type: ignore[index]
+    other = (per[better]["per_robot_step_cm"][worse] if worse in per[better]["per_robot_step_cm"]  # type: ignore[index]
+             else per[worse]["per_robot_step_cm"][robot])  # type: ignore[index]
+    b = [s["mean"] for s in other]
+    pairs = [(x, y) for x, y in zip(a, b, strict=True) if x is not None and y is not None]
+    return Q(100 * sum(x < y for x, y in pairs) / len(pairs), None, ".0f", "%")
+
+
 # Tables ------------------------------------------------------------------------------------------
 
 def _ms(values: list[float], fmt: str) -> str:
@@ -323,6 +344,53 @@ def _stat(ms: dict, fmt: str, scale: float = 1.0) -> str:
     if not ms or ms.get("mean") is None:
         return ""
     return f"{ms['mean'] * scale:{fmt}} ± {ms['std'] * scale:{fmt}}"
+
+
+@source
+def retlo_models(folder: str) -> Table:
+    """Fig 2.7: each model's mean error (cm) per test set and robot, mean ± std over seeds."""
+    data = load(f"{folder}/results.json")
+    rows = [["test set", "robots", "model", "mean error (cm)", "per robot (cm)"]]
+    for test in data["tests"]:  # type: ignore[index]
+        for model, agg in data["results"][test["name"]].items():  # type: ignore[index]
+            per = "; ".join(f"{r} {_stat(v, '.1f')}" if isinstance(v, dict) else f"{r} {v:.1f}"
+                            for r, v in agg["per_robot_cm"].items())
+            rows.append([test["name"], str(test["n_robots"]), model,
+                         _stat(agg["mean_error_cm"], ".1f") if isinstance(agg["mean_error_cm"],
+                                                                          dict)
+                         else f"{agg['mean_error_cm']:.1f}", per])
+    return rows
+
+
+@source
+def retlo_fig29(folder: str) -> Table:
+    """Fig 2.9: the inside-of-curve bias (cm) and the largest-error share per robot and model."""
+    data = load(f"{folder}/results.json")["fig2_9"]  # type: ignore[index]
+    rows = [["model", "robot", "toward the inside (cm)", "curved steps",
+             "instants it errs most (%)"]]
+    for model in ("fc", "lstm"):
+        part = data[model]
+        for robot, inside in part["inside_cm"].items():
+            share = part["largest_error_share"].get(robot)
+            rows.append([model, robot, _stat(inside, ".2f"), str(part["curved_steps"][robot]),
+                         _stat(share, ".0f", 100) if share else ""])
+    return rows
+
+
+@source
+def uncertainty(folder: str, split: str) -> Table:
+    """Point against Gaussian ReTLo (and their ensemble): mean error (cm) and calibration."""
+    data = load(f"{folder}/summary.json")[split]  # type: ignore[index]
+    cal = data["gaussian_calibration"]
+    rows = [["model", "mean error (cm)", "coverage_50", "coverage_90", "NLL"]]
+    rows.append(["point", _ms(data["point_cm"], ".2f"), "", "", ""])
+    rows.append(["Gaussian", _ms(data["gaussian_cm"], ".2f"),
+                 _ms([c["coverage_50"] for c in cal], ".2f"),
+                 _ms([c["coverage_90"] for c in cal], ".2f"), _ms([c["nll"] for c in cal], ".2f")])
+    ens = data["ensemble_calibration"]
+    rows.append(["ensemble of the Gaussians", f"{data['ensemble_cm']:.2f}",
+                 f"{ens['coverage_50']:.2f}", f"{ens['coverage_90']:.2f}", f"{ens['nll']:.2f}"])
+    return rows
 
 
 @source
