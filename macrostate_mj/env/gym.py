@@ -17,9 +17,10 @@ from gymnasium import spaces
 
 from macrostate_mj.env.suite import load
 from macrostate_mj.env.task import TailTask
+from macrostate_mj.env.view import OverheadView
 
 
-class TailEnv(gymnasium.Env):
+class TailEnv(OverheadView, gymnasium.Env):
     """The Tail as an agent (see `macrostate_mj.env.task`): Dict observation of its own and
     its neighbour's (history, 3) poses (x, y m; θ rad), a 2-D destination offset as action.
     `environment` is the dm_control environment it wraps, `task` its task (`task.sim` the
@@ -69,21 +70,6 @@ class TailEnv(gymnasium.Env):
         truncated = step.last() and not terminated
         return (self._obs(step.observation), float(step.reward), terminated, truncated,
                 self.task.step_info())
-
-    def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array":
-            return None
-        from macrostate_mj.vision.camera import OverheadRenderer
-
-        if self._renderer is None:
-            self._renderer = OverheadRenderer(self.task.sim.model)
-        return self._renderer.render(self.task.sim.data)
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        self.task.close()
 
     @staticmethod
     def _obs(observation: dict) -> dict:

@@ -30,6 +30,7 @@ from macrostate_mj.chain.team import split_branches
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.env.caging import TeamCagingTask
 from macrostate_mj.env.suite import environment
+from macrostate_mj.env.view import OverheadView
 
 TASKS = {"caging": TeamCagingTask}
 
@@ -39,7 +40,7 @@ def parallel_env(**kwargs: Any) -> TeamEnv:
     return TeamEnv(**kwargs)
 
 
-class TeamEnv(ParallelEnv):
+class TeamEnv(OverheadView, ParallelEnv):
     """Tails of one team as agents (see the module docstring). `environment` is the dm_control
     environment it steps, `task` its task (`task.sim` the `chain.team.BranchedSim`)."""
 
@@ -117,21 +118,6 @@ class TeamEnv(ParallelEnv):
         return (self._split(step.observation), dict.fromkeys(agents, float(step.reward)),
                 dict.fromkeys(agents, bool(terminated)), dict.fromkeys(agents, bool(truncated)),
                 {a: dict(info) for a in agents})
-
-    def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array":
-            return None
-        from macrostate_mj.vision.camera import OverheadRenderer
-
-        if self._renderer is None:
-            self._renderer = OverheadRenderer(self.task.sim.model)
-        return self._renderer.render(self.task.sim.data)
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        self.task.close()
 
     def _split(self, observation: dict) -> dict[str, dict]:
         """Each agent's row of the team's observation."""
