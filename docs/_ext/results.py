@@ -437,7 +437,12 @@ def table_node(rows: Table) -> nodes.table:
     table = nodes.table(classes=["results-table"])
     group = nodes.tgroup(cols=len(rows[0]))
     table += group
-    group.extend(nodes.colspec(colwidth=1) for _ in rows[0])
+    # Widths matter to the text builder (the docs test reads its output): a column as wide as
+    # its longest cell, up to 40 characters, so no number is broken across lines.
+    for j in range(len(rows[0])):
+        width = max(len(c.astext() if isinstance(c, nodes.Node) else str(c)) for c in
+                    (row[j] for row in rows))
+        group += nodes.colspec(colwidth=min(max(width, 3), 40))
     for part, chunk in ((nodes.thead(), rows[:1]), (nodes.tbody(), rows[1:])):
         for cells in chunk:
             row = nodes.row()
@@ -532,7 +537,7 @@ def _verdict(claim: dict, ours: object) -> str:
     names = {**scope, **values, "ours": ours, "text": claim.get("text_value"),
              "__builtins__": {"abs": abs, "min": min, "max": max, "all": all}}
     ok = eval(rule, names)  # noqa: S307  (rules are ours, in claims.toml)
-    return ("agree" if ok else "disagree") + f" ({claim.get('rule', rule)})"
+    return ("agree" if ok else "disagree") + f" (rule: {claim.get('rule', rule)})"
 
 
 class Provenance(Directive):
