@@ -394,6 +394,25 @@ def uncertainty(folder: str, split: str) -> Table:
 
 
 @source
+def learned_tail(folder: str) -> Table:
+    """Each Tail's frozen-estimator error (cm) on held-out seeds, its paired test against the
+    Passive Tail, the chain's spacing and its breaks."""
+    table = load(f"{folder}/results.json")["table"]  # type: ignore[index]
+    rows = [["Tail", "Head error (cm)", "all robots (cm)", "p vs passive", "better seeds",
+             "spacing (cm)", "breaks"]]
+    for tail, arm in table.items():
+        test = arm.get("vs_passive") or {}
+        if test.get("wilcoxon_p") is None:      # the Passive Tail against itself
+            test = {}
+        rows.append([tail, _stat(arm["head_error_m"], ".1f", 100),
+                     _stat(arm["all_error_m"], ".1f", 100),
+                     f"{test['wilcoxon_p']:.2g}" if test else "",
+                     f"{test['better']} / {test['pairs']}" if test else "",
+                     f"{arm['spacing_m']['mean'] * 100:.1f}", f"{arm['breaks']} / {arm['seeds']}"])
+    return rows
+
+
+@source
 def soak(folder: str) -> Table:
     """A soak's summary: runs, simulated time and every fault count."""
     summary = load(f"{folder}/soak.json")["summary"]  # type: ignore[index]

@@ -20,7 +20,7 @@ TUTORIALS = [REPO / "README.md", DOCS / "getting-started.md",
 # Pages that report measurements: none may show a number that no results file holds.
 RESULTS_PAGES = ["reproduction/chapter2", "reproduction/chapter3", "reproduction/chapter4",
                  "reproduction/beyond", "benchmarks"]
-NUMBER = re.compile(r"(?<![\w.])[-−]?(?:\d+(?:,\d{3})+|\d*\.\d+|\d+)(?![\w])")
+NUMBER = re.compile(r"(?<![\w.])[-−]?(?:\d+(?:,\d{3})+|\d*\.\d+|\d+)(?:e[-+]?\d+)?(?![\w])")
 
 
 def _blocks(page: Path) -> list[str]:
@@ -65,6 +65,7 @@ def _allowed() -> set[str]:
             for v in (value, value * 100):
                 for digits in range(5):
                     allowed.add(f"{v:.{digits}f}")
+                allowed |= {f"{v:.2g}", f"{v:.3g}"}
     allowed |= {f"{s}".lstrip("0") for s in list(allowed) if s.startswith("0.")}
     return allowed
 
