@@ -453,7 +453,7 @@ def _num(value: object) -> str:
 
 def table_node(rows: Table) -> nodes.table:
     """A plain docutils table: first row the header."""
-    table = nodes.table(classes=["results-table"])
+    table = nodes.table(classes=["results-table", "colwidths-auto"])   # HTML: widths by content
     group = nodes.tgroup(cols=len(rows[0]))
     table += group
     # Widths matter to the text builder (the docs test reads its output): a column as wide as
