@@ -18,8 +18,7 @@ from macrostate_mj.app.cli.params import (
     Seed,
     Switch,
 )
-
-TAILS = ("passive", "random", "chain_offset", "learned")    # experiments.learned_tail.POLICIES
+from macrostate_mj.app.experiments.learned_tail import POLICIES
 
 
 @experiment_app.command("learned-tail")
@@ -34,7 +33,7 @@ def experiment_learned_tail(
     time_limit: float = Positive(None, "Simulated seconds per episode; default: the "
                                  "profile's.", max=3600.0),
     policy: list[str] = Choice(None, "Evaluate only this Tail (repeatable; passive always "
-                               "runs, the baseline of the paired test); default all.", TAILS,
+                               "runs, the baseline of the paired test); default all.", POLICIES,
                                "--policy"),
     checkpoint: Path = InputFile(None, "The Tail's frozen estimator: a ReTLo checkpoint from "
                                  "`train retlo`; default the 2X heuristic.", (".pt",)),
@@ -52,7 +51,7 @@ def experiment_learned_tail(
 
     given = {"timesteps": timesteps, "seeds": seeds, "time_limit": time_limit,
              "checkpoint": str(checkpoint) if checkpoint is not None else None,
-             "policies": ("passive", *sorted(set(policy) - {"passive"}, key=TAILS.index))
+             "policies": ("passive", *sorted(set(policy) - {"passive"}, key=POLICIES.index))
              if policy else None}
     config = replace(chosen("learned-tail", "quick" if quick else profile), seed=seed,
                      **{k: v for k, v in given.items() if v is not None})
