@@ -33,7 +33,7 @@ class EpisodeSpec:
     seed: int
     index: int
     policy: PolicySpec = field(default_factory=PolicyConfig)
-    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    noise: NoiseConfig | None = None      # None: the scenario's imaging noise
     head_speed: float | None = None
     randomize: Randomization | None = None
 
@@ -53,7 +53,8 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     from macrostate_mj.vision.camera_chain import CameraChain
 
     t0 = time.perf_counter()
-    cfg, noise, factors = scenario_for(spec.scenario, spec.head_speed), spec.noise, {}
+    cfg, factors = scenario_for(spec.scenario, spec.head_speed), {}
+    noise = spec.noise or cfg.imaging
     if spec.randomize is not None:
         factors = spec.randomize.draw(spec.rng(3))
         cfg, noise = randomized_scenario(cfg, factors), randomized_noise(noise, factors)

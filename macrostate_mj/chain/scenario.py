@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, fields, replace
 
 from macrostate_mj.chain.motion import FollowerRule
+from macrostate_mj.chain.noise import NoiseConfig
 from macrostate_mj.chain.planners import PlannerSpec
 from macrostate_mj.chain.robot import top_speed
 from macrostate_mj.chain.scene import Camera, Look, Obstacle, Physics, Walls, check_camera
@@ -33,6 +34,7 @@ LAYOUT: dict[str, dict[str, str]] = {
     "noise": {"marker_jitter": "marker_jitter"},
 }
 NESTED = {"camera": "camera", "physics": "physics", "look": "look"}   # table -> dataclass field
+SHARED = {"imaging": "noise"}   # a dataclass field whose keys share a table with flat fields
 
 
 def file_key(field_name: str) -> str:
@@ -41,7 +43,8 @@ def file_key(field_name: str) -> str:
         for key, name in keys.items():
             if name == field_name:
                 return f"{section}.{key}" if section else key
-    return next((t for t, f in NESTED.items() if f == field_name), field_name)
+    return next((t for t, f in NESTED.items() if f == field_name),
+                SHARED.get(field_name, field_name))
 
 
 def named(field_name: str) -> str:
@@ -87,6 +90,7 @@ class ScenarioConfig:
     walls: Walls | None = Walls()   # None: an open floor
     look: Look = Look()             # colours and lighting
     obstacles: tuple[Obstacle, ...] = ()    # static boxes and cylinders on the floor
+    imaging: NoiseConfig = NoiseConfig()    # what the camera chain does to each frame
 
     def __post_init__(self) -> None:
         """Refuse, when the scenario is made, rates that are not whole physics steps and a

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from macrostate_mj.chain import motion, planners, scene
+from macrostate_mj.chain.noise import NoiseConfig
 from macrostate_mj.chain.scenario import LAYOUT, NESTED, ScenarioConfig, file_key
 from macrostate_mj.core.errors import UserError
 
@@ -149,6 +150,11 @@ def _section(value: Any, section: str, source: str, kw: dict) -> None:
         raise UserError(f"{source}: `{section}` must be a table ([{section}]), got {value!r}")
     keys = LAYOUT[section]
     extra = WALL_KEYS if section == "arena" else set()
+    if section == "noise":          # beside marker_jitter, the imaging noise (`NoiseConfig`)
+        extra = {f.name for f in fields(NoiseConfig)}
+        imaging = {k: v for k, v in value.items() if k in extra}
+        if imaging:
+            kw["imaging"] = _dataclass(NoiseConfig, imaging, "noise", source)
     for key, v in value.items():
         if key in extra:
             continue
@@ -250,6 +256,7 @@ def to_toml(cfg: ScenarioConfig) -> str:
     arena["walls"] = cfg.walls is not None
     if cfg.walls is not None:
         arena["wall_height"], arena["wall_thickness"] = cfg.walls.height, cfg.walls.thickness
+    sections["noise"].update(_fields(cfg.imaging))
     for table, name in NESTED.items():
         sections[table] = _fields(getattr(cfg, name))
     for section, kinds in (("planner", PLANNERS), ("followers", FOLLOWERS)):

@@ -65,7 +65,7 @@ class CameraChain:
         self.sim = sim
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
-        self.noise = noise or NoiseConfig()
+        self.noise = noise or sim.cfg.imaging       # default: the scenario's own
         self.renderer = OverheadRenderer(sim.model, distortion=sim.cfg.camera.distortion)
         self.conditions = SceneConditions(sim.model)
         n = len(sim.world.names)

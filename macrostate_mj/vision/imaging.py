@@ -15,24 +15,7 @@ import cv2
 import mujoco
 import numpy as np
 
-
-@dataclass(frozen=True)
-class NoiseConfig:
-    light_scale: tuple[float, float] = (0.75, 1.15)   # diffuse intensity multiplier range
-    light_tilt_deg: float = 25.0                       # max tilt of the key light from vertical
-    cam_shift_m: float = 0.0005                        # camera position error (sigma, m)
-    cam_tilt_deg: float = 0.01                         # camera orientation error (sigma, deg)
-    sensor_sigma: float = 3.0                          # Gaussian sensor noise (0-255 units)
-    jpeg_quality: tuple[int, int] = (75, 95)
-    blur_px: float = 1.5                               # max motion-blur length (px)
-    psf_sigma_px: float = 0.4                          # lens point-spread function (Gaussian)
-    drop_prob: float = 0.003                           # whole frames lost
-    distortion_error: float = 0.0                      # calibrated k1, k2: relative error sigma
-
-    @classmethod
-    def none(cls) -> NoiseConfig:
-        """Clean frames: the tracker's own (quantization) limit."""
-        return cls((1.0, 1.0), 0.0, 0.0, 0.0, 0.0, (100, 100), 0.0, 0.0, 0.0)
+from macrostate_mj.chain.noise import NoiseConfig as NoiseConfig  # the scenario's; re-exported
 
 
 @dataclass(frozen=True)

@@ -150,3 +150,35 @@ def test_what_an_outsider_tried_is_refused_from_python():
     with pytest.raises(ValueError, match="k_t"):
         ChainSim(build_world(lab, 3), k_t=math.nan)
     assert build_world("lab", 3).scenario == lab          # a name resolves as everywhere else
+
+
+def test_the_noise_table_sets_the_imaging_noise_beside_the_marker_jitter(tmp_path):
+    """`[noise]` takes every `NoiseConfig` field as well as `marker_jitter`; the camera chain
+    uses the scenario's own noise; a bad value or key is one line naming `noise.<key>`."""
+    import numpy as np
+
+    from macrostate_mj.chain.sim import ChainSim
+    from macrostate_mj.chain.world import build_world
+    from macrostate_mj.vision.camera_chain import CameraChain
+    from macrostate_mj.vision.imaging import NoiseConfig
+
+    path = _write(tmp_path, 'extends = "lab"\nname = "noisy"\n[noise]\nmarker_jitter = 0.001\n'
+                            'sensor_sigma = 5.0\ndrop_prob = 0.01\njpeg_quality = [60, 80]\n')
+    cfg = load_scenario(path)
+    assert cfg.marker_jitter == 0.001
+    assert cfg.imaging == NoiseConfig(sensor_sigma=5.0, drop_prob=0.01, jpeg_quality=(60, 80))
+    assert load_scenario("lab").imaging == NoiseConfig()            # built-ins: the defaults
+    assert load_scenario(_write(tmp_path, to_toml(cfg), "back.toml")) == cfg
+    chain = CameraChain(ChainSim(build_world(cfg, 3)), rng=np.random.default_rng(0))
+    assert chain.noise == cfg.imaging
+    chain.close()
+    for text, words in [("drop_prob = 2.0", ["noise.drop_prob", "probability"]),
+                        ("sensor_sigma = -1.0", ["noise.sensor_sigma", "non-negative"]),
+                        ("jpeg_quality = [90, 80]", ["noise.jpeg_quality", "range"]),
+                        ("sensor_noise = 1.0", ["noise.sensor_noise", "sensor_sigma",
+                                                "marker_jitter"])]:
+        bad = _write(tmp_path, f'extends = "lab"\n[noise]\n{text}\n', "bad.toml")
+        with pytest.raises(UserError) as err:
+            load_scenario(bad)
+        assert all(w in str(err.value) for w in words), str(err.value)
+        assert "\n" not in str(err.value)
