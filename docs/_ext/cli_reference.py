@@ -23,10 +23,13 @@ def _commands(command: object, path: list[str]) -> list[tuple[list[str], object]
 
 
 def _default(param: object) -> str:
+    """As `--help` shows it: required, or the default (0 and false included)."""
+    if getattr(param, "required", False):
+        return "required"
     default = getattr(param, "default", None)
-    if getattr(param, "is_flag", False) or default in (None, (), [], False):
+    if default is None or default in ((), []):
         return ""
-    return str(default)
+    return str(default).lower() if isinstance(default, bool) else str(default)
 
 
 class CliReference(Directive):
@@ -67,7 +70,9 @@ MEANINGS = {
     "extends": "a built-in's name or another file this one overrides",
     "arena.size": "[x, y] floor size, m",
     "arena.margin": "distance waypoints and start poses keep from walls and obstacles, m",
-    "arena.obstacles": "[{shape = box | cylinder, pos = [x, y], size = full extents, m}]",
+    "arena.obstacles": ("[{shape = box | cylinder, pos = [x, y], size = ...}], full extents in "
+                        "m: a box [x, y] or [x, y, height], a cylinder [diameter] or "
+                        "[diameter, height]; height 0.1 m unless given"),
     "arena.walls": "walls on the arena's edges (false: an open floor)",
     "arena.wall_height": "m", "arena.wall_thickness": "m",
     "robot.model": "thymio, gritsbot, epuck, or a robot.xml path (its contract: Robot contract)",
@@ -81,6 +86,16 @@ MEANINGS = {
     "chain.avoid_gain": "strength of that repulsion",
     "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
     "noise.marker_jitter": "white noise added to every tracked position, m (σ)",
+    "noise.light_scale": "[low, high] of the diffuse light's intensity factor, drawn per episode",
+    "noise.light_tilt_deg": "largest tilt of the key light from vertical, degrees",
+    "noise.cam_shift_m": "camera position error the tracker's calibration does not know, m (σ)",
+    "noise.cam_tilt_deg": "camera orientation error the calibration does not know, degrees (σ)",
+    "noise.sensor_sigma": "Gaussian sensor noise, 0-255 units (σ)",
+    "noise.jpeg_quality": "[low, high] JPEG quality, drawn per episode",
+    "noise.blur_px": "longest motion blur, px",
+    "noise.psf_sigma_px": "the lens's point-spread function, px (σ)",
+    "noise.drop_prob": "probability a whole frame is lost",
+    "noise.distortion_error": "the calibrated k1, k2's relative error (σ), drawn per episode",
     "camera.height": "m above the floor's centre, looking straight down",
     "camera.resolution": "[w, h] pixels",
     "camera.fovy": "vertical field of view, degrees, or \"auto\" to frame the arena",
@@ -92,10 +107,10 @@ MEANINGS = {
     "look.floor_rgba": "floor colour", "look.wall_rgba": "wall colour",
     "look.light_height": "m", "look.light_diffuse": "0-1",
     "look.headlight_ambient": "0-1", "look.headlight_diffuse": "0-1",
-    "planner.kind": "the Head's planner: psi_grid (a cell walk), cell_walk, presets",
+    "planner.kind": "the Head's planner: psi_grid (the lab's cell walk), cell_walk, preset_twists",
     "planner.grid": "[columns, rows] of the planner's grid",
     "planner.presets": "the Head's (v, ω) schedule of the preset planner",
-    "followers.kind": "follower rule: two_neighbour, or wait_for_behind",
+    "followers.kind": "follower rule: two_neighbours or wait_for_behind",
     "followers.slack": "wait while the robot behind lags more than d + slack, m",
 }
 

@@ -169,7 +169,7 @@ def oc_marks(folder: str, sign: str) -> Q:
         for test in run["iogen_vs_dsvdd"]["bins"].values():
             key = "level" if test["p"] >= 0.05 else ("above" if test["diff"] > 0 else "below")
             counts[key] += 1
-    return Q(counts[sign], None, "d")
+    return Q(counts[sign], None, "d", f"of {sum(counts.values())} run-bins")
 
 
 @source
@@ -539,9 +539,11 @@ class Claims(Directive):
                 row.insert(5, claim.get("folder") or nodes.literal(text=claim.get("command", "")))
             rows.append(row)
         out: list[nodes.Node] = [table_node(rows)]
-        if shared:
-            para = nodes.paragraph(text="Command: ")
-            para += nodes.literal(text=commands.pop())
+        if shared:                  # one run: name it (its provenance gives the command)
+            folders = {c["folder"] for c in claims if "folder" in c}
+            para = nodes.paragraph(text="Results: " if folders else "Command: ")
+            para += nodes.literal(text=f"results/{folders.pop()}" if len(folders) == 1
+                                  else commands.pop())
             out.append(para)
         return out
 

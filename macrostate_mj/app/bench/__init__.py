@@ -2,8 +2,8 @@
 
 Every suite returns figures made by `figure`, so that every `bench --json` line has the same
 keys: name, value, unit, limit, ratio, config (limit and ratio null where no limit exists).
-`ratio` reads the same way for every figure: 1.0 is the limit, lower is further from it,
-whether the figure is a rate (ratio = value / limit) or a time (ratio = limit / value).
+`ratio` reads the same way for every figure: 1.0 matches the limit, below falls short of it and
+above beats it, whether the figure is a rate (ratio = value / limit) or a time (limit / value).
 """
 
 from __future__ import annotations

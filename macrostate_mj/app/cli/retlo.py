@@ -125,7 +125,7 @@ def train_retlo(
                                 "together with --train (repeatable).", CSV, flag="--mix"),
     mix_weight: float = Positive(0.5, "The --mix data's share of the loss, in (0, 1); --train's "
                                  "is the rest.", "--mix-weight", max=1.0),
-    uncertainty: str = Choice("none", "none: a point estimate per robot (as before); gaussian: "
+    uncertainty: str = Choice("none", "none: a point estimate per robot; gaussian: "
                               "a 2-D Gaussian per robot (mean and covariance), trained on its "
                               "negative log-likelihood; `evaluate retlo` then reports its "
                               "calibration.", UNCERTAINTIES),

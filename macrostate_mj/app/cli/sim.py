@@ -36,7 +36,8 @@ def simulate(
     head_speed: float = Positive(None, "Override the scenario's Head speed (m/s), up to the "
                                  "robot's top speed."),
     track: bool = Switch(False, "Film with the overhead camera and track the markers at the "
-                         "command rate: adds x_trk, y_trk, theta_trk, detected."),
+                         "command rate: adds x_trk, y_trk, theta_trk, t_trk, x_truth_trk, "
+                         "y_truth_trk, theta_truth_trk, detected."),
     overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Simulate a robot chain; write its pose log (and optionally a video and a rerun file)."""
