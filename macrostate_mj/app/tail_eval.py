@@ -20,6 +20,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from macrostate_mj.app.experiments import wilcoxon_p
 from macrostate_mj.core.errors import UserError
 
 ENV_ID = "macrostate_mj/LocalizeTail-v0"
@@ -141,17 +142,13 @@ def tune_chain_offset(grid: Sequence[tuple[float, float]], seeds: Sequence[int],
 def paired_vs(base: list[dict], other: list[dict], key: str = "head_error_m") -> dict:
     """Seed by seed, other - base: mean difference and the Wilcoxon signed-rank test
     (two-sided; None under 2 pairs or when every difference is 0)."""
-    from scipy.stats import wilcoxon
-
     by = {e["seed"]: e[key] for e in base}
     diff = [e[key] - by[e["seed"]] for e in other
             if e[key] is not None and by.get(e["seed"]) is not None]
     if not diff:
         return {"pairs": 0, "mean_difference": None, "better": 0, "wilcoxon_p": None}
-    p = (float(wilcoxon(diff).pvalue) if len(diff) >= 2 and any(abs(d) > 1e-12 for d in diff)
-         else None)
     return {"pairs": len(diff), "mean_difference": float(np.mean(diff)),
-            "better": sum(d < 0 for d in diff), "wilcoxon_p": p}
+            "better": sum(d < 0 for d in diff), "wilcoxon_p": wilcoxon_p(diff)}
 
 
 def check_seeds(eval_seeds: int, tune_first: int, train_first: int) -> None:

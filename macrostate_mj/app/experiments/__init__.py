@@ -106,3 +106,21 @@ def mean_std(values: list[float | None]) -> dict[str, float | int | None]:
     if not present:
         return {"mean": None, "std": None, "n": 0}
     return {"mean": float(np.mean(present)), "std": float(np.std(present)), "n": len(present)}
+
+
+def show(stat: dict, digits: int = 1) -> str:
+    """A `mean_std` figure as a summary line prints it: "mean ± std", or "-" when empty."""
+    if stat["mean"] is None:
+        return "-"
+    return f"{stat['mean']:.{digits}f} ± {stat['std']:.{digits}f}"
+
+
+def wilcoxon_p(differences: list[float]) -> float | None:
+    """Two-sided Wilcoxon signed-rank p of paired differences; None under 2 pairs or when
+    every difference is 0 (the test is undefined there)."""
+    from scipy.stats import wilcoxon
+
+    # (`any`, not `all`: the package's submodule `all` shadows that builtin here)
+    if len(differences) < 2 or not any(abs(d) > 1e-12 for d in differences):
+        return None
+    return float(wilcoxon(differences).pvalue)

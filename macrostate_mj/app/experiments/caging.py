@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, show
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
 
@@ -168,7 +168,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
                    "seed 0, every 5 s: oracle Tail (top), ReTLo Tail (middle; circle: its "
                    "estimate of the Head), passive Tail (bottom)", zoom=0.25)
     return [f"{p:<8} caged {t['success_rate'] * 100:.0f} % of {t['seeds']} seeds, time "
-            f"{_fmt(t['time_to_cage_s'])} s, spacing CV {_fmt(t['spacing_cv'], 3)}"
+            f"{show(t['time_to_cage_s'])} s, spacing CV {show(t['spacing_cv'], 3)}"
             for p, t in table.items()]
 
 
@@ -184,7 +184,3 @@ def _summary(eps: list[dict]) -> dict:
             "faults": sum(e["fault"] is not None for e in eps),
             "head_estimate_error_m": stat([e["head_estimate_error_m"] for e in eps
                                            if e["head_estimate_error_m"] is not None])}
-
-
-def _fmt(s: dict, digits: int = 1) -> str:
-    return "-" if s["mean"] is None else f"{s['mean']:.{digits}f} ± {s['std']:.{digits}f}"

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.app.experiments import Progress, mean_std, show, wilcoxon_p
 from macrostate_mj.core.io import write_json_atomic
 
 ARMS = ("one_tail", "two_tails", "two_passive")
@@ -95,9 +95,9 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     write_json_atomic(out / "results.json", {"config": asdict(cfg), "table": table,
                                              "paired": paired, "episodes": episodes})
     lines = [f"{a:<11} caged {t['success_rate'] * 100:.0f} % of {t['seeds']} seeds, time "
-             f"{_fmt(t['time_to_cage_s'])} s" for a, t in table.items()]
+             f"{show(t['time_to_cage_s'])} s" for a, t in table.items()]
     return [*lines, f"two_tails - one_tail over {paired['both_caged']} seeds both caged: "
-            f"{_fmt(paired['time_difference_s'])} s, Wilcoxon p = {paired['wilcoxon_p']}"]
+            f"{show(paired['time_difference_s'])} s, Wilcoxon p = {paired['wilcoxon_p']}"]
 
 
 def summary(eps: list[dict]) -> dict:
@@ -112,21 +112,13 @@ def paired_comparison(one: list[dict], two: list[dict]) -> dict:
     """Seed by seed: who cages (counts), and over seeds both caged the time differences
     (two - one, s) with the Wilcoxon signed-rank test (two-sided; None under 2 pairs or when
     every difference is 0); `two_faster` counts the seeds two_tails caged sooner."""
-    from scipy.stats import wilcoxon
-
     pairs = [(a, b) for a, b in zip(one, two, strict=True) if a["seed"] == b["seed"]]
     both = [(a["time_to_cage_s"], b["time_to_cage_s"]) for a, b in pairs
             if a["caged"] and b["caged"]]
     diff = [b - a for a, b in both]
-    p = (float(wilcoxon(diff).pvalue) if len(diff) >= 2 and any(abs(d) > 1e-9 for d in diff)
-         else None)
     return {"seeds": len(pairs), "both_caged": len(both),
             "only_one_tail": sum(a["caged"] and not b["caged"] for a, b in pairs),
             "only_two_tails": sum(b["caged"] and not a["caged"] for a, b in pairs),
             "neither": sum(not (a["caged"] or b["caged"]) for a, b in pairs),
             "time_difference_s": mean_std(diff), "two_faster": sum(d < 0 for d in diff),
-            "wilcoxon_p": p}
-
-
-def _fmt(s: dict, digits: int = 1) -> str:
-    return "-" if s["mean"] is None else f"{s['mean']:.{digits}f} ± {s['std']:.{digits}f}"
+            "wilcoxon_p": wilcoxon_p(diff)}

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.app.experiments import Progress, mean_std, show
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 
@@ -137,8 +137,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     write_json_atomic(out / "results.json", results)
     plot_learning_curve(training["curve"], float(np.mean([e["return"] for e in by["passive"]])),
                         out / "learning_curve.png")
-    lines = [f"{p:<12} Head error {_fmt(t['head_error_m'])} m, vs passive p = "
-             f"{_p(t['vs_passive']['wilcoxon_p'])}, spacing {_fmt(t['spacing_m'])} m, breaks "
+    lines = [f"{p:<12} Head error {show(t['head_error_m'], 3)} m, vs passive p = "
+             f"{_p(t['vs_passive']['wilcoxon_p'])}, spacing {show(t['spacing_m'], 3)} m, breaks "
              f"{t['breaks']}/{t['seeds']}" for p, t in table.items()]
     return [*lines, f"PPO: {training['steps']} steps ({training['steps_run_now']} run now)"]
 
@@ -179,10 +179,6 @@ def _summary(eps: list[dict], passive: list[dict]) -> dict:
             "breaks": sum(e["broken"] for e in eps),
             "faults": sum(e["fault"] is not None for e in eps),
             "vs_passive": paired_vs(passive, eps)}
-
-
-def _fmt(s: dict) -> str:
-    return "-" if s["mean"] is None else f"{s['mean']:.3f} ± {s['std']:.3f}"
 
 
 def _p(p: float | None) -> str:
