@@ -236,15 +236,22 @@ class ChainSim:
         """The motion rules' holonomic velocities (n, 2), before any mission: what a team of
         another shape (`chain.team.BranchedSim`) redefines."""
         cfg = self.cfg
-        vel = chain_velocities(poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
-                               followers=cfg.followers)
-        vel += avoidance_velocities(poses[:, :2], cfg.avoid_radius, cfg.avoid_gain)
-        if cfg.obstacles:
-            vel = steer_around(poses[:, :2], vel, cfg.obstacles, cfg.avoid_radius, cfg.avoid_gain)
+        vel = self.kept_apart(poses[:, :2], chain_velocities(
+            poses[:, :2], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
+            followers=cfg.followers))
         # The Tail rule is k_t |p_F - p_T| (D - p_T) with D its destination at distance d from
         # its neighbour; a policy moves D by `tail_offset` (seed §3.3).
         gap = np.linalg.norm(poses[-2, :2] - poses[-1, :2])
         vel[-1] += self.k_t * gap * self.tail_offset
+        return vel
+
+    def kept_apart(self, positions: np.ndarray, vel: np.ndarray) -> np.ndarray:
+        """`vel` (modified) plus the robots' mutual repulsion, then steered round obstacles:
+        what every team shape adds to its motion rules."""
+        cfg = self.cfg
+        vel += avoidance_velocities(positions, cfg.avoid_radius, cfg.avoid_gain)
+        if cfg.obstacles:
+            vel = steer_around(positions, vel, cfg.obstacles, cfg.avoid_radius, cfg.avoid_gain)
         return vel
 
     # -- loop ---------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ from macrostate_mj.chain.caging import (
     repulsion,
     start_poses,
 )
-from macrostate_mj.chain.motion import avoidance_velocities, chain_velocities, pulls, steer_around
+from macrostate_mj.chain.motion import chain_velocities, pulls
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import World
@@ -80,9 +80,7 @@ class BranchedSim(ChainSim):
         for b in self.branches:          # the Head's row is the same from every chain
             vel[b] = chain_velocities(p[b], self.planner.target, cfg.spacing, cfg.k_f, self.k_t,
                                       followers=cfg.followers)
-        vel += avoidance_velocities(p, cfg.avoid_radius, cfg.avoid_gain)
-        if cfg.obstacles:
-            vel = steer_around(p, vel, cfg.obstacles, cfg.avoid_radius, cfg.avoid_gain)
+        vel = self.kept_apart(p, vel)
         gap = np.linalg.norm(p[self.neighbours] - p[self.tails], axis=1)
         vel[self.tails] += self.k_t * gap[:, None] * self.tail_offset
         return vel
