@@ -30,7 +30,7 @@ from estimators.retlo.chain import (
 )
 from estimators.retlo.frames import Window, module_targets
 from estimators.retlo.gaussian import mahalanobis2
-from estimators.retlo.heads import HEADS, POINT, Head
+from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
 from estimators.retlo.propagate import predict_chain_gaussian
 from estimators.retlo.report import evaluate_chain
@@ -376,11 +376,10 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:
     if ckpt.get("version") != VERSION:
         raise UserError(f"{path}: ReTLo checkpoint version {ckpt.get('version')}, this code reads "
                         f"{VERSION}; retrain with `train retlo`")
-    name = ckpt.get("uncertainty", POINT.name)
-    if name not in HEADS:
-        raise UserError(f"{path}: unknown uncertainty {name!r} (this code reads "
-                        f"{', '.join(HEADS)}); retrain with `train retlo`")
-    head = HEADS[name]
+    try:
+        head = head_named(ckpt.get("uncertainty", POINT.name))
+    except UserError as err:
+        raise UserError(f"{path}: {err}; or retrain with `train retlo`") from None
     try:
         cfg = ModelConfig(**ckpt["model_config"])
         net = RetloNet(cfg, ckpt["pos_scale_cm"], head)
