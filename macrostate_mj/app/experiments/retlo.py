@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from estimators.retlo.api import evaluate, fit
+from estimators.retlo.api import evaluate, fit, report
 from estimators.retlo.chain import predict_chain
 from estimators.retlo.curves import inside_bias, largest_error_share
 from estimators.retlo.files import read_world, world_to_pixels
@@ -100,11 +100,12 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         train_s[kind].append(json.loads((folders[i] / "timing.json").read_text())["seconds"])
         shutil.copyfile(folders[i] / "model.pt", models_dir / f"{kind}_seed{seed}.pt")
         net, _ = load_checkpoint(folders[i] / "model.pt")
-        for t in tests:
-            reports[t["name"]].setdefault(kind, []).append(
-                evaluate(TorchPredictor(net), t["world"]))
-        curves[kind].append(_fig2_9(predict_chain(TorchPredictor(net), big["world"]),
-                                    big["world"]))
+        module = TorchPredictor(net)
+        for t in tests:          # one prediction per test set: its report, and Fig 2.9's
+            est = predict_chain(module, t["world"])
+            reports[t["name"]].setdefault(kind, []).append(report(module, t["world"], est, None))
+            if t is big:
+                curves[kind].append(_fig2_9(est, t["world"]))
     results = {
         "tests": [{"name": t["name"], "n_robots": int(t["world"].shape[2]),
                    "n_instances": int(t["world"].shape[0])} for t in tests],
