@@ -55,41 +55,6 @@ class Q:
     def __float__(self) -> float:
         return float(self.value)
 
-    def _v(self, other: object) -> float:
-        return float(other)  # type: ignore[arg-type]
-
-    def __lt__(self, other: object) -> bool:
-        return self.value < self._v(other)
-
-    def __le__(self, other: object) -> bool:
-        return self.value <= self._v(other)
-
-    def __gt__(self, other: object) -> bool:
-        return self.value > self._v(other)
-
-    def __ge__(self, other: object) -> bool:
-        return self.value >= self._v(other)
-
-    def __sub__(self, other: object) -> float:
-        return self.value - self._v(other)
-
-    def __rsub__(self, other: object) -> float:
-        return self._v(other) - self.value
-
-    def __truediv__(self, other: object) -> float:
-        return self.value / self._v(other)
-
-    def __rtruediv__(self, other: object) -> float:
-        return self._v(other) / self.value
-
-    def __mul__(self, other: object) -> float:
-        return self.value * self._v(other)
-
-    __rmul__ = __mul__
-
-    def __abs__(self) -> float:
-        return abs(self.value)
-
 
 Table = list[list]    # rows of cells: text, or a docutils node (a literal)
 SOURCES: dict[str, Callable[..., object]] = {}
@@ -553,9 +518,8 @@ def _verdict(claim: dict, ours: object) -> str:
     rule = claim.get("agree_if")
     if rule is None:
         return claim.get("verdict", "not measured")
-    scope = {name: (lambda *a, _f=fn: _f(*a)) for name, fn in SOURCES.items()}
-    values = {k: call(v) for k, v in claim.get("values", {}).items()}
-    names = {**scope, **values, "ours": ours, "text": claim.get("text_value"),
+    values = {k: float(call(v)) for k, v in claim.get("values", {}).items()}  # type: ignore[arg-type]
+    names = {**values, "ours": float(ours), "text": claim.get("text_value"),  # type: ignore[arg-type]
              "__builtins__": {"abs": abs, "min": min, "max": max, "all": all}}
     ok = eval(rule, names)  # noqa: S307  (rules are ours, in claims.toml)
     return ("agree" if ok else "disagree") + f" (rule: {claim.get('rule', rule)})"

@@ -1,6 +1,7 @@
 """The docs: tutorial code runs as written, the site builds without a warning, and every number on
 a results page comes from a committed results file or from the dissertation's values."""
 
+import functools
 import json
 import re
 import subprocess
@@ -51,7 +52,8 @@ def text_build(tmp_path_factory) -> Path:
     return out
 
 
-def _allowed() -> set[str]:
+@functools.cache
+def _allowed() -> frozenset[str]:
     """Every number the results files hold, as written and rounded to 0-4 decimals (also as a
     percentage, and in cm for values in m), and every number of the dissertation's claims."""
     texts = [p.read_text() for p in RESULTS.rglob("*") if p.suffix in (".json", ".jsonl", ".toml",
@@ -67,7 +69,7 @@ def _allowed() -> set[str]:
                     allowed.add(f"{v:.{digits}f}")
                 allowed |= {f"{v:.2g}", f"{v:.3g}"}
     allowed |= {f"{s}".lstrip("0") for s in list(allowed) if s.startswith("0.")}
-    return allowed
+    return frozenset(allowed)
 
 
 def test_the_site_builds_without_a_warning(text_build):
