@@ -129,3 +129,51 @@ def pointing_game(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]],
         r, c = np.unravel_index(int(np.argmax(heat)), heat.shape)
         hits += bool(_in_boxes(np.array(c + 0.5), np.array(r + 0.5), bxs, tolerance))
     return hits / total if total else float("nan")
+
+
+def top_pixels(heat: np.ndarray, share: float = 0.05) -> np.ndarray:
+    """Boolean mask of a map's top `share` pixels (ceil(share × pixels) of them; ties broken by
+    position, row-major). A flat map points nowhere: an empty mask."""
+    flat = heat.ravel()
+    mask = np.zeros(flat.shape, bool)
+    if flat.max() > flat.min():
+        k = max(1, int(np.ceil(share * flat.size)))
+        mask[np.argsort(-flat, kind="stable")[:k]] = True
+    return mask.reshape(heat.shape)
+
+
+def box_hits(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]], share: float = 0.05
+             ) -> np.ndarray:
+    """Per sample (boxes hit by its map's top `share` pixels, boxes): a box is hit when one
+    of those pixels' centres lies inside it (the pointing game of §4.7.4's displays, which
+    colour a map's top 5 %). N × 2 ints, (0, 0) for a sample without a box."""
+    out = np.zeros((len(heatmaps), 2), int)
+    for i, (heat, bxs) in enumerate(zip(heatmaps, boxes, strict=True)):
+        if not bxs:
+            continue
+        r, c = np.nonzero(top_pixels(heat, share))
+        out[i] = sum(bool(_in_boxes(c + 0.5, r + 0.5, [b], 0.0).any()) for b in bxs), len(bxs)
+    return out
+
+
+def centre_prior(n: int, shape: tuple[int, int]) -> np.ndarray:
+    """N copies of a map peaked at the frame's centre (minus the distance to it): a baseline
+    that knows only that a nest's action tends to be away from its walls."""
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    dist = np.hypot(rows + 0.5 - shape[0] / 2, cols + 0.5 - shape[1] / 2)
+    return np.broadcast_to(-dist, (n, *shape)).astype(np.float32)
+
+
+def hit_share(hits: np.ndarray, rng: np.random.Generator, resamples: int = 2000,
+              level: float = 0.95) -> dict[str, float | int | None]:
+    """Share of all boxes hit (pooled over samples) with a percentile bootstrap interval over
+    samples; None where no sample has a box."""
+    hits = hits[hits[:, 1] > 0]
+    if not len(hits):
+        return {"share": None, "lo": None, "hi": None, "samples": 0, "boxes": 0}
+    draws = rng.integers(0, len(hits), (resamples, len(hits)))
+    boot = hits[draws, 0].sum(1) / hits[draws, 1].sum(1)
+    tail = 100 * (1 - level) / 2
+    return {"share": float(hits[:, 0].sum() / hits[:, 1].sum()),
+            "lo": float(np.percentile(boot, tail)), "hi": float(np.percentile(boot, 100 - tail)),
+            "samples": int(len(hits)), "boxes": int(hits[:, 1].sum())}

@@ -16,7 +16,16 @@ from estimators.oneclass import METHODS, OCConfig, OCModel, fit
 from estimators.oneclass.metrics import auc_report, roc_auc
 from estimators.oneclass.train import train_classifier
 from macrostate_mj.core.errors import UserError
-from viz.gradcam import box_share, gradcam, pointing_game, top_share
+from viz.gradcam import (
+    box_hits,
+    box_share,
+    centre_prior,
+    gradcam,
+    hit_share,
+    pointing_game,
+    top_pixels,
+    top_share,
+)
 
 REPO = Path(__file__).resolve().parents[2]
 TINY = OCConfig(m=1, seed=3, batch=16, dcae_epochs=1, dsvdd_epochs=1, gan_steps=2, gan_batch=4,
@@ -139,6 +148,23 @@ def test_gradcam_and_pointing_game(fitted):
     # chance: box (15, 5, 10, 10) holds 100 of 4096 pixel centres, the full frame all of them
     assert box_share([[(15, 5, 10, 10)], [], [(0, 0, 64, 64)]], (64, 64)) == pytest.approx(
         (100 / 4096 + 1) / 2)
+
+
+def test_top_five_percent_box_hits_and_their_baselines():
+    """The §4.7.4 pointing game: a box is hit when one of a map's top 5 % pixels lies in it."""
+    heat = np.zeros((3, 64, 64))
+    heat[0, 30:45, 30:45] = 1.0             # 225 px >= the 205 kept: all inside (30..45)
+    heat[1, 0:15, 0:15] = 1.0               # in the corner, away from its box
+    boxes = [[(28, 28, 20, 20), (0, 50, 5, 5)], [(40, 40, 10, 10)], []]
+    hits = box_hits(heat, boxes)            # sample 2 has no box
+    assert hits.tolist() == [[1, 2], [0, 1], [0, 0]]
+    assert top_pixels(heat[0]).sum() == 205 and not top_pixels(np.zeros((64, 64))).any()
+    share = hit_share(hits, np.random.default_rng(0), resamples=200)
+    assert share["share"] == pytest.approx(1 / 3) and share["samples"] == 2
+    assert share["lo"] <= share["share"] <= share["hi"]
+    centre = centre_prior(2, (64, 64))      # the top 5 % of a centre prior: a central disc
+    assert box_hits(centre, [[(30, 30, 4, 4)], [(0, 0, 8, 8)]]).tolist() == [[1, 1], [0, 1]]
+    assert hit_share(np.zeros((2, 2), int), np.random.default_rng(0))["share"] is None
 
 
 def test_cli_train_evaluate_and_bad_input(tmp_path):
@@ -349,6 +375,8 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     import shutil
 
     data = make_layout(tmp_path / "ds", stable=20, unstable=(1333, 2000, 3000, 9500))
+    # true duel boxes, as a simulated colony writes them: Grad-CAM is scored against them
+    (data / "boxes.csv").write_text("sample_id,k,x,y,w,h\n1333,0,0,0,32,32\n2000,1,8,8,9,9\n")
     out = tmp_path / "tables"
     base = ("experiment", "oc", "--data", str(data), "--out", str(out), "--splits", "2", "--ms",
             "2", "--seed", "5", "--epoch-scale", "0.003", "--threads", "1")
@@ -361,6 +389,12 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     aucs = [results["runs"][k]["iogen"]["auc_all"] for k in sorted(keys)]
     assert results["table4_2_auc_m2"]["iogen"]["mean"] == pytest.approx(np.mean(aucs))
     assert results["table4_2_auc_m2"]["iogen"]["std"] == pytest.approx(np.std(aucs))
+    hits = results["gradcam"]["top5_box_hits"]
+    assert set(hits) == {"gradcam", "gradcam_display", "flow_magnitude", "centre_prior",
+                         "random"}
+    assert hits["random"]["all"]["boxes"] == 2 and hits["random"]["all"]["samples"] == 2
+    assert hits["centre_prior"]["all"]["share"] == 0.5      # the 9 x 9 box misses the centre
+    assert (out / "gradcam" / "overlay_stable_unstable.png").stat().st_size > 0
     tables = (out / "tables.md").read_text()
     assert "split and seed" in tables
     assert "| IO-GEN | " in tables and "| 0.786 ± 0.009 |" in tables     # the text's beside ours

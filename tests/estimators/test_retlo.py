@@ -23,6 +23,7 @@ from estimators.retlo.train import (
     save_checkpoint,
     train,
 )
+from macrostate_mj.app.experiments.retlo import CV_TEST
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.frames import from_frame, to_frame
 from macrostate_mj.formats.thymioloc import write_csv
@@ -205,6 +206,28 @@ def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsy
     for kind in ("fc", "lstm"):
         assert grouped["results"]["five.csv"][kind]["per_seed_cm"] == pytest.approx(
             results["results"]["five.csv"][kind]["per_seed_cm"], rel=1e-3)
+
+
+def test_experiment_cross_validates_over_train_and_val(tmp_path, capsys):
+    """--folds: each seed is scored on its own block of the pooled train + val, which it never
+    trained or selected on; the heuristic on every block."""
+    train_csv = write_csv(tmp_path / "train.csv", world_to_pixels(synthetic_chains(24, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(6, 3, 2), 3.0))
+    code, stdout, err = _cli(capsys, "experiment", "retlo", "--train", str(train_csv), "--val",
+                             str(val_csv), "--folds", "3", "--seeds", "3", "--epochs", "1",
+                             "--out", str(tmp_path / "cv"))
+    assert code == 0, err
+    results = json.loads((tmp_path / "cv" / "results.json").read_text())
+    (test,) = results["tests"]
+    assert test["name"] == CV_TEST and test["n_instances"] == 30 and test["folds"] == 3
+    cv = results["results"][CV_TEST]
+    assert len(cv["lstm"]["per_seed_cm"]) == 3 and len(cv["heuristic2x"]["per_seed_cm"]) == 3
+    assert results["fig2_9"]["test"] == CV_TEST
+    assert CV_TEST in stdout
+    code, _, err = _cli(capsys, "experiment", "retlo", "--train", str(train_csv), "--val",
+                        str(val_csv), "--folds", "3", "--holdout", "0.2", "--out",
+                        str(tmp_path / "both"))
+    assert code == 2 and "--folds and --holdout" in err and not (tmp_path / "both").exists()
 
 
 def _data(tmp_path):

@@ -240,6 +240,9 @@ def experiment_retlo(
                                  flag="--test"),
     holdout: float = Fraction(None, "Also hold out this fraction of the training instances as "
                               "a test set; default: 0 with --test, else the profile's (0.25)."),
+    folds: int = Count(0, "Cross-validate instead of holding out: pool the training and "
+                       "validation files in this many contiguous blocks; seed i is tested on "
+                       "block i mod K and trains and selects on the rest (0: none).", min=0),
     seeds: int = Count(None, "Training seeds per model (seed..seed+seeds-1); default: the "
                        "profile's (5)."),
     epochs: int = Count(None, "Number of epochs per training (cosine schedule, early stop); "
@@ -267,8 +270,8 @@ def experiment_retlo(
 
     given = {"train": tuple(str(p) for p in train) if train else None,
              "val": None if val is None else str(val), "test": tuple(str(p) for p in test or ()),
-             "holdout": 0.0 if holdout is None and test else holdout, "seeds": seeds,
-             "epochs": epochs}
+             "holdout": 0.0 if holdout is None and (test or folds) else holdout,
+             "seeds": seeds, "epochs": epochs, "folds": folds}
     config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
                      px_per_cm=px_per_cm, group=group,
                      model=ModelConfig(history=history, bidirectional=not unidirectional,

@@ -124,3 +124,18 @@ def wilcoxon_p(differences: list[float]) -> float | None:
     if len(differences) < 2 or not any(abs(d) > 1e-12 for d in differences):
         return None
     return float(wilcoxon(differences).pvalue)
+
+
+def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any, Any]:
+    """(train pool, validation, test) instance indices of cross-validation fold `fold`: test is
+    contiguous block `fold` of `folds` (instances overlap in time, so a random split would
+    leak); the last `val_share` of the remaining instances (in order) validate."""
+    import numpy as np
+
+    if not 0 <= fold < folds <= n:
+        raise UserError(f"cannot cut {n} instances into {folds} folds")
+    edges = np.linspace(0, n, folds + 1).round().astype(int)
+    test = np.arange(edges[fold], edges[fold + 1])
+    rest = np.setdiff1d(np.arange(n), test)
+    n_val = max(1, int(round(val_share * len(rest))))
+    return rest[:-n_val], rest[-n_val:], test

@@ -211,7 +211,8 @@ def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     model = model.to("cpu")
     results["fig4_10"] = figures.model_figures(out / PRODUCTS[4], out / PRODUCTS[5], model, x, xs,
                                                xu)
-    results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xu,
+    results["gradcam"] = figures.gradcam_outputs(out / PRODUCTS[6], model, d, xs,
+                                                 d.split(first.split)[1], xu,
                                                  exp.gradcam_samples, main_m)
     figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks,
                          results.get("selection_on_test"))

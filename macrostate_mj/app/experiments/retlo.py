@@ -2,7 +2,11 @@
 
 Every learned model is trained once per seed on the training files, selected on the validation
 file, and tested on every test file whatever its team size (the 3-robot module runs along
-longer chains without retraining). The 2X heuristic has no seed. results.json holds only
+longer chains without retraining). With `folds` (§2.6.2's cross-validation), the training files
+and the validation file are pooled in that order and cut into contiguous blocks: seed i trains
+on the other blocks less their last 15 % (which selects its checkpoint) and is tested on block
+i mod folds, so no model is scored on an instance it trained or selected on. The 2X heuristic
+has no seed. results.json holds only
 deterministic numbers (timings go to the manifest), so the same command gives the same file.
 
 This module composes: reading, training and testing are `estimators.retlo.api`'s, the figures
@@ -26,7 +30,7 @@ from estimators.retlo.files import read_world, world_to_pixels
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
-from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic
@@ -35,6 +39,8 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models"]
 HEURISTIC = "heuristic2x"
+CV_TEST = "cross-validated train + val"
+CV_VAL_SHARE = 0.15     # of each fold's training blocks, the last share selects
 LEARNED = ("fc", "lstm")
 
 
@@ -54,14 +60,19 @@ class Config:
     model: ModelConfig = ModelConfig()  # its kind is set per run; history, LSTM direction, angles
     seed: int = 0
     group: int = 1         # seeds of one kind trained together (`estimators.retlo.ensemble`)
+    folds: int = 0         # cross-validate over train + val in this many blocks (0: none)
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
             raise UserError("--seeds and --epochs must be at least 1")
         if not 0.0 <= self.holdout < 0.9:
             raise UserError(f"--holdout must be in [0, 0.9), got {self.holdout}")
-        if not self.test and self.holdout == 0.0:
-            raise UserError("no test set; pass --test CSV or --holdout FRACTION")
+        if self.folds == 1 or self.folds < 0:
+            raise UserError(f"--folds {self.folds}: cross-validation needs at least 2 blocks")
+        if self.folds and self.holdout:
+            raise UserError("--folds and --holdout both choose the 3-robot test; pass one")
+        if not self.test and self.holdout == 0.0 and not self.folds:
+            raise UserError("no test set; pass --test CSV, --holdout FRACTION or --folds K")
 
 
 PROFILES = {"full": Config(), "quick": Config(seeds=1, epochs=1)}
@@ -80,14 +91,19 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
 
     px = cfg.px_per_cm
     with progress.stage("read"):
-        trains, val, tests = _read(cfg)
+        folds, shared = _read(cfg)
     models_dir = check_writable_dir(out / "models")
-    reports = {t["name"]: {HEURISTIC: [evaluate(Heuristic2X(), t["world"])]} for t in tests}
+    reports = {t["name"]: {HEURISTIC: [evaluate(Heuristic2X(), t["world"])]} for t in shared}
+    if cfg.folds:   # the heuristic on every block: each instance scored once
+        reports[CV_TEST] = {HEURISTIC: [evaluate(Heuristic2X(), f.test["world"]) for f in
+                                        folds[:cfg.folds]]}
+    tests = shared + ([folds[0].test] if cfg.folds else [])
     big = max(tests, key=lambda t: t["world"].shape[2])
     curves: dict[str, list[dict]] = {kind: [] for kind in LEARNED}
-    tasks = [TrainTask(trains, val, TrainConfig(epochs=cfg.epochs, seed=seed,
-                                                model=replace(cfg.model, kind=kind)), px)
-             for seed in range(cfg.seed, cfg.seed + cfg.seeds) for kind in LEARNED]
+    tasks = [TrainTask(fold.trains, fold.val, TrainConfig(epochs=cfg.epochs, seed=seed,
+                                                          model=replace(cfg.model, kind=kind)), px)
+             for seed, fold in zip(range(cfg.seed, cfg.seed + cfg.seeds), folds, strict=True)
+             for kind in LEARNED]
     folders: dict[int, Path] = {}
     with progress.stage("train"):
         for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray,
@@ -101,14 +117,18 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         shutil.copyfile(folders[i] / "model.pt", models_dir / f"{kind}_seed{seed}.pt")
         net, _ = load_checkpoint(folders[i] / "model.pt")
         module = TorchPredictor(net)
-        for t in tests:          # one prediction per test set: its report, and Fig 2.9's
-            est = predict_chain(module, t["world"])
+        own = folds[seed - cfg.seed].test
+        for t in shared + ([own] if own else []):   # one prediction per test set: its report,
+            est = predict_chain(module, t["world"])                       # and Fig 2.9's
             reports[t["name"]].setdefault(kind, []).append(report(module, t["world"], est, None))
-            if t is big:
+            if t["name"] == big["name"]:
                 curves[kind].append(_fig2_9(est, t["world"]))
     results = {
         "tests": [{"name": t["name"], "n_robots": int(t["world"].shape[2]),
-                   "n_instances": int(t["world"].shape[0])} for t in tests],
+                   "n_instances": int(t["world"].shape[0])} for t in shared]
+        + ([{"name": CV_TEST, "n_robots": int(folds[0].test["world"].shape[2]),
+             "n_instances": sum(len(f.test["world"]) for f in folds[:cfg.folds]),
+             "folds": cfg.folds}] if cfg.folds else []),
         "results": {name: {m: _aggregate(r) for m, r in per.items()}
                     for name, per in reports.items()},
         "seeds": cfg.seeds, "px_per_cm": px,
@@ -162,21 +182,45 @@ class TrainTask:
         return [t._files(net, info) for t, (net, info) in zip(tasks, trained, strict=True)]
 
 
-def _read(cfg: Config) -> tuple[list[np.ndarray], np.ndarray, list[dict]]:
-    """Training chains (each file less its holdout), validation chains, and the named test
-    sets: each training file's holdout, then the test files."""
+@dataclass(frozen=True)
+class Fold:
+    """What one seed trains on, selects on, and (under --folds) is tested on alone."""
+
+    trains: list[np.ndarray]
+    val: np.ndarray
+    test: dict | None = None
+
+
+def _read(cfg: Config) -> tuple[list[Fold], list[dict]]:
+    """Per seed its training chains, validation chains and own test (a cross-validation
+    block); and the test sets every seed shares: each training file's holdout, then the test
+    files."""
     for path in (*cfg.train, cfg.val, *cfg.test):
         if not Path(path).is_file():
             raise UserError(f"no file {path}; pass --train/--val/--test, or set "
                             "MACROSTATE_REFERENCE_DATA to the folder holding ReTLo/")
-    trains, tests = [], []
-    for path in cfg.train:
-        kept, held = _split(read_world(path, cfg.px_per_cm), cfg.holdout)
-        trains.append(kept)
-        if len(held):
-            tests.append({"name": f"holdout of {Path(path).name}", "world": held})
-    tests += [{"name": Path(p).name, "world": read_world(p, cfg.px_per_cm)} for p in cfg.test]
-    return trains, read_world(cfg.val, cfg.px_per_cm), tests
+    shared = []
+    worlds = [read_world(p, cfg.px_per_cm) for p in (*cfg.train, cfg.val)]
+    if cfg.folds:
+        if len({w.shape[1:] for w in worlds}) != 1:
+            raise UserError("--folds pools --train and --val: they must hold chains of one "
+                            "team size and length")
+        pooled = np.concatenate(worlds)
+        folds = []
+        for i in range(cfg.seeds):
+            pool, val, test = cv_blocks(len(pooled), cfg.folds, i % cfg.folds, CV_VAL_SHARE)
+            folds.append(Fold([pooled[pool]], pooled[val],
+                              {"name": CV_TEST, "world": pooled[test]}))
+    else:
+        trains = []
+        for path, world in zip(cfg.train, worlds, strict=False):
+            kept, held = _split(world, cfg.holdout)
+            trains.append(kept)
+            if len(held):
+                shared.append({"name": f"holdout of {Path(path).name}", "world": held})
+        folds = [Fold(trains, worlds[-1])] * cfg.seeds
+    shared += [{"name": Path(p).name, "world": read_world(p, cfg.px_per_cm)} for p in cfg.test]
+    return folds, shared
 
 
 def _split(world: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray]:

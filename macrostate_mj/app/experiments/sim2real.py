@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std
 from macrostate_mj.core.cache import Outcome, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -71,19 +71,6 @@ PROFILES = {
 def missing(config: Config) -> str | None:
     """The input this run cannot start without, if it is absent (`experiment all` skips it)."""
     return None if Path(config.real).is_dir() else f"the real ThymioLoc folder {config.real}"
-
-
-def cv_blocks(n: int, folds: int, fold: int, val_share: float
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(train pool, validation, test) instance indices: test is contiguous block `fold` of
-    `folds`; the last `val_share` of the remaining instances (in order) validate."""
-    if not 0 <= fold < folds <= n:
-        raise UserError(f"cannot cut {n} real instances into {folds} folds")
-    edges = np.linspace(0, n, folds + 1).round().astype(int)
-    test = np.arange(edges[fold], edges[fold + 1])
-    rest = np.setdiff1d(np.arange(n), test)
-    n_val = max(1, int(round(val_share * len(rest))))
-    return rest[:-n_val], rest[-n_val:], test
 
 
 def _require_splits(folder: Path, flag: str, hint: str) -> None:
