@@ -258,6 +258,27 @@ def oc_runs(folder: str) -> Table:
 
 
 @source
+def gradcam_hits(folder: str) -> Table:
+    """§4.7.4 scored: the share (%) of true duel/bite boxes hit by each map's top 5 %, all
+    unstable samples and per day bin, with the bootstrap 95 % interval."""
+    data = load(f"{folder}/results.json")["gradcam"]["top5_box_hits"]  # type: ignore[index]
+    bins = sorted(next(iter(data.values()))["bins"], key=lambda b: int(re.findall(r"\d+", b)[0]))
+
+    def cell(h: dict) -> str:
+        return "" if h["share"] is None else (
+            f"{100 * h['share']:.0f} ({100 * h['lo']:.0f}-{100 * h['hi']:.0f})")
+
+    rows = [["map", "all", *bins]]
+    for name, kind in data.items():
+        rows.append([name, cell(kind["all"]), *[cell(kind["bins"][b]) for b in bins]])
+    first = next(iter(data.values()))
+    rows.append(["boxes (samples)", f"{first['all']['boxes']} ({first['all']['samples']})",
+                 *[f"{first['bins'][b]['boxes']} ({first['bins'][b]['samples']})"
+                   for b in bins]])
+    return rows
+
+
+@source
 def s2r(folder: str) -> Table:
     """Sim-to-real: each arm's real-test Head error (cm) by share of the real pool."""
     data = load(f"{folder}/results.json")

@@ -10,7 +10,12 @@ perturbs), so the learned policy and the baselines meet the same environment:
 - chain_offset: the scripted heuristic: a fixed offset in the chain's frame (along the Tail ->
   neighbour direction and to its left), the one of a small grid with the lowest mean Head error
   on tuning seeds (`tune_chain_offset`), held out from the evaluation seeds;
-- learned: a PPO policy's deterministic action.
+- learned: a PPO policy's deterministic action, through the spacing shield it trained with.
+
+The spacing shield (`shield`): when the Tail sees its neighbour farther than a limit, its
+action becomes passive (offset 0: the chain's own rule closes the gap) until the gap is back
+under it. It uses only what the Tail observes, and keeps a policy from ending an episode with a
+chain break (`env.explore.BREAK_SPACINGS`).
 """
 
 from __future__ import annotations
@@ -69,14 +74,24 @@ class ChainOffset:
         return (self.along * u + self.left * np.array([-u[1], u[0]])).astype(np.float32)
 
 
-class Learned:
-    """A stable-baselines3 policy, deterministic at evaluation."""
+def shield(obs: dict[str, np.ndarray], action: np.ndarray, limit_m: float | None
+           ) -> np.ndarray:
+    """`action`, or offset 0 (passive) when the Tail's neighbour is farther than `limit_m`
+    (None: no shield)."""
+    if limit_m is None:
+        return action
+    gap = float(np.linalg.norm(obs["neighbour"][-1, :2] - obs["tail"][-1, :2]))
+    return np.zeros_like(action) if gap > limit_m else action
 
-    def __init__(self, model: Any):
-        self.model = model
+
+class Learned:
+    """A stable-baselines3 policy, deterministic at evaluation, behind its spacing shield."""
+
+    def __init__(self, model: Any, limit_m: float | None = None):
+        self.model, self.limit_m = model, limit_m
 
     def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        return self.model.predict(obs, deterministic=True)[0]
+        return shield(obs, self.model.predict(obs, deterministic=True)[0], self.limit_m)
 
 
 def make_env(checkpoint: str | None, time_limit: float) -> Any:

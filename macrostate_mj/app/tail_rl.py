@@ -10,6 +10,8 @@ environments restart from fresh seeds, derived from the step count).
 Training only: a chain break ends an episode, and the reward (minus the Head error, m, per
 step) is negative, so ending early would pay. `BreakPenalty` charges `break_penalty` m for every
 step the broken episode did not run; evaluation reports the raw error and the breaks apart.
+The policy acts through the spacing shield (`tail_eval.shield`, `shield_spacings` × the chain's
+spacing) in training as at evaluation, so it learns what the shield lets it do.
 """
 
 from __future__ import annotations
@@ -46,6 +48,8 @@ class PPOSpec:
                                   # action to the ±0.3 m bounds)
     save_every: int = 10_240
     break_penalty: float = 2.0    # m per step a broken episode did not run
+    shield_spacings: float | None = 2.0   # passive beyond this gap to the neighbour (× d);
+                                          # a break is at 2.5 d (env.explore.BREAK_SPACINGS)
     time_limit: float = 60.0
     seed: int = 0
 
@@ -64,24 +68,32 @@ def folder_for(root: Path, spec: PPOSpec, checkpoint: str | None) -> Path:
     return root / task_key("learned-tail-ppo", 1, asdict(spec), inputs)[:16]
 
 
-def break_penalty(env: Any, penalty: float, time_limit: float) -> Any:
-    """`env` wrapped to charge `penalty` m per step left when a chain break ends an episode
-    (gymnasium is imported here, lazily, as the rest of the extra)."""
+def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: float | None
+                 ) -> Any:
+    """`env` wrapped to act through the spacing shield and to charge `penalty` m per step left
+    when a chain break ends an episode (gymnasium is imported here, lazily, as the rest of the
+    extra)."""
     import gymnasium
 
+    from macrostate_mj.app.tail_eval import shield
     from macrostate_mj.env.explore import chain_broken
 
     class BreakPenalty(gymnasium.Wrapper):
         steps = 0
+        obs: Any = None
 
         def reset(self, **kw: Any) -> tuple:
             self.steps = 0
-            return self.env.reset(**kw)
+            self.obs, info = self.env.reset(**kw)
+            return self.obs, info
 
         def step(self, action: Any) -> tuple:
-            obs, reward, terminated, truncated, info = self.env.step(action)
-            self.steps += 1
             sim = self.env.unwrapped.task.sim
+            limit = None if shield_spacings is None else shield_spacings * sim.cfg.spacing
+            obs, reward, terminated, truncated, info = self.env.step(
+                shield(self.obs, np.asarray(action), limit))
+            self.obs = obs
+            self.steps += 1
             if terminated and info.get("fault") is None and chain_broken(sim):
                 left = max(0, int(round(time_limit * sim.cfg.command_hz)) - self.steps)
                 reward = float(reward) - penalty * left
@@ -112,8 +124,9 @@ def train(spec: PPOSpec, checkpoint: str | None, folder: Path, workers: int = 1,
     venv = make_vec_env(
         "macrostate_mj:macrostate_mj/LocalizeTail-v0", spec.envs, seed=base,
         env_kwargs={"checkpoint": checkpoint, "time_limit": spec.time_limit},
-        wrapper_class=break_penalty,
-        wrapper_kwargs={"penalty": spec.break_penalty, "time_limit": spec.time_limit},
+        wrapper_class=training_env,
+        wrapper_kwargs={"penalty": spec.break_penalty, "time_limit": spec.time_limit,
+                        "shield_spacings": spec.shield_spacings},
         vec_env_cls=SubprocVecEnv if workers > 1 else DummyVecEnv)
     if state:
         model = sb3.PPO.load(folder / state["model"], env=venv, device="cpu")

@@ -65,3 +65,18 @@ def test_bad_input_is_one_line_exit_2(tmp_path, args, words):
     res = cli("experiment", "learned-tail", "--quick", *args, "--out", str(tmp_path / "o"))
     assert_clean_error(res, *words)
     assert not (tmp_path / "o").exists()
+
+
+def test_the_spacing_shield_turns_a_far_tail_passive():
+    """Beyond the limit the Tail's action is offset 0 (the chain's own rule closes the gap);
+    inside it, the policy's action passes; no limit, no shield."""
+    import numpy as np
+
+    from macrostate_mj.app.tail_eval import shield
+
+    obs = {"tail": np.zeros((10, 3)), "neighbour": np.zeros((10, 3))}
+    obs["neighbour"][-1, :2] = (0.5, 0.2)               # 0.54 m away at the latest step
+    action = np.array([0.1, -0.2], np.float32)
+    assert np.array_equal(shield(obs, action, 0.6), action)
+    assert np.array_equal(shield(obs, action, 0.5), np.zeros(2, np.float32))
+    assert np.array_equal(shield(obs, action, None), action)

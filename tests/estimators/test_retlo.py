@@ -225,6 +225,14 @@ def test_experiment_cross_validates_over_train_and_val(tmp_path, capsys):
     assert results["fig2_9"]["test"] == CV_TEST
     assert CV_TEST in stdout
     code, _, err = _cli(capsys, "experiment", "retlo", "--train", str(train_csv), "--val",
+                        str(val_csv), "--folds", "3", "--seeds", "1", "--epochs", "1",
+                        "--uncertainty", "gaussian", "--out", str(tmp_path / "gauss"))
+    assert code == 0, err
+    gauss = json.loads((tmp_path / "gauss" / "results.json").read_text())["results"][CV_TEST]
+    pooled = gauss["lstm"]["calibration"]["pooled"]
+    assert 0 <= pooled["coverage_50"]["mean"] <= pooled["coverage_90"]["mean"] <= 1
+    assert "calibration" not in gauss["heuristic2x"]
+    code, _, err = _cli(capsys, "experiment", "retlo", "--train", str(train_csv), "--val",
                         str(val_csv), "--folds", "3", "--holdout", "0.2", "--out",
                         str(tmp_path / "both"))
     assert code == 2 and "--folds and --holdout" in err and not (tmp_path / "both").exists()

@@ -34,6 +34,9 @@ PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
 Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
                  "error, as modules k >= 1 of a longer chain see them (docs).",
                  "--chained/--no-chained")
+Uncertainty = Choice("none", "none: a point estimate per robot; gaussian: a 2-D Gaussian per "
+                     "robot (mean and covariance), trained on its negative log-likelihood, "
+                     "whose calibration the reports then carry.", UNCERTAINTIES)
 History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
                 max=24)
 CSV = (".csv",)
@@ -125,10 +128,7 @@ def train_retlo(
                                 "together with --train (repeatable).", CSV, flag="--mix"),
     mix_weight: float = Positive(0.5, "The --mix data's share of the loss, in (0, 1); --train's "
                                  "is the rest.", "--mix-weight", max=1.0),
-    uncertainty: str = Choice("none", "none: a point estimate per robot; gaussian: "
-                              "a 2-D Gaussian per robot (mean and covariance), trained on its "
-                              "negative log-likelihood; `evaluate retlo` then reports its "
-                              "calibration.", UNCERTAINTIES),
+    uncertainty: str = Uncertainty,
     px_per_cm: float = PxPerCm,
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
@@ -253,6 +253,7 @@ def experiment_retlo(
                                   "--cos-sin)."),
     cos_sin: bool = Switch(False, "Angles as cos/sin pairs (chapter 3's predictor).",
                            "--cos-sin/--radians"),
+    uncertainty: str = Uncertainty,
     px_per_cm: float = PxPerCm,
     workers: int = Count(1, "Local worker processes (one training each).", max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run the trainings on Ray: local, auto or "
@@ -265,6 +266,7 @@ def experiment_retlo(
     """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
     from dataclasses import replace
 
+    from estimators.retlo.heads import head_named
     from estimators.retlo.models import ModelConfig
     from macrostate_mj.app.experiments import profile as chosen
 
@@ -273,7 +275,7 @@ def experiment_retlo(
              "holdout": 0.0 if holdout is None and (test or folds) else holdout,
              "seeds": seeds, "epochs": epochs, "folds": folds}
     config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
-                     px_per_cm=px_per_cm, group=group,
+                     px_per_cm=px_per_cm, group=group, head=head_named(uncertainty),
                      model=ModelConfig(history=history, bidirectional=not unidirectional,
                                        cos_sin=cos_sin),
                      **{k: v for k, v in given.items() if v is not None})

@@ -5,7 +5,8 @@ PPO (stable-baselines3, the `rl` extra; `MultiInputPolicy` on the Tail's and its
 pose histories and the latest Head estimate) learns the destination offset that SRS perturbs,
 rewarded by minus the frozen estimator's Head error (m) each step (the 2X heuristic, or a
 `train retlo` checkpoint), on training seeds from 1000 up. A chain break costs the steps it cut
-short (`tail_rl`). Then every Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive,
+short, and the policy acts through a spacing shield, passive while its neighbour is over 2 d
+away (`tail_rl`). Then every Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive,
 Rand-Only (σ = 75 % of the robot size), the scripted chain-offset Tail (tuned on seeds 500 up)
 and the learned one. Per Tail: the estimator's mean Head error over the episode and over every
 robot it estimates (mean ± std over seeds), the Wilcoxon signed-rank test against passive
@@ -156,7 +157,9 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
                                                   float(env.action_space.high[0]))
         if policy == "chain_offset" and tuned is not None:
             return lambda env: tail_eval.ChainOffset(tuned["along"], tuned["left"])
-        return lambda env: tail_eval.Learned(model)
+        spacings = cfg.ppo().shield_spacings
+        return lambda env: tail_eval.Learned(
+            model, None if spacings is None else spacings * env.unwrapped.task.sim.cfg.spacing)
 
     episodes, done = [], 0
     for policy in cfg.policies:

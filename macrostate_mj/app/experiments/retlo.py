@@ -23,10 +23,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from estimators.retlo.api import evaluate, fit, report
+from estimators.retlo.api import evaluate, fit, predict, report
 from estimators.retlo.chain import predict_chain
 from estimators.retlo.curves import inside_bias, largest_error_share
 from estimators.retlo.files import read_world, world_to_pixels
+from estimators.retlo.heads import POINT, Head
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
@@ -61,6 +62,7 @@ class Config:
     seed: int = 0
     group: int = 1         # seeds of one kind trained together (`estimators.retlo.ensemble`)
     folds: int = 0         # cross-validate over train + val in this many blocks (0: none)
+    head: Head = POINT     # GAUSSIAN: every learned model predicts a 2-D Gaussian per robot
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
@@ -71,6 +73,8 @@ class Config:
             raise UserError(f"--folds {self.folds}: cross-validation needs at least 2 blocks")
         if self.folds and self.holdout:
             raise UserError("--folds and --holdout both choose the 3-robot test; pass one")
+        if self.head.uncertain and self.group > 1:
+            raise UserError("--group trains point models only; drop it with --uncertainty")
         if not self.test and self.holdout == 0.0 and not self.folds:
             raise UserError("no test set; pass --test CSV, --holdout FRACTION or --folds K")
 
@@ -101,7 +105,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     big = max(tests, key=lambda t: t["world"].shape[2])
     curves: dict[str, list[dict]] = {kind: [] for kind in LEARNED}
     tasks = [TrainTask(fold.trains, fold.val, TrainConfig(epochs=cfg.epochs, seed=seed,
-                                                          model=replace(cfg.model, kind=kind)), px)
+                                                          model=replace(cfg.model, kind=kind)), px,
+                       cfg.head)
              for seed, fold in zip(range(cfg.seed, cfg.seed + cfg.seeds), folds, strict=True)
              for kind in LEARNED]
     folders: dict[int, Path] = {}
@@ -119,8 +124,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         module = TorchPredictor(net)
         own = folds[seed - cfg.seed].test
         for t in shared + ([own] if own else []):   # one prediction per test set: its report,
-            est = predict_chain(module, t["world"])                       # and Fig 2.9's
-            reports[t["name"]].setdefault(kind, []).append(report(module, t["world"], est, None))
+            est, cov = predict(module, t["world"], gaussian=cfg.head.uncertain)  # and Fig 2.9's
+            reports[t["name"]].setdefault(kind, []).append(report(module, t["world"], est, cov))
             if t["name"] == big["name"]:
                 curves[kind].append(_fig2_9(est, t["world"]))
     results = {
@@ -155,15 +160,18 @@ class TrainTask:
     stage: ClassVar[str] = "retlo-model"
     version: ClassVar[int] = 1
 
-    def __init__(self, trains: list[np.ndarray], val: np.ndarray, cfg: TrainConfig, px: float):
-        self.trains, self.val, self.cfg, self.px = trains, val, cfg, px
+    def __init__(self, trains: list[np.ndarray], val: np.ndarray, cfg: TrainConfig, px: float,
+                 head: Head = POINT):
+        self.trains, self.val, self.cfg, self.px, self.head = trains, val, cfg, px, head
 
-    def key(self) -> str:
-        return task_key(self.stage, self.version, {"train": self.cfg, "px_per_cm": self.px},
+    def key(self) -> str:       # a point model's key names no head (the keys it always had)
+        return task_key(self.stage, self.version, {"train": self.cfg, "px_per_cm": self.px,
+                                                   **({"head": self.head.name}
+                                                      if self.head.uncertain else {})},
                         [*self.trains, self.val])
 
     def compute(self) -> dict[str, bytes]:
-        net, info = fit(self.trains, self.val, self.cfg)
+        net, info = fit(self.trains, self.val, self.cfg, head=self.head)
         return self._files(net, info)
 
     def _files(self, net: Any, info: dict) -> dict[str, bytes]:
@@ -243,6 +251,10 @@ def _aggregate(reports: list[dict]) -> dict:
         "per_robot_step_cm": {b: [mean_std([r["per_robot_step_cm"][b][i] for r in reports])
                                   for i in range(n_steps)] for b in robots},
         "first_step": reports[0]["first_step"], "step_s": reports[0]["step_s"],
+        **({"calibration": {who: {k: mean_std([r["calibration"][who][k] for r in reports])
+                                  for k in ("coverage_50", "coverage_90", "nll")}
+                            for who in reports[0]["calibration"] if who != "nll_unit"}}
+           if "calibration" in reports[0] else {}),
     }
 
 
