@@ -1,6 +1,6 @@
-"""The held-out fold: the real 3-robot Train.csv split as `experiment retlo` splits it (25 % of
-the instances, chosen by a generator of seed 0), written as raw ThymioLoc rows into data/
-(git-ignored: splits of real data are not kept)."""
+"""The held-out fold: the real 3-robot Train.csv split as `experiment retlo --holdout 0.25`
+splits it (25 % of the instances, chosen by a generator of seed 0), written as raw ThymioLoc
+rows into data/ (git-ignored: splits of real data are not kept)."""
 
 from __future__ import annotations
 

@@ -229,8 +229,8 @@ def evaluate_retlo(
 
 @experiment_app.command("retlo")
 def experiment_retlo(
-    profile: str = Choice("full", "full: the published 3-robot files, a quarter of Train.csv "
-                          "held out, 5 seeds of 60 epochs; quick: a smoke run (1 seed, 1 "
+    profile: str = Choice("full", "full: the published 3-robot files cross-validated in 5 "
+                          "blocks, 5 seeds of 60 epochs; quick: a smoke run (1 seed, 1 "
                           "epoch).", ("full", "quick")),
     quick: bool = Switch(False, "Shorthand for --profile quick."),
     train: list[Path] = InputFile(None, "Training ThymioLoc CSV (repeatable); default: the "
@@ -238,11 +238,12 @@ def experiment_retlo(
     val: Path = InputFile(None, "Validation CSV; default: the published Val.csv.", CSV),
     test: list[Path] = InputFile(None, "Test CSV, any team size (repeatable).", CSV,
                                  flag="--test"),
-    holdout: float = Fraction(None, "Also hold out this fraction of the training instances as "
-                              "a test set; default: 0 with --test, else the profile's (0.25)."),
-    folds: int = Count(0, "Cross-validate instead of holding out: pool the training and "
-                       "validation files in this many contiguous blocks; seed i is tested on "
-                       "block i mod K and trains and selects on the rest (0: none).", min=0),
+    holdout: float = Fraction(None, "Hold out this fraction of each training file as the "
+                              "3-robot test instead of cross-validating (--folds 0)."),
+    folds: int = Count(None, "Cross-validate (§2.6.2): pool the training and validation files "
+                       "in this many contiguous blocks; seed i is tested on block i mod K and "
+                       "trains and selects on the rest; 0: no cross-validation; default: the "
+                       "profile's (5), or 0 with --holdout.", min=0),
     seeds: int = Count(None, "Training seeds per model (seed..seed+seeds-1); default: the "
                        "profile's (5)."),
     epochs: int = Count(None, "Number of epochs per training (cosine schedule, early stop); "
@@ -272,8 +273,8 @@ def experiment_retlo(
 
     given = {"train": tuple(str(p) for p in train) if train else None,
              "val": None if val is None else str(val), "test": tuple(str(p) for p in test or ()),
-             "holdout": 0.0 if holdout is None and (test or folds) else holdout,
-             "seeds": seeds, "epochs": epochs, "folds": folds}
+             "holdout": holdout, "seeds": seeds, "epochs": epochs,
+             "folds": 0 if folds is None and holdout else folds}
     config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
                      px_per_cm=px_per_cm, group=group, head=head_named(uncertainty),
                      model=ModelConfig(history=history, bidirectional=not unidirectional,

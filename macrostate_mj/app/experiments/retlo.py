@@ -53,7 +53,7 @@ class Config:
     train: tuple[str, ...] = field(default_factory=lambda: (str(real_thymioloc("Train.csv")),))
     val: str = field(default_factory=lambda: str(real_thymioloc("Val.csv")))
     test: tuple[str, ...] = ()
-    holdout: float = 0.25  # fraction of each training file held out as a test set
+    holdout: float = 0.0   # fraction of each training file held out as a test set
     seeds: int = 5         # training seeds per model: seed, seed + 1, ...
     epochs: int = 60
     px_per_cm: float = DEFAULT_PX_PER_CM
@@ -61,7 +61,7 @@ class Config:
     model: ModelConfig = ModelConfig()  # its kind is set per run; history, LSTM direction, angles
     seed: int = 0
     group: int = 1         # seeds of one kind trained together (`estimators.retlo.ensemble`)
-    folds: int = 0         # cross-validate over train + val in this many blocks (0: none)
+    folds: int = 5         # cross-validate over train + val in this many blocks (0: none)
     head: Head = POINT     # GAUSSIAN: every learned model predicts a 2-D Gaussian per robot
 
     def __post_init__(self) -> None:
