@@ -137,8 +137,7 @@ def top_pixels(heat: np.ndarray, share: float = 0.05) -> np.ndarray:
     flat = heat.ravel()
     mask = np.zeros(flat.shape, bool)
     if flat.max() > flat.min():
-        k = max(1, int(np.ceil(share * flat.size)))
-        mask[np.argsort(-flat, kind="stable")[:k]] = True
+        mask[np.argsort(-flat, kind="stable")[:max(1, int(np.ceil(share * flat.size)))]] = True
     return mask.reshape(heat.shape)
 
 
@@ -156,6 +155,22 @@ def box_hits(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]], share: float 
     return out
 
 
+def pixels_on_boxes(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]], share: float = 0.05
+                    ) -> np.ndarray:
+    """Per sample (its map's top `share` pixels inside one of its boxes, those pixels): how
+    much of what a map shows lies on the action. Unlike `box_hits`, scattering the pixels
+    does not pay: uniform noise scores the boxes' share of the frame. A flat map shows
+    nothing and misses with all its pixels, as in `pointing_game`; (0, 0) without a box."""
+    out = np.zeros((len(heatmaps), 2), int)
+    for i, (heat, bxs) in enumerate(zip(heatmaps, boxes, strict=True)):
+        if not bxs:
+            continue
+        r, c = np.nonzero(top_pixels(heat, share))
+        out[i] = (int(_in_boxes(c + 0.5, r + 0.5, bxs, 0.0).sum()),
+                  max(1, int(np.ceil(share * heat.size))))
+    return out
+
+
 def centre_prior(n: int, shape: tuple[int, int]) -> np.ndarray:
     """N copies of a map peaked at the frame's centre (minus the distance to it): a baseline
     that knows only that a nest's action tends to be away from its walls."""
@@ -166,14 +181,14 @@ def centre_prior(n: int, shape: tuple[int, int]) -> np.ndarray:
 
 def hit_share(hits: np.ndarray, rng: np.random.Generator, resamples: int = 2000,
               level: float = 0.95) -> dict[str, float | int | None]:
-    """Share of all boxes hit (pooled over samples) with a percentile bootstrap interval over
-    samples; None where no sample has a box."""
+    """Σ hits / Σ totals of per-sample (hits, total) counts (`box_hits`, `pixels_on_boxes`)
+    with a percentile bootstrap interval over samples; None where no sample counts."""
     hits = hits[hits[:, 1] > 0]
     if not len(hits):
-        return {"share": None, "lo": None, "hi": None, "samples": 0, "boxes": 0}
+        return {"share": None, "lo": None, "hi": None, "samples": 0, "total": 0}
     draws = rng.integers(0, len(hits), (resamples, len(hits)))
     boot = hits[draws, 0].sum(1) / hits[draws, 1].sum(1)
     tail = 100 * (1 - level) / 2
     return {"share": float(hits[:, 0].sum() / hits[:, 1].sum()),
             "lo": float(np.percentile(boot, tail)), "hi": float(np.percentile(boot, 100 - tail)),
-            "samples": int(len(hits)), "boxes": int(hits[:, 1].sum())}
+            "samples": int(len(hits)), "total": int(hits[:, 1].sum())}

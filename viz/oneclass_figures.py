@@ -124,7 +124,7 @@ def gradcam_outputs(folder: Path, model: OCModel, d: AntFlowData, xs: np.ndarray
     out = {"samples": [int(d.unstable_ids[i]) for i in order],
            "peak_rc": [list(map(int, np.unravel_index(np.argmax(maps[i]), maps[i].shape)))
                        for i in order]}
-    boxes = read_boxes(d.root / "boxes.csv")
+    boxes = read_boxes(d.root / "boxes.csv", m)
     if boxes is not None:   # a simulated colony: score Grad-CAM where the seed judged by eye
         out |= score_boxes(maps, xu, d, [boxes.get(i, []) for i in d.unstable_ids],
                            model.cfg.seed)
@@ -150,11 +150,15 @@ def _stable_beside(path: Path, model: OCModel, d: AntFlowData, xs: np.ndarray,
 
 def score_boxes(maps: np.ndarray, xu: np.ndarray, d: AntFlowData, boxes: list[list],
                 seed: int, resamples: int = 2000) -> dict:
-    """How often the top 5 % of a map lands on a true duel or bite box (`gc.box_hits`), pooled
-    and per day bin, with a bootstrap interval over samples, for Grad-CAM as computed and as
-    §4.7.4 displays it (position-wise minimum over the samples subtracted) against three maps
-    that know nothing of the model: the flow magnitude, a centre prior and uniform noise (the
-    chance level). Also the older peak-only pointing game."""
+    """Where the top 5 % of a map lands against the true duel and bite boxes, pooled and per
+    day bin, each with a bootstrap interval over samples: `boxes_hit`, the share of boxes one
+    of those pixels touches (`gc.box_hits`, the pointing game as §4.7.4's displays invite it),
+    and `pixels_on_boxes`, the share of those pixels inside a box (`gc.pixels_on_boxes`, which
+    scattering cannot win; a flat map misses with all its pixels, and `flat_gradcam_maps`
+    counts Grad-CAM's). For Grad-CAM as computed and as §4.7.4 displays it (position-wise
+    minimum over the samples subtracted), against maps that know nothing of the model: the
+    flow magnitude, a centre prior and uniform noise (the chance level). Also the peak-only
+    pointing game."""
     rng = np.random.default_rng(seed)
     shape = maps.shape[1:]
     kinds = {"gradcam": maps, "gradcam_display": maps - maps.min(axis=0, keepdims=True),
@@ -162,13 +166,16 @@ def score_boxes(maps: np.ndarray, xu: np.ndarray, d: AntFlowData, boxes: list[li
              "centre_prior": gc.centre_prior(len(maps), shape),
              "random": rng.random((len(maps), *shape)).astype(np.float32)}
     bins = np.array(d.time_bin(d.unstable_ids), dtype=object)
-    table = {}
-    for name, kind_maps in kinds.items():
-        hits = gc.box_hits(kind_maps, boxes)
-        table[name] = {"all": gc.hit_share(hits, rng, resamples),
-                       "bins": {b: gc.hit_share(hits[bins == b], rng, resamples)
-                                for b in d.bins}}
-    return {"top5_box_hits": table,
+
+    def table(counts: np.ndarray) -> dict:
+        return {"all": gc.hit_share(counts, rng, resamples),
+                "bins": {b: gc.hit_share(counts[bins == b], rng, resamples) for b in d.bins}}
+
+    return {"top5": {name: {"boxes_hit": table(gc.box_hits(kind, boxes)),
+                            "pixels_on_boxes": table(gc.pixels_on_boxes(kind, boxes))}
+                     for name, kind in kinds.items()},
+            "flat_gradcam_maps": int(sum(1 for heat, b in zip(maps, boxes, strict=True)
+                                         if b and not heat.max() > heat.min())),
             "pointing_game": {"gradcam": gc.pointing_game(maps, boxes),
                               "flow_magnitude_baseline": gc.pointing_game(kinds["flow_magnitude"],
                                                                           boxes),
@@ -176,15 +183,17 @@ def score_boxes(maps: np.ndarray, xu: np.ndarray, d: AntFlowData, boxes: list[li
                               "samples_with_boxes": sum(1 for b in boxes if b)}}
 
 
-def read_boxes(path: Path) -> dict[int, list[tuple[float, float, float, float]]] | None:
+def read_boxes(path: Path, m: int) -> dict[int, list[tuple[float, float, float, float]]] | None:
     """`boxes.csv` of a simulated colony (sample_id, k, x, y, w, h in 64 x 64 sample pixels)
-    -> boxes per sample over all its sub-frames; None for data without ground truth (real)."""
+    -> boxes per sample over the flow pairs k < m a model of m pairs sees; None for data
+    without ground truth (real)."""
     if not path.exists():
         return None
     rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     boxes: dict[int, list[tuple[float, float, float, float]]] = {}
-    for sid, _k, x, y, w, h in rows:
-        boxes.setdefault(int(sid), []).append((x, y, w, h))
+    for sid, k, x, y, w, h in rows:
+        if k < m:
+            boxes.setdefault(int(sid), []).append((x, y, w, h))
     return boxes
 
 

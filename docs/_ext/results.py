@@ -257,24 +257,34 @@ def oc_runs(folder: str) -> Table:
     return rows
 
 
+def _share_ci(h: dict) -> str:
+    return "" if h["share"] is None else (
+        f"{100 * h['share']:.1f} ({100 * h['lo']:.1f} to {100 * h['hi']:.1f})")
+
+
 @source
 def gradcam_hits(folder: str) -> Table:
-    """§4.7.4 scored: the share (%) of true duel/bite boxes hit by each map's top 5 %, all
-    unstable samples and per day bin, with the bootstrap 95 % interval."""
-    data = load(f"{folder}/results.json")["gradcam"]["top5_box_hits"]  # type: ignore[index]
-    bins = sorted(next(iter(data.values()))["bins"], key=lambda b: int(re.findall(r"\d+", b)[0]))
-
-    def cell(h: dict) -> str:
-        return "" if h["share"] is None else (
-            f"{100 * h['share']:.0f} ({100 * h['lo']:.0f}-{100 * h['hi']:.0f})")
-
-    rows = [["map", "all", *bins]]
+    """§4.7.4 scored on a simulated colony: per map, the share (%) of true duel/bite boxes its
+    top 5 % touches and the share of its top 5 % on a box, all unstable samples with a box,
+    with the bootstrap 95 % interval."""
+    data = load(f"{folder}/results.json")["gradcam"]["top5"]  # type: ignore[index]
+    rows = [["map", "boxes hit (%)", "top-5 % pixels on a box (%)"]]
     for name, kind in data.items():
-        rows.append([name, cell(kind["all"]), *[cell(kind["bins"][b]) for b in bins]])
-    first = next(iter(data.values()))
-    rows.append(["boxes (samples)", f"{first['all']['boxes']} ({first['all']['samples']})",
-                 *[f"{first['bins'][b]['boxes']} ({first['bins'][b]['samples']})"
-                   for b in bins]])
+        rows.append([name, _share_ci(kind["boxes_hit"]["all"]),
+                     _share_ci(kind["pixels_on_boxes"]["all"])])
+    return rows
+
+
+@source
+def gradcam_bins(folder: str, metric: str) -> Table:
+    """One of `gradcam_hits`' measures (%) per day bin, with the samples each bin holds."""
+    data = load(f"{folder}/results.json")["gradcam"]["top5"]  # type: ignore[index]
+    first = next(iter(data.values()))[metric]["bins"]
+    bins = sorted(first, key=lambda b: int(re.findall(r"\d+", b)[0]))
+    rows = [["map", *bins]]
+    for name, kind in data.items():
+        rows.append([name, *[_share_ci(kind[metric]["bins"][b]) for b in bins]])
+    rows.append(["samples", *[str(first[b]["samples"]) for b in bins]])
     return rows
 
 
@@ -345,6 +355,21 @@ def retlo_models(folder: str) -> Table:
                          _stat(agg["mean_error_cm"], ".1f") if isinstance(agg["mean_error_cm"],
                                                                           dict)
                          else f"{agg['mean_error_cm']:.1f}", per])
+    return rows
+
+
+@source
+def retlo_calibration(folder: str) -> Table:
+    """Gaussian ReTLo models of `experiment retlo --uncertainty gaussian`: per test set, model
+    and robot (and pooled), the mean error and the share of true positions inside the 50 % and
+    90 % regions, mean ± std over seeds."""
+    data = load(f"{folder}/results.json")
+    rows = [["test set", "model", "robot", "coverage 50 %", "coverage 90 %", "NLL"]]
+    for test in data["tests"]:  # type: ignore[index]
+        for model, agg in data["results"][test["name"]].items():  # type: ignore[index]
+            for who, cal in agg.get("calibration", {}).items():
+                rows.append([test["name"], model, who, _stat(cal["coverage_50"], ".2f"),
+                             _stat(cal["coverage_90"], ".2f"), _stat(cal["nll"], ".2f")])
     return rows
 
 

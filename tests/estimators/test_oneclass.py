@@ -22,6 +22,7 @@ from viz.gradcam import (
     centre_prior,
     gradcam,
     hit_share,
+    pixels_on_boxes,
     pointing_game,
     top_pixels,
     top_share,
@@ -165,6 +166,9 @@ def test_top_five_percent_box_hits_and_their_baselines():
     centre = centre_prior(2, (64, 64))      # the top 5 % of a centre prior: a central disc
     assert box_hits(centre, [[(30, 30, 4, 4)], [(0, 0, 8, 8)]]).tolist() == [[1, 1], [0, 1]]
     assert hit_share(np.zeros((2, 2), int), np.random.default_rng(0))["share"] is None
+    on = pixels_on_boxes(heat, boxes)       # the square lies inside sample 0's first box
+    assert on.tolist() == [[205, 205], [0, 205], [0, 0]]
+    assert pixels_on_boxes(np.zeros((1, 64, 64)), [[(0, 0, 9, 9)]]).tolist() == [[0, 205]]
 
 
 def test_cli_train_evaluate_and_bad_input(tmp_path):
@@ -389,11 +393,14 @@ def test_experiment_oc_over_splits_and_seeds_resumes_from_its_reports(tmp_path):
     aucs = [results["runs"][k]["iogen"]["auc_all"] for k in sorted(keys)]
     assert results["table4_2_auc_m2"]["iogen"]["mean"] == pytest.approx(np.mean(aucs))
     assert results["table4_2_auc_m2"]["iogen"]["std"] == pytest.approx(np.std(aucs))
-    hits = results["gradcam"]["top5_box_hits"]
-    assert set(hits) == {"gradcam", "gradcam_display", "flow_magnitude", "centre_prior",
+    top5 = results["gradcam"]["top5"]
+    assert set(top5) == {"gradcam", "gradcam_display", "flow_magnitude", "centre_prior",
                          "random"}
-    assert hits["random"]["all"]["boxes"] == 2 and hits["random"]["all"]["samples"] == 2
-    assert hits["centre_prior"]["all"]["share"] == 0.5      # the 9 x 9 box misses the centre
+    hit = top5["centre_prior"]["boxes_hit"]["all"]
+    assert hit["total"] == 2 and hit["samples"] == 2
+    assert hit["share"] == 0.5                     # the 9 x 9 box misses the central disc
+    on = top5["centre_prior"]["pixels_on_boxes"]["all"]    # 205 px a sample; the 32 x 32 box
+    assert on["total"] == 410 and 0 < on["share"] < 0.5    # holds the disc's upper-left part
     assert (out / "gradcam" / "overlay_stable_unstable.png").stat().st_size > 0
     tables = (out / "tables.md").read_text()
     assert "split and seed" in tables
