@@ -40,8 +40,11 @@ def nll(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 def calibration(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> dict:
     """coverage_50, coverage_90 and mean NLL of the finite estimates among (..., 2), (..., 2, 2).
-    NaN estimates (steps out of reach) are left out; `n` says how many counted."""
-    ok = np.isfinite(mean).all(-1) & np.isfinite(cov).all((-1, -2))
+    NaN estimates (steps out of reach) and covariances not positive definite in floating point
+    are left out; `n` says how many counted."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        ok = np.isfinite(mean).all(-1) & np.isfinite(cov).all((-1, -2))
+        ok &= (cov[..., 0, 0] > 0) & (cov[..., 0, 0] * cov[..., 1, 1] - cov[..., 0, 1] ** 2 > 0)
     x, mean, cov = x[ok], mean[ok], cov[ok]
     d2 = mahalanobis2(x, mean, cov)
     out = {f"coverage_{round(100 * p)}": float(np.mean(d2 <= chi2_2dof(p))) for p in COVERAGES}

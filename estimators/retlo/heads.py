@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 from torch.distributions import MultivariateNormal
 
@@ -47,7 +48,10 @@ class PointHead:
 class GaussianHead:
     """A 2-D Gaussian per sample (see the module docstring for the parametrisation), trained on
     its negative log-likelihood. `min_log_std` keeps exp(a), exp(c) above e^-7 spacing units
-    (~0.03 mm): a floor that only guards the NLL against a collapsing variance.
+    (~0.03 mm): a floor that only guards the NLL against a collapsing variance. `max_log_std`
+    caps exp(a), exp(c) and |b| at e^7 spacing units (tens of metres): far out of its training
+    data (a chain whose estimates went astray) a network's raw outputs can overflow, and a
+    shear b far above exp(c) leaves Σ's determinant to rounding.
 
     `beta`: each sample's NLL is weighted by σ^(2β), held fixed (β-NLL, Seitzer et al. 2022),
     σ² = √det Σ. The plain NLL (β = 0) pulls the mean by Σ⁻¹(μ - y): samples it finds hard it
@@ -60,6 +64,7 @@ class GaussianHead:
     out_dim: int = 5
     uncertain: bool = True
     min_log_std: float = -7.0
+    max_log_std: float = 7.0
     beta: float = 0.5
 
     def mean(self, raw: torch.Tensor) -> torch.Tensor:
@@ -67,10 +72,12 @@ class GaussianHead:
 
     def scale_tril(self, raw: torch.Tensor) -> torch.Tensor:
         """L (..., 2, 2), lower triangular with a positive diagonal."""
-        a = raw[..., 2].clamp(min=self.min_log_std).exp()
-        c = raw[..., 4].clamp(min=self.min_log_std).exp()
+        a = raw[..., 2].clamp(self.min_log_std, self.max_log_std).exp()
+        c = raw[..., 4].clamp(self.min_log_std, self.max_log_std).exp()
+        bound = float(np.exp(self.max_log_std))
+        b = raw[..., 3].clamp(-bound, bound)
         zero = torch.zeros_like(a)
-        return torch.stack([torch.stack([a, zero], -1), torch.stack([raw[..., 3], c], -1)], -2)
+        return torch.stack([torch.stack([a, zero], -1), torch.stack([b, c], -1)], -2)
 
     def distribution(self, raw: torch.Tensor) -> MultivariateNormal:
         return MultivariateNormal(self.mean(raw), scale_tril=self.scale_tril(raw))
