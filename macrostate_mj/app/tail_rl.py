@@ -8,7 +8,7 @@ resumed run is reproducible from that save, not bit-identical to an uninterrupte
 environments restart from fresh seeds, derived from the step count).
 
 Training only: a chain break ends an episode, and the reward (minus the Head error, m, per
-step) is negative, so ending early would pay. `BreakPenalty` charges `break_penalty` m for every
+step) is negative, so ending early would pay. `training_env` charges `break_penalty` m for every
 step the broken episode did not run; evaluation reports the raw error and the breaks apart.
 The policy acts through the spacing shield (`tail_eval.shield`, `shield_spacings` × the chain's
 spacing) in training as at evaluation, so it learns what the shield lets it do.
@@ -78,7 +78,7 @@ def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: f
     from macrostate_mj.app.tail_eval import shield
     from macrostate_mj.env.explore import chain_broken
 
-    class BreakPenalty(gymnasium.Wrapper):
+    class Training(gymnasium.Wrapper):
         steps = 0
         obs: Any = None
 
@@ -100,7 +100,7 @@ def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: f
                 info = {**info, "chain_break": True}
             return obs, reward, terminated, truncated, info
 
-    return BreakPenalty(env)
+    return Training(env)
 
 
 def train(spec: PPOSpec, checkpoint: str | None, folder: Path, workers: int = 1,

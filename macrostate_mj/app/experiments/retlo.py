@@ -6,8 +6,8 @@ longer chains without retraining). With `folds` (§2.6.2's cross-validation), th
 and the validation file are pooled in that order and cut into contiguous blocks: seed i trains
 on the other blocks less their last 15 % (which selects its checkpoint) and is tested on block
 i mod folds, so no model is scored on an instance it trained or selected on. The 2X heuristic
-has no seed. results.json holds only
-deterministic numbers (timings go to the manifest), so the same command gives the same file.
+has no seed. results.json holds only deterministic numbers (timings go to the manifest), so
+the same command gives the same file.
 
 This module composes: reading, training and testing are `estimators.retlo.api`'s, the figures
 `viz.retlo_figures`'s, the video over the lab camera's view `viz.lab_backdrop`'s.
