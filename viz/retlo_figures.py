@@ -174,6 +174,8 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
                     _ellipse(frame, (ex - lo[0], ey - lo[1]), est_cov_px[inst, step, r], colour)
                 cv2.circle(frame, c, int(size * 0.3), colour, -1, cv2.LINE_AA)
                 cv2.circle(frame, c, int(size * 0.3), (0, 0, 0), 1, cv2.LINE_AA)
+                if np.isnan(eo):                # an estimator without headings
+                    continue
                 a = np.deg2rad(eo)
                 tip = (int(round(c[0] + np.cos(a) * size * 0.5)),
                        int(round(c[1] - np.sin(a) * size * 0.5)))

@@ -103,11 +103,12 @@ def make_env(checkpoint: str | None, time_limit: float) -> Any:
 
 
 def run_episode(make_tail: Callable[[Any], Tail], seed: int, checkpoint: str | None,
-                time_limit: float) -> dict:
+                time_limit: float, record: bool = False) -> dict:
     """One episode from `seed` with the Tail `make_tail(env)` makes: the estimator's mean Head
     error (m) over the steps with an estimate, its mean error over every robot it estimates
     (F2 .. Head), the mean neighbour spacing (m), and whether a chain break (or a fault) ended
-    it."""
+    it. With `record`, also "truth" (log steps, robots, 3) and "estimate" (log steps, robots,
+    2), Tail first, for a video."""
     from macrostate_mj.env.explore import chain_broken
 
     env = make_env(checkpoint, time_limit)
@@ -115,27 +116,29 @@ def run_episode(make_tail: Callable[[Any], Tail], seed: int, checkpoint: str | N
     tail = make_tail(env)
     task = env.unwrapped.task
     sim = task.sim
-    truths, spacings, errors, ret, steps = [sim.poses[::-1, :2].copy()], [], [], 0.0, 0
+    poses, spacings, errors, ret, steps = [sim.poses[::-1].copy()], [], [], 0.0, 0
     info: dict = {}
     terminated = truncated = False
     while not (terminated or truncated):
         obs, reward, terminated, truncated, info = env.step(tail.act(obs))
         ret += float(reward)
         steps += 1
-        if len(task.truth) > len(truths):           # a log tick: the estimator stepped
-            truths.append(sim.poses[::-1, :2].copy())
+        if len(task.truth) > len(poses):            # a log tick: the estimator stepped
+            poses.append(sim.poses[::-1].copy())
         if info["head_error_m"] is not None:
             errors.append(info["head_error_m"])
         spacings.append(float(np.mean(np.linalg.norm(np.diff(sim.poses[:, :2], axis=0),
                                                      axis=1))))
     broken = bool(terminated and info.get("fault") is None and chain_broken(sim))
-    est = np.asarray(task.localizer.pos[1:len(truths), 2:])
-    diff = np.linalg.norm(est - np.asarray(truths)[1:, 2:], axis=-1)
+    truth = np.asarray(poses)
+    est = np.array(task.localizer.pos[:len(truth)])
+    diff = np.linalg.norm(est[1:, 2:] - truth[1:, 2:, :2], axis=-1)
     env.close()
     return {"seed": seed, "head_error_m": float(np.mean(errors)) if errors else None,
             "all_error_m": float(np.nanmean(diff)) if np.isfinite(diff).any() else None,
             "spacing_m": float(np.mean(spacings)), "broken": broken,
-            "fault": info.get("fault"), "steps": steps, "return": ret}
+            "fault": info.get("fault"), "steps": steps, "return": ret,
+            **({"truth": truth, "estimate": est} if record else {})}
 
 
 def tune_chain_offset(grid: Sequence[tuple[float, float]], seeds: Sequence[int],

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import pytest
 from clitools import assert_clean_error, cli
 
@@ -24,6 +25,10 @@ def test_quick_runs_end_to_end_then_reuses_its_policy(tmp_path):
     assert table["passive"]["vs_passive"]["mean_difference"] == 0.0
     assert {e["seed"] for e in results["episodes"]} == {0, 1}          # held out from training
     assert (out / "learning_curve.png").stat().st_size > 0
+    for policy in table:                # seed 0 of each Tail, with the estimates drawn
+        video = cv2.VideoCapture(str(out / "episodes" / f"{policy}_seed0.mp4"))
+        assert int(video.get(cv2.CAP_PROP_FRAME_COUNT)) > 10
+        video.release()
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "finished" and manifest["steps_run_now"] == 512
 

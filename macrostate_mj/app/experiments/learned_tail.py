@@ -31,7 +31,7 @@ from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 
 POLICIES = ("passive", "random", "chain_offset", "learned")
-PRODUCTS = ["results.json", "learning_curve.png"]
+PRODUCTS = ["results.json", "learning_curve.png", "episodes"]
 TUNE_SEEDS = 500          # the scripted Tail's tuning seeds start here (evaluation: 0..seeds-1)
 GRID = tuple((a, b) for a in (-0.1, 0.0, 0.1) for b in (-0.1, 0.0, 0.1))    # (along, left) m
 CHECKPOINTS = "checkpoints"
@@ -129,7 +129,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
             tuned = tail_eval.tune_chain_offset(
                 GRID, range(TUNE_SEEDS, TUNE_SEEDS + cfg.tune_seeds), cfg.checkpoint,
                 cfg.time_limit)
-    episodes = _evaluate(cfg, model, tuned, progress)
+    episodes = _evaluate(cfg, model, tuned, progress, out / PRODUCTS[2])
     by = {p: [e for e in episodes if e["policy"] == p] for p in cfg.policies}
     table = {p: _summary(eps, by["passive"]) for p, eps in by.items()}
     results = {"config": asdict(cfg), "ppo": asdict(spec), "training": training,
@@ -144,9 +144,12 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     return [*lines, f"PPO: {training['steps']} steps ({training['steps_run_now']} run now)"]
 
 
-def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
-              ) -> list[dict]:
+def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress,
+              videos: Path) -> list[dict]:
+    """Every Tail on every evaluation seed; seed 0's episode of each also as a video with the
+    estimates drawn (`videos/<policy>_seed0.mp4`)."""
     from macrostate_mj.app import tail_eval
+    from viz.learned_tail_figures import write_episode_video
 
     def tail_for(policy: str, seed: int) -> Callable[[Any], tail_eval.Tail]:
         if policy == "passive":
@@ -166,7 +169,11 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
         with progress.stage(f"episodes_{policy}"):
             for seed in range(cfg.seeds):
                 ep = tail_eval.run_episode(tail_for(policy, seed), seed, cfg.checkpoint,
-                                           cfg.time_limit)
+                                           cfg.time_limit, record=seed == 0)
+                if seed == 0:
+                    videos.mkdir(exist_ok=True)
+                    write_episode_video(videos / f"{policy}_seed0.mp4", ep.pop("truth"),
+                                        ep.pop("estimate"))
                 episodes.append({"policy": policy, **ep})
                 done += 1
                 progress.report("episodes", done, len(cfg.policies) * cfg.seeds)
