@@ -10,7 +10,10 @@ behind `LocalizeTail-v0` from a checkpoint.
 Action: the Tail's destination offset, as in `explore` (the control SRS perturbs); the Head's
 planner is untouched, so the Tail cannot make the task easy by steering the Head. Observation:
 the Tail's and its neighbour's poses, and `estimate`: the latest Head estimate relative to the
-Tail (world axes, m) and 1, or zeros before the first. Reward: minus the distance (m) between
+Tail (world axes, m) and 1, or zeros before the first; with an estimator that gives
+uncertainty (a `Localizer` whose `head_cov` is not None), also `estimate_cov`: that estimate's
+covariance (Σxx, Σxy, Σyy, m²), zeros before the first estimate and where the estimate is the
+shared truth. Reward: minus the distance (m) between
 the estimator's latest Head estimate and where the Head truly was at that estimate's step, on
 every step with an estimate; 0 before the first (no shaping). The episode ends (discount 0)
 when the chain breaks or the physics faults, as in `explore`.
@@ -44,6 +47,11 @@ class Localizer(Protocol):
     @property
     def head(self) -> tuple[int, np.ndarray]:
         """(log step, position) of the latest Head estimate."""
+
+    @property
+    def head_cov(self) -> np.ndarray | None:
+        """Covariance (2, 2) of `head`'s position, NaN where it is the truth; None for an
+        estimator without uncertainty."""
 
 
 class LocalizeTask(TailTask):
@@ -100,7 +108,12 @@ class LocalizeTask(TailTask):
     def extra_observations(self) -> dict[str, np.ndarray]:
         step, xy = self.localizer.head
         seen = step > 0 and np.all(np.isfinite(xy))
-        return {"estimate": np.append(xy - self._tail[-1][:2], 1.0) if seen else np.zeros(3)}
+        out = {"estimate": np.append(xy - self._tail[-1][:2], 1.0) if seen else np.zeros(3)}
+        cov = getattr(self.localizer, "head_cov", None)
+        if cov is not None:
+            flat = np.array([cov[0, 0], cov[0, 1], cov[1, 1]])
+            out["estimate_cov"] = flat if seen and np.all(np.isfinite(flat)) else np.zeros(3)
+        return out
 
     def get_reward(self, physics: dm_mujoco.Physics) -> float:
         error = self.head_error()

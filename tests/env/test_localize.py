@@ -70,3 +70,28 @@ def test_a_trained_checkpoint_is_the_estimator_and_a_bad_one_is_refused(tmp_path
         gymnasium.make(ID, time_limit=-1.0)
     with pytest.raises(gymnasium.error.InvalidAction):
         env.step(np.array([5.0, 0.0], np.float32))
+    assert "estimate_cov" not in env.observation_space.spaces     # a point model: no covariance
+
+
+def test_an_uncertain_estimator_shows_its_covariance(tmp_path):
+    """A Gaussian checkpoint adds `estimate_cov` (Σxx, Σxy, Σyy of the Head estimate) to the
+    observation: zeros before the first estimate, a covariance after."""
+    from gymnasium.utils.env_checker import check_env
+
+    from estimators.retlo.heads import GAUSSIAN
+    from estimators.retlo.models import ModelConfig
+    from estimators.retlo.synthetic import synthetic_chains
+    from estimators.retlo.train import TrainConfig, save_checkpoint, train
+
+    cfg = TrainConfig(epochs=1, model=ModelConfig(kind="fc", k=8, d=8))
+    net, info = train([synthetic_chains(8, 3, 1)], synthetic_chains(4, 3, 2), cfg,
+                      progress=False, head=GAUSSIAN)
+    path = save_checkpoint(tmp_path / "gauss.pt", net, 3.0, cfg, info)
+    env = gymnasium.make(ID, checkpoint=str(path), time_limit=15.0)
+    check_env(env.unwrapped, skip_render_check=True)
+    obs, _ = env.reset(seed=3)
+    assert np.array_equal(obs["estimate_cov"], np.zeros(3))
+    for _ in range(30):
+        obs, *_ = env.step(np.zeros(2, np.float32))
+    sxx, sxy, syy = obs["estimate_cov"]
+    assert sxx > 0 and syy > 0 and sxx * syy > sxy ** 2
