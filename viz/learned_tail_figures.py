@@ -37,12 +37,14 @@ def plot_learning_curve(curve: list[dict], passive_return: float, path: Path) ->
     plt.close(fig)
 
 
-def write_episode_video(path: Path, truth: np.ndarray, est: np.ndarray) -> Path:
+def write_episode_video(path: Path, truth: np.ndarray, est: np.ndarray,
+                        estimator: str) -> Path:
     """One Tail's episode as Fig 2.9 draws chains (`viz.retlo_figures.write_video`): every
     robot's true pose and the frozen estimator's estimates, at each log step.
 
     truth: (steps, robots, 3) m and rad, Tail first; est: (steps, robots, 2) m, Tail first,
-    NaN where nothing is estimated (the estimator gives no headings: no arrows)."""
+    NaN where nothing is estimated (the estimator gives no headings: no arrows); `estimator`
+    names it in the legend."""
     from estimators.retlo.files import world_to_pixels
     from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
     from viz.retlo_figures import write_video
@@ -50,4 +52,4 @@ def write_episode_video(path: Path, truth: np.ndarray, est: np.ndarray) -> Path:
     est3 = np.concatenate([est, np.full((*est.shape[:2], 1), np.nan)], axis=-1)
     true_px = world_to_pixels(truth[None, :, ::-1])        # file order: Head first
     est_px = world_to_pixels(est3[None, :, ::-1])
-    return write_video(path, true_px, est_px, DEFAULT_PX_PER_CM)
+    return write_video(path, true_px, est_px, DEFAULT_PX_PER_CM, estimator=estimator)

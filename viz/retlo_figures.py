@@ -91,7 +91,7 @@ def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray
                 backdrop: Callable[[np.ndarray], np.ndarray] | None = None,
                 frame_size: tuple[int, int] | None = None,
                 colours: list[tuple[int, int, int]] | None = None,
-                est_cov_px: np.ndarray | None = None) -> Path:
+                est_cov_px: np.ndarray | None = None, estimator: str = "ReTLo") -> Path:
     """Fig 2.9 as an MP4: truth as triangles, estimates as circles with heading arrows, robot
     ids and a legend; with `est_cov_px` (instances, steps, robots, 2, 2; pixels², y down)
     each estimate's 90 % ellipse too; over `backdrop(true pose px (robots, 3)) -> BGR camera
@@ -109,7 +109,7 @@ def write_video(path: str | os.PathLike, true_px: np.ndarray, est_px: np.ndarray
     w, h = (int(v) - int(v) % 2 for v in hi - lo)
     with Mp4Writer(path, fps, (w, h)) as writer:
         _draw(writer, true_px, est_px, lo, (w, h), size, backdrop,
-              colours or _colours(true_px.shape[2]), est_cov_px)
+              colours or _colours(true_px.shape[2]), est_cov_px, estimator)
     return Path(path)
 
 
@@ -142,7 +142,8 @@ def _ellipse(frame: np.ndarray, centre: tuple[float, float], cov: np.ndarray,
 
 def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
           wh: tuple[int, int], size: float, backdrop,
-          colours: list[tuple[int, int, int]], est_cov_px: np.ndarray | None = None) -> None:
+          colours: list[tuple[int, int, int]], est_cov_px: np.ndarray | None = None,
+          estimator: str = "ReTLo") -> None:
     """Write every frame of every instance to an open `Mp4Writer`."""
     import cv2
 
@@ -150,6 +151,8 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
     from macrostate_mj.formats.thymioloc import robot_names
 
     names = robot_names(true_px.shape[2])
+    legend = (f"disc + arrow: {estimator} estimate and heading"
+              if np.isfinite(est_px[..., 2]).any() else f"disc: {estimator} estimate")
     for inst in range(true_px.shape[0]):
         for step in range(true_px.shape[1]):
             frame = np.full((wh[1], wh[0], 3), 245, np.uint8)
@@ -182,7 +185,7 @@ def _draw(writer, true_px: np.ndarray, est_px: np.ndarray, lo: np.ndarray,
                 cv2.arrowedLine(frame, c, tip, (0, 0, 0), 2, cv2.LINE_AA, tipLength=0.35)
             known = "true history" if np.all(np.isnan(est_px[inst, step])) else "estimated"
             label(frame, f"instance {inst + 1}  t = {step / 2:4.1f} s  ({known})", (8, 20), 0.5)
-            label(frame, "triangle: truth   disc + arrow: ReTLo estimate and heading"
+            label(frame, f"triangle: truth   {legend}"
                   + ("   ring: its 90 % region" if est_cov_px is not None else ""),
                   (8, wh[1] - 10), 0.4)
             writer.write_bgr(frame)

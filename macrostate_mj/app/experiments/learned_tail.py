@@ -173,7 +173,8 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
                 if seed == 0:
                     videos.mkdir(exist_ok=True)
                     write_episode_video(videos / f"{policy}_seed0.mp4", ep.pop("truth"),
-                                        ep.pop("estimate"))
+                                        ep.pop("estimate"), "2X heuristic"
+                                        if cfg.checkpoint is None else "ReTLo")
                 episodes.append({"policy": policy, **ep})
                 done += 1
                 progress.report("episodes", done, len(cfg.policies) * cfg.seeds)
