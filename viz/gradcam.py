@@ -141,34 +141,26 @@ def top_pixels(heat: np.ndarray, share: float = 0.05) -> np.ndarray:
     return mask.reshape(heat.shape)
 
 
-def box_hits(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]], share: float = 0.05
-             ) -> np.ndarray:
-    """Per sample (boxes hit by its map's top `share` pixels, boxes): a box is hit when one
-    of those pixels' centres lies inside it (the pointing game of §4.7.4's displays, which
-    colour a map's top 5 %). N × 2 ints, (0, 0) for a sample without a box."""
-    out = np.zeros((len(heatmaps), 2), int)
+def box_counts(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]], share: float = 0.05
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Where each map's top `share` pixels lie against its sample's boxes, N × 2 ints per
+    measure, (0, 0) for a sample without a box:
+
+    - boxes hit: (boxes one of those pixels' centres lies in, boxes), the pointing game of
+      §4.7.4's displays, which colour a map's top 5 %;
+    - pixels on boxes: (those pixels inside a box, those pixels), how much of what a map shows
+      lies on the action. Scattering the pixels does not pay here: uniform noise scores the
+      boxes' share of the frame. A flat map shows nothing and misses with all its pixels, as
+      in `pointing_game`."""
+    hit, on = np.zeros((len(heatmaps), 2), int), np.zeros((len(heatmaps), 2), int)
     for i, (heat, bxs) in enumerate(zip(heatmaps, boxes, strict=True)):
         if not bxs:
             continue
         r, c = np.nonzero(top_pixels(heat, share))
-        out[i] = sum(bool(_in_boxes(c + 0.5, r + 0.5, [b], 0.0).any()) for b in bxs), len(bxs)
-    return out
-
-
-def pixels_on_boxes(heatmaps: np.ndarray, boxes: Sequence[Sequence[Box]], share: float = 0.05
-                    ) -> np.ndarray:
-    """Per sample (its map's top `share` pixels inside one of its boxes, those pixels): how
-    much of what a map shows lies on the action. Unlike `box_hits`, scattering the pixels
-    does not pay: uniform noise scores the boxes' share of the frame. A flat map shows
-    nothing and misses with all its pixels, as in `pointing_game`; (0, 0) without a box."""
-    out = np.zeros((len(heatmaps), 2), int)
-    for i, (heat, bxs) in enumerate(zip(heatmaps, boxes, strict=True)):
-        if not bxs:
-            continue
-        r, c = np.nonzero(top_pixels(heat, share))
-        out[i] = (int(_in_boxes(c + 0.5, r + 0.5, bxs, 0.0).sum()),
-                  max(1, int(np.ceil(share * heat.size))))
-    return out
+        hit[i] = sum(bool(_in_boxes(c + 0.5, r + 0.5, [b], 0.0).any()) for b in bxs), len(bxs)
+        on[i] = (int(_in_boxes(c + 0.5, r + 0.5, bxs, 0.0).sum()),
+                 max(1, int(np.ceil(share * heat.size))))
+    return hit, on
 
 
 def centre_prior(n: int, shape: tuple[int, int]) -> np.ndarray:
@@ -181,7 +173,7 @@ def centre_prior(n: int, shape: tuple[int, int]) -> np.ndarray:
 
 def hit_share(hits: np.ndarray, rng: np.random.Generator, resamples: int = 2000,
               level: float = 0.95) -> dict[str, float | int | None]:
-    """Σ hits / Σ totals of per-sample (hits, total) counts (`box_hits`, `pixels_on_boxes`)
+    """Σ hits / Σ totals of per-sample (hits, total) counts (either of `box_counts`)
     with a percentile bootstrap interval over samples; None where no sample counts."""
     hits = hits[hits[:, 1] > 0]
     if not len(hits):

@@ -151,11 +151,11 @@ def _stable_beside(path: Path, model: OCModel, d: AntFlowData, xs: np.ndarray,
 def score_boxes(maps: np.ndarray, xu: np.ndarray, d: AntFlowData, boxes: list[list],
                 seed: int, resamples: int = 2000) -> dict:
     """Where the top 5 % of a map lands against the true duel and bite boxes, pooled and per
-    day bin, each with a bootstrap interval over samples: `boxes_hit`, the share of boxes one
-    of those pixels touches (`gc.box_hits`, the pointing game as §4.7.4's displays invite it),
-    and `pixels_on_boxes`, the share of those pixels inside a box (`gc.pixels_on_boxes`, which
-    scattering cannot win; a flat map misses with all its pixels, and `flat_gradcam_maps`
-    counts Grad-CAM's). For Grad-CAM as computed and as §4.7.4 displays it (position-wise
+    day bin, each with a bootstrap interval over samples (`gc.box_counts`): `boxes_hit`, the
+    share of boxes one of those pixels touches (the pointing game as §4.7.4's displays invite
+    it), and `pixels_on_boxes`, the share of those pixels inside a box (which scattering
+    cannot win; a flat map misses with all its pixels, and `flat_gradcam_maps` counts
+    Grad-CAM's). For Grad-CAM as computed and as §4.7.4 displays it (position-wise
     minimum over the samples subtracted), against maps that know nothing of the model: the
     flow magnitude, a centre prior and uniform noise (the chance level). Also the peak-only
     pointing game."""
@@ -171,9 +171,11 @@ def score_boxes(maps: np.ndarray, xu: np.ndarray, d: AntFlowData, boxes: list[li
         return {"all": gc.hit_share(counts, rng, resamples),
                 "bins": {b: gc.hit_share(counts[bins == b], rng, resamples) for b in d.bins}}
 
-    return {"top5": {name: {"boxes_hit": table(gc.box_hits(kind, boxes)),
-                            "pixels_on_boxes": table(gc.pixels_on_boxes(kind, boxes))}
-                     for name, kind in kinds.items()},
+    top5 = {}
+    for name, kind in kinds.items():
+        hit, on = gc.box_counts(kind, boxes)
+        top5[name] = {"boxes_hit": table(hit), "pixels_on_boxes": table(on)}
+    return {"top5": top5,
             "flat_gradcam_maps": int(sum(1 for heat, b in zip(maps, boxes, strict=True)
                                          if b and not heat.max() > heat.min())),
             "pointing_game": {"gradcam": gc.pointing_game(maps, boxes),

@@ -361,8 +361,8 @@ def retlo_models(folder: str) -> Table:
 @source
 def retlo_calibration(folder: str) -> Table:
     """Gaussian ReTLo models of `experiment retlo --uncertainty gaussian`: per test set, model
-    and robot (and pooled), the mean error and the share of true positions inside the 50 % and
-    90 % regions, mean ± std over seeds."""
+    and robot (and pooled), the share of true positions inside the 50 % and 90 % regions and
+    the NLL, mean ± std over seeds."""
     data = load(f"{folder}/results.json")
     rows = [["test set", "model", "robot", "coverage 50 %", "coverage 90 %", "NLL"]]
     for test in data["tests"]:  # type: ignore[index]

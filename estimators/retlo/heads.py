@@ -15,9 +15,9 @@ error runs mostly along the chain's direction).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 from torch.distributions import MultivariateNormal
 
@@ -74,7 +74,7 @@ class GaussianHead:
         """L (..., 2, 2), lower triangular with a positive diagonal."""
         a = raw[..., 2].clamp(self.min_log_std, self.max_log_std).exp()
         c = raw[..., 4].clamp(self.min_log_std, self.max_log_std).exp()
-        bound = float(np.exp(self.max_log_std))
+        bound = math.exp(self.max_log_std)
         b = raw[..., 3].clamp(-bound, bound)
         zero = torch.zeros_like(a)
         return torch.stack([torch.stack([a, zero], -1), torch.stack([b, c], -1)], -2)

@@ -84,6 +84,11 @@ def shield(obs: dict[str, np.ndarray], action: np.ndarray, limit_m: float | None
     return np.zeros_like(action) if gap > limit_m else action
 
 
+def shield_limit(env: Any, spacings: float | None) -> float | None:
+    """The shield's gap limit (m): `spacings` × the env's chain spacing; None: no shield."""
+    return None if spacings is None else spacings * env.unwrapped.task.sim.cfg.spacing
+
+
 class Learned:
     """A stable-baselines3 policy, deterministic at evaluation, behind its spacing shield."""
 

@@ -75,7 +75,7 @@ def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: f
     extra)."""
     import gymnasium
 
-    from macrostate_mj.app.tail_eval import shield
+    from macrostate_mj.app.tail_eval import shield, shield_limit
     from macrostate_mj.env.explore import chain_broken
 
     class Training(gymnasium.Wrapper):
@@ -89,9 +89,8 @@ def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: f
 
         def step(self, action: Any) -> tuple:
             sim = self.env.unwrapped.task.sim
-            limit = None if shield_spacings is None else shield_spacings * sim.cfg.spacing
             obs, reward, terminated, truncated, info = self.env.step(
-                shield(self.obs, np.asarray(action), limit))
+                shield(self.obs, np.asarray(action), shield_limit(self.env, shield_spacings)))
             self.obs = obs
             self.steps += 1
             if terminated and info.get("fault") is None and chain_broken(sim):

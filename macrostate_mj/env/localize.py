@@ -109,7 +109,7 @@ class LocalizeTask(TailTask):
         step, xy = self.localizer.head
         seen = step > 0 and np.all(np.isfinite(xy))
         out = {"estimate": np.append(xy - self._tail[-1][:2], 1.0) if seen else np.zeros(3)}
-        cov = getattr(self.localizer, "head_cov", None)
+        cov = self.localizer.head_cov
         if cov is not None:
             flat = np.array([cov[0, 0], cov[0, 1], cov[1, 1]])
             out["estimate_cov"] = flat if seen and np.all(np.isfinite(flat)) else np.zeros(3)

@@ -17,12 +17,11 @@ from estimators.oneclass.metrics import auc_report, roc_auc
 from estimators.oneclass.train import train_classifier
 from macrostate_mj.core.errors import UserError
 from viz.gradcam import (
-    box_hits,
+    box_counts,
     box_share,
     centre_prior,
     gradcam,
     hit_share,
-    pixels_on_boxes,
     pointing_game,
     top_pixels,
     top_share,
@@ -157,18 +156,18 @@ def test_top_five_percent_box_hits_and_their_baselines():
     heat[0, 30:45, 30:45] = 1.0             # 225 px >= the 205 kept: all inside (30..45)
     heat[1, 0:15, 0:15] = 1.0               # in the corner, away from its box
     boxes = [[(28, 28, 20, 20), (0, 50, 5, 5)], [(40, 40, 10, 10)], []]
-    hits = box_hits(heat, boxes)            # sample 2 has no box
+    hits, on = box_counts(heat, boxes)      # sample 2 has no box
     assert hits.tolist() == [[1, 2], [0, 1], [0, 0]]
     assert top_pixels(heat[0]).sum() == 205 and not top_pixels(np.zeros((64, 64))).any()
     share = hit_share(hits, np.random.default_rng(0), resamples=200)
     assert share["share"] == pytest.approx(1 / 3) and share["samples"] == 2
     assert share["lo"] <= share["share"] <= share["hi"]
     centre = centre_prior(2, (64, 64))      # the top 5 % of a centre prior: a central disc
-    assert box_hits(centre, [[(30, 30, 4, 4)], [(0, 0, 8, 8)]]).tolist() == [[1, 1], [0, 1]]
+    assert box_counts(centre, [[(30, 30, 4, 4)], [(0, 0, 8, 8)]])[0].tolist() == [[1, 1], [0, 1]]
     assert hit_share(np.zeros((2, 2), int), np.random.default_rng(0))["share"] is None
-    on = pixels_on_boxes(heat, boxes)       # the square lies inside sample 0's first box
+    # pixels on boxes: the square lies inside sample 0's first box
     assert on.tolist() == [[205, 205], [0, 205], [0, 0]]
-    assert pixels_on_boxes(np.zeros((1, 64, 64)), [[(0, 0, 9, 9)]]).tolist() == [[0, 205]]
+    assert box_counts(np.zeros((1, 64, 64)), [[(0, 0, 9, 9)]])[1].tolist() == [[0, 205]]
 
 
 def test_cli_train_evaluate_and_bad_input(tmp_path):

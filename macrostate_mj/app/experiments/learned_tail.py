@@ -161,8 +161,7 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
         if policy == "chain_offset" and tuned is not None:
             return lambda env: tail_eval.ChainOffset(tuned["along"], tuned["left"])
         spacings = cfg.ppo().shield_spacings
-        return lambda env: tail_eval.Learned(
-            model, None if spacings is None else spacings * env.unwrapped.task.sim.cfg.spacing)
+        return lambda env: tail_eval.Learned(model, tail_eval.shield_limit(env, spacings))
 
     episodes, done = [], 0
     for policy in cfg.policies:
