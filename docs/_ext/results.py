@@ -362,15 +362,21 @@ def retlo_models(folder: str) -> Table:
 def retlo_calibration(folder: str) -> Table:
     """Gaussian ReTLo models of `experiment retlo --uncertainty gaussian`: per test set, model
     and robot (and pooled), the share of true positions inside the 50 % and 90 % regions and
-    the NLL, mean ± std over seeds."""
+    the NLL, mean ± std over seeds; where the models carry fitted region radii, the coverage
+    of the plain Gaussian's χ² regions beside."""
     data = load(f"{folder}/results.json")
-    rows = [["test set", "model", "robot", "coverage 50 %", "coverage 90 %", "NLL"]]
+    head = ["test set", "model", "robot", "coverage 50 %", "coverage 90 %"]
+    rows: Table = []
     for test in data["tests"]:  # type: ignore[index]
         for model, agg in data["results"][test["name"]].items():  # type: ignore[index]
             for who, cal in agg.get("calibration", {}).items():
+                plain = [_stat(cal[k], ".2f") for k in ("gaussian_coverage_50",
+                                                        "gaussian_coverage_90") if k in cal]
                 rows.append([test["name"], model, who, _stat(cal["coverage_50"], ".2f"),
-                             _stat(cal["coverage_90"], ".2f"), _stat(cal["nll"], ".2f")])
-    return rows
+                             _stat(cal["coverage_90"], ".2f"), *plain, _stat(cal["nll"], ".2f")])
+    fitted = bool(rows) and len(rows[0]) > 6
+    return [head + (["Gaussian χ² 50 %", "Gaussian χ² 90 %"] if fitted else []) + ["NLL"],
+            *rows]
 
 
 @source

@@ -11,6 +11,7 @@ import numpy as np
 
 from estimators.retlo.chain import Module, predict_chain
 from estimators.retlo.files import read_world
+from estimators.retlo.gaussian import GAUSSIAN_REGIONS
 from estimators.retlo.heads import POINT, Head
 from estimators.retlo.models import RetloNet
 from estimators.retlo.propagate import predict_chain_gaussian, require_uncertain
@@ -76,7 +77,8 @@ def report(module: Module, world: np.ndarray, est: np.ndarray, cov: np.ndarray |
     out = chain_report(est, world, module.history)
     if cov is None:
         return out
-    return {**out, "calibration": calibration_report(est, cov, world, module.history),
+    regions = getattr(module, "regions", GAUSSIAN_REGIONS)
+    return {**out, "calibration": calibration_report(est, cov, world, module.history, regions),
             "particles": particles if world.shape[2] > 3 else 1, "seed": seed}
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from estimators.retlo.chain import Features, Module
 from estimators.retlo.frames import FrameEstimate, Window
-from estimators.retlo.gaussian import circular_mean, moment_match
+from estimators.retlo.gaussian import GAUSSIAN_REGIONS, circular_mean, moment_match
 from macrostate_mj.core.errors import UserError
 
 
@@ -25,6 +25,7 @@ class GaussianEnsemble:
     """Members' Gaussians, mixed and moment-matched (see the module docstring)."""
 
     uncertain = True
+    regions = GAUSSIAN_REGIONS   # members' radii fit their own Gaussians, not the mixture's
 
     def __init__(self, members: Sequence[Module]) -> None:
         if len(members) < 2:

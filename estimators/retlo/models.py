@@ -21,6 +21,7 @@ from torch import nn
 from estimators.retlo import CM_PER_M, MODEL_KINDS
 from estimators.retlo.chain import Features
 from estimators.retlo.frames import FrameEstimate, Window, history_features
+from estimators.retlo.gaussian import GAUSSIAN_REGIONS, Regions
 from estimators.retlo.heads import POINT, Head
 from macrostate_mj.core.errors import UserError
 
@@ -60,6 +61,7 @@ class RetloNet(nn.Module):
         self.cfg = cfg
         self.head = head
         self.cov_scale = 1.0   # Σ's factor fitted on validation chains (`train.recalibrate`)
+        self.regions = GAUSSIAN_REGIONS   # its p-regions' radii, fitted there too
         self.register_buffer("pos_scale", torch.tensor(float(pos_scale)))
         n_ang = 2 if cfg.cos_sin else 1
         self.f_obs = nn.Sequential(nn.Linear(4, cfg.k), nn.ReLU())
@@ -126,6 +128,11 @@ class TorchPredictor:
     def uncertain(self) -> bool:
         """Whether its estimates carry a covariance (`FrameEstimate.head_cov`)."""
         return self.net.head.uncertain
+
+    @property
+    def regions(self) -> Regions:
+        """The radii of its p-regions (`gaussian.Regions`)."""
+        return self.net.regions
 
     @torch.no_grad()
     def estimate(self, x: Features) -> FrameEstimate:

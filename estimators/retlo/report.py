@@ -14,7 +14,7 @@ import numpy as np
 from estimators.retlo import CM_PER_M
 from estimators.retlo.chain import Module, first_estimate, predict_chain, true_windows
 from estimators.retlo.frames import decode
-from estimators.retlo.gaussian import calibration
+from estimators.retlo.gaussian import GAUSSIAN_REGIONS, Regions, calibration
 from macrostate_mj.formats.thymioloc import STEP_S, robot_names
 
 
@@ -69,19 +69,19 @@ def chain_report(est: np.ndarray, world: np.ndarray, history: int) -> dict:
     }
 
 
-def calibration_report(est: np.ndarray, cov: np.ndarray, world: np.ndarray, history: int
-                       ) -> dict:
+def calibration_report(est: np.ndarray, cov: np.ndarray, world: np.ndarray, history: int,
+                       regions: Regions = GAUSSIAN_REGIONS) -> dict:
     """Calibration (`gaussian.calibration`, positions in cm) of Gaussian estimates (est, cov in
     `propagate.predict_chain_gaussian`'s layout) of every robot the Tail cannot see, per robot
-    (report names) and pooled."""
+    (report names) and pooled, of the model's `regions`."""
     first = first_estimate(history)
     names = report_names(world.shape[2])
     x = CM_PER_M * world[:, first:, ::-1, :2][:, :, 2:]
     mean = CM_PER_M * est[:, first:, ::-1, :2][:, :, 2:]
     cov_cm = CM_PER_M ** 2 * cov[:, first:, ::-1][:, :, 2:]
-    per = {names[j + 2]: calibration(x[:, :, j], mean[:, :, j], cov_cm[:, :, j])
+    per = {names[j + 2]: calibration(x[:, :, j], mean[:, :, j], cov_cm[:, :, j], regions)
            for j in range(x.shape[2])}
-    return {**per, "pooled": calibration(x, mean, cov_cm), "nll_unit": "cm"}
+    return {**per, "pooled": calibration(x, mean, cov_cm, regions), "nll_unit": "cm"}
 
 
 def chain_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:

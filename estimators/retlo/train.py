@@ -29,7 +29,7 @@ from estimators.retlo.chain import (
     window,
 )
 from estimators.retlo.frames import Window, module_targets
-from estimators.retlo.gaussian import mahalanobis2
+from estimators.retlo.gaussian import COVERAGES, Regions, mahalanobis2
 from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
 from estimators.retlo.propagate import predict_chain_gaussian
@@ -299,25 +299,32 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
             "batches": batches, "interrupted": interrupted,
             "curve": curve}
     if head.uncertain:
-        info["cov_scale"] = net.cov_scale = recalibrate(net, val_world, cfg.seed)
+        net.cov_scale, net.regions = recalibrate(net, val_world, cfg.seed)
+        info["cov_scale"] = net.cov_scale
+        info["region_d2"] = {f"{p:.0%}": net.regions.radius2(p) for p in COVERAGES}
     return net, info
 
 
-def recalibrate(net: RetloNet, val_world: np.ndarray, seed: int) -> float:
+def recalibrate(net: RetloNet, val_world: np.ndarray, seed: int) -> tuple[float, Regions]:
     """The factor s² on every covariance that maximises the likelihood of the validation
-    chains, closed loop as at test time: s² = mean Mahalanobis² / 2 (2-D). Why: Σ is fitted
+    chains, closed loop as at test time: s² = mean Mahalanobis² / 2 (2-D); and the radii of
+    the p-regions, the quantiles of those chains' Mahalanobis² under s²Σ (`gaussian.Regions`:
+    what places the 50 % and the 90 % region both). Why: Σ is fitted
     on training samples, whose errors a network drives below those it makes on new chains, so
     it comes out overconfident (real 3-robot LSTM, held-out instances: 72-74 % inside its
     90 % region before, 85-88 % after; results/retlo_uncertainty); one scalar fitted on the set
     that already selects the checkpoint corrects the scale and keeps Σ's shape (Kuleshov et
     al. 2018; Levi et al. 2019). The real errors are heavier-tailed than a Gaussian, so the
-    likelihood's scale then over-covers the 50 % region (64-68 %)."""
+    likelihood's scale then over-covers the 50 % region (64-68 %): hence the radii. They come
+    from the chains that also selected the checkpoint (never the test), so the test's coverage
+    is a fair check of them."""
     net.cov_scale = 1.0
     est, cov = predict_chain_gaussian(TorchPredictor(net), val_world, 32,
                                       np.random.default_rng(seed))
     ok = np.isfinite(cov).all((-1, -2))
     d2 = mahalanobis2(val_world[..., :2][ok], est[..., :2][ok], cov[ok])
-    return float(np.mean(d2) / 2)
+    scale = float(np.mean(d2) / 2)
+    return scale, Regions.fitted(d2 / scale)
 
 
 def _describe(cfg: ModelConfig) -> str:
@@ -344,6 +351,7 @@ def checkpoint_bytes(net: RetloNet, px_per_cm: float, train_cfg: TrainConfig,
     if net.head.uncertain:
         ckpt["uncertainty"] = net.head.name
         ckpt["cov_scale"] = float(net.cov_scale)
+        ckpt["region_d2"] = list(net.regions.d2)
     buf = io.BytesIO()
     torch.save(ckpt, buf)
     return buf.getvalue()
@@ -391,4 +399,8 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:
     if not (np.isfinite(net.cov_scale) and net.cov_scale > 0):
         raise UserError(f"{path}: its covariance scale {net.cov_scale} is not a positive "
                         "number; retrain with `train retlo`")
+    try:
+        net.regions = Regions(tuple(float(v) for v in ckpt.get("region_d2", ()))).check()
+    except (TypeError, ValueError) as err:
+        raise UserError(f"{path}: {err}; retrain with `train retlo`") from None
     return net.eval(), ckpt

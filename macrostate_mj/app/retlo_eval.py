@@ -8,6 +8,7 @@ from pathlib import Path
 
 from estimators.retlo.api import as_world, predict, report
 from estimators.retlo.chain import Module
+from estimators.retlo.gaussian import GAUSSIAN_REGIONS
 from estimators.retlo.propagate import require_uncertain
 from macrostate_mj.core.io import check_writable_file, write_json_atomic
 
@@ -40,6 +41,8 @@ def evaluate_request(loaded: tuple[Module, str], data: Path, out: Path, px_per_c
     result = {"model": name, "data": str(data), "px_per_cm": px_per_cm,
               **report(module, world, est, cov if calibrate else None, particles, seed)}
     shown = slice(0, SHOWN)
+    if cov is not None:    # the drawn 90 % ellipses are the model's 90 % regions
+        cov = getattr(module, "regions", GAUSSIAN_REGIONS).outline_cov(cov)
     if video is not None:
         from viz.retlo_figures import write_video_gaussian
 

@@ -16,7 +16,15 @@ from estimators.retlo.api import evaluate, predict
 from estimators.retlo.chain import predict_chain
 from estimators.retlo.files import world_to_pixels
 from estimators.retlo.frames import FrameEstimate, decode
-from estimators.retlo.gaussian import calibration, chi2_2dof, ellipse, mahalanobis2, moment_match
+from estimators.retlo.gaussian import (
+    GAUSSIAN_REGIONS,
+    Regions,
+    calibration,
+    chi2_2dof,
+    ellipse,
+    mahalanobis2,
+    moment_match,
+)
 from estimators.retlo.heads import GAUSSIAN, POINT
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.mixture import GaussianEnsemble
@@ -109,13 +117,15 @@ def test_gaussian_checkpoint_records_and_checks_its_head(tmp_path, calibrated):
     loaded, ckpt = load_checkpoint(path)
     assert ckpt["uncertainty"] == "gaussian" and loaded.head == GAUSSIAN
     assert loaded.cov_scale == net.cov_scale == ckpt["cov_scale"] == info["cov_scale"]
+    assert loaded.regions == net.regions and net.regions.calibrated
     world = synthetic_chains(3, 3, seed=4)
     a = predict_chain_gaussian(TorchPredictor(net), world, 8, np.random.default_rng(0))
     b = predict_chain_gaussian(TorchPredictor(loaded), world, 8, np.random.default_rng(0))
     assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b, strict=True))
     for key, value, message in (("uncertainty", "laplace", "unknown uncertainty 'laplace'"),
                                 ("uncertainty", None, "does not match"),
-                                ("cov_scale", -1.0, "not a positive number")):
+                                ("cov_scale", -1.0, "not a positive number"),
+                                ("region_d2", [1.0, 0.5] * 49 + [2.0], "region radii")):
         bad = dict(ckpt)
         if value is None:
             del bad[key]          # Gaussian weights read as a point model
@@ -128,10 +138,41 @@ def test_gaussian_checkpoint_records_and_checks_its_head(tmp_path, calibrated):
 
 def test_recalibration_fits_the_covariance_to_validation_errors(calibrated):
     net = copy.deepcopy(calibrated[0])
-    same = recalibrate(net, _noisy(30, 9), 0)
-    wider = recalibrate(net, _noisy(30, 9, sigma=2 * SIGMA), 0)
+    (same, regions), (wider, _) = (recalibrate(net, _noisy(30, 9, sigma=s), 0)
+                                   for s in (SIGMA, 2 * SIGMA))
     assert same == pytest.approx(1.0, abs=0.3)     # trained on this noise: little to fix
     assert wider / same == pytest.approx(4.0, rel=0.25)
+    for p in (0.5, 0.9):                           # Gaussian errors: the χ² radii, nearly
+        assert regions.radius2(p) == pytest.approx(chi2_2dof(p), rel=0.3)
+
+
+def test_fitted_regions_cover_heavy_tailed_errors():
+    """Most errors small, a fifth large (a chain astray): the likelihood's scale puts far more
+    than half inside the Gaussian's 50 % region; the radii fitted on one sample place both
+    regions on another."""
+    rng = np.random.default_rng(0)
+    shape = np.array([[2.0, 0.8], [0.8, 1.0]])
+
+    def draw(n):
+        w = np.where(rng.random(n) < 0.8, 0.4, 5.0)
+        x = np.sqrt(w)[:, None] * rng.multivariate_normal([0.0, 0.0], shape, size=n)
+        return x, np.zeros_like(x), np.broadcast_to(shape * w.mean(), (n, 2, 2))
+
+    fit_x, fit_mean, fit_cov = draw(5000)
+    regions = Regions.fitted(mahalanobis2(fit_x, fit_mean, fit_cov)).check()
+    cal = calibration(*draw(20000), regions)
+    assert cal["gaussian_coverage_50"] > 0.6
+    assert cal["coverage_50"] == pytest.approx(0.5, abs=0.02)
+    assert cal["coverage_90"] == pytest.approx(0.9, abs=0.02)
+    outline = ellipse(np.zeros(2), shape, 0.9, regions=regions)
+    assert np.allclose(mahalanobis2(outline, np.zeros(2), shape), regions.radius2(0.9))
+    assert np.allclose(outline, ellipse(np.zeros(2), regions.outline_cov(shape), 0.9))
+    assert "gaussian_coverage_50" not in calibration(fit_x, fit_mean, fit_cov)
+    assert GAUSSIAN_REGIONS.radius2(0.9) == chi2_2dof(0.9)
+    with pytest.raises(ValueError, match="finite Mahalanobis"):
+        Regions.fitted(np.array([1.0, np.nan]))
+    with pytest.raises(ValueError, match="in \\(0, 1\\)"):
+        regions.radius2(1.0)
 
 
 def test_covariances_turn_with_the_frame():

@@ -159,6 +159,7 @@ class TrainTask:
 
     stage: ClassVar[str] = "retlo-model"
     version: ClassVar[int] = 1
+    uncertain_version: ClassVar[int] = 2    # an uncertain model's checkpoint (2: region radii)
 
     def __init__(self, trains: list[np.ndarray], val: np.ndarray, cfg: TrainConfig, px: float,
                  head: Head = POINT):
@@ -166,7 +167,8 @@ class TrainTask:
 
     def key(self) -> str:       # a point model's key names no head (the keys it always had)
         return task_key(self.stage, self.version, {"train": self.cfg, "px_per_cm": self.px,
-                                                   **({"head": self.head.name}
+                                                   **({"head": self.head.name,
+                                                       "head_version": self.uncertain_version}
                                                       if self.head.uncertain else {})},
                         [*self.trains, self.val])
 
@@ -252,8 +254,9 @@ def _aggregate(reports: list[dict]) -> dict:
                                   for i in range(n_steps)] for b in robots},
         "first_step": reports[0]["first_step"], "step_s": reports[0]["step_s"],
         **({"calibration": {who: {k: mean_std([r["calibration"][who][k] for r in reports])
-                                  for k in ("coverage_50", "coverage_90", "nll")}
-                            for who in reports[0]["calibration"] if who != "nll_unit"}}
+                                  for k in cal if k != "n"}
+                            for who, cal in reports[0]["calibration"].items()
+                            if who != "nll_unit"}}
            if "calibration" in reports[0] else {}),
     }
 
