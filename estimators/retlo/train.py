@@ -32,7 +32,7 @@ from estimators.retlo.frames import Window, module_targets
 from estimators.retlo.gaussian import COVERAGES, Regions, mahalanobis2
 from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
-from estimators.retlo.propagate import predict_chain_gaussian
+from estimators.retlo.propagate import predict_chain_gaussian, require_uncertain
 from estimators.retlo.report import evaluate_chain
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
@@ -301,7 +301,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     if head.uncertain:
         net.cov_scale, net.regions = recalibrate(net, val_world, cfg.seed)
         info["cov_scale"] = net.cov_scale
-        info["region_d2"] = {f"{p:.0%}": net.regions.radius2(p) for p in COVERAGES}
+        info["region_radius2"] = {f"{p:.0%}": net.regions.radius2(p) for p in COVERAGES}
     return net, info
 
 
@@ -364,6 +364,24 @@ def save_checkpoint(path: str | os.PathLike, net: RetloNet, px_per_cm: float,
     with atomic_path(path) as tmp:
         tmp.write_bytes(checkpoint_bytes(net, px_per_cm, train_cfg, info))
     return path
+
+
+def save_recalibrated(path: str | os.PathLike, net: RetloNet, ckpt: dict, val_world: np.ndarray,
+                      seed: int, source: dict) -> dict:
+    """A loaded Gaussian checkpoint with its covariance scale and region radii refitted on
+    `val_world` (`recalibrate`; chains of any length, Monte Carlo from `seed`), written
+    atomically to `path`; the weights are untouched. `source` (what the chains were) goes
+    into the training record's "calibrated_on". Returns that record."""
+    require_uncertain(TorchPredictor(net))
+    check_chain(val_world.shape, net.cfg.history, what="calibration file")
+    net.cov_scale, net.regions = recalibrate(net, val_world, seed)
+    record = {**source, "seed": seed, "cov_scale": net.cov_scale,
+              "region_radius2": {f"{p:.0%}": net.regions.radius2(p) for p in COVERAGES}}
+    ckpt = {**ckpt, "cov_scale": net.cov_scale, "region_d2": list(net.regions.d2),
+            "train_info": {**ckpt["train_info"], "calibrated_on": record}}
+    with atomic_path(Path(path)) as tmp:
+        torch.save(ckpt, tmp)
+    return record
 
 
 def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:

@@ -55,6 +55,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
     """For every command, arguments that pass parsing (inputs exist, outputs are fresh)."""
     csv, folder, out = tmp / "in.csv", tmp / "in_dir", tmp / "out"
     csv.write_text("")
+    (tmp / "m.pt").write_bytes(b"")
     folder.mkdir(exist_ok=True)
     c, d = str(csv), str(folder)
     return {
@@ -65,6 +66,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "stats": [c],
         "train retlo": ["--model", "fc", "--train", c, "--val", c, "--out", f"{out}.pt"],
         "evaluate retlo": ["--model", "heuristic2x", "--data", c, "--out", f"{out}.json"],
+        "calibrate retlo": ["--model", f"{tmp}/m.pt", "--val", c, "--out", f"{out}.pt"],
         "experiment retlo": ["--train", c, "--val", c, "--out", str(out)],
         "experiment retlo-sim": ["--out", str(out)],
         "experiment oc": ["--data", d, "--out", str(out)],

@@ -310,6 +310,25 @@ def test_train_and_evaluate_with_uncertainty_from_the_command_line(tmp_path, cap
     code, _, err = _cli(capsys, "evaluate", "retlo", "--model", models[0], "--data", five,
                         "--out", str(tmp_path / "n.json"), "--no-calibration")
     assert code == 0 and "calibration" not in json.loads((tmp_path / "n.json").read_text())
+    # refitted on the 5-robot chains themselves, its regions hold their nominal shares there
+    code, out, err = _cli(capsys, "calibrate", "retlo", "--model", models[0], "--val", five,
+                          "--out", str(tmp_path / "c.pt"))
+    assert code == 0 and "region radii" in out, err
+    code, _, err = _cli(capsys, "evaluate", "retlo", "--model", str(tmp_path / "c.pt"),
+                        "--data", five, "--out", str(tmp_path / "c.json"))
+    assert code == 0, err
+    pooled = json.loads((tmp_path / "c.json").read_text())["calibration"]["pooled"]
+    assert pooled["coverage_50"] == pytest.approx(0.5, abs=0.06)     # ~170 estimates
+    assert pooled["coverage_90"] == pytest.approx(0.9, abs=0.06)
+    before = report["calibration"]["pooled"]
+    assert (abs(pooled["coverage_50"] - 0.5) + abs(pooled["coverage_90"] - 0.9)
+            < abs(before["coverage_50"] - 0.5) + abs(before["coverage_90"] - 0.9))
+    calibrated, ckpt = load_checkpoint(tmp_path / "c.pt")
+    original, _ = load_checkpoint(models[0])
+    assert ckpt["train_info"]["calibrated_on"]["file"] == five
+    assert all(torch.equal(a, b) for a, b in zip(calibrated.state_dict().values(),
+                                                 original.state_dict().values(), strict=True))
+    assert calibrated.regions != original.regions
 
 
 def _point(tmp_path, capsys) -> str:
@@ -322,6 +341,9 @@ def _point(tmp_path, capsys) -> str:
 
 
 BAD = {
+    "calibrate a point model": (lambda p, pt: ["calibrate", "retlo", "--model", pt, "--val",
+                                               str(p / "five.csv"), "--out", str(p / "c.pt")],
+                                "calibrate needs a model with uncertainty"),
     "calibration of a point model": (lambda p, pt: ["evaluate", "retlo", "--model", pt,
                                                     "--data", str(p / "five.csv"), "--out",
                                                     str(p / "r.json"), "--calibration",

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from estimators.retlo import MODEL_KINDS, UNCERTAINTIES
-from macrostate_mj.app.cli.app import app, evaluate_app, experiment_app, train_app
+from macrostate_mj.app.cli.app import app, calibrate_app, evaluate_app, experiment_app, train_app
 from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
     MAX_WORKERS,
@@ -225,6 +225,43 @@ def evaluate_retlo(
         pooled = report["calibration"]["pooled"]
         typer.echo(f"calibration: {pooled['coverage_50']:.2f} inside the 50 % region, "
                    f"{pooled['coverage_90']:.2f} inside the 90 %, NLL {pooled['nll']:.2f}")
+
+
+@calibrate_app.command("retlo")
+def calibrate_retlo(
+    model: Path = InputFile(..., "A Gaussian checkpoint from `train retlo --uncertainty "
+                            "gaussian`.", (".pt",)),
+    val: Path = InputFile(..., "Chains like those it will estimate (any length >= 3, a "
+                          "5-robot lab collection say), never the test set: the covariance "
+                          "scale and the region radii are fitted on them.", CSV),
+    out: Path = OutputFile(..., "Calibrated checkpoint to write (the same weights).", (".pt",)),
+    seed: int = Seed(0, "Seed of the Monte Carlo draws along chains longer than 3 robots."),
+    px_per_cm: float = PxPerCm,
+    overwrite: bool = Switch(False, "Replace an existing checkpoint."),
+) -> None:
+    """Refit a Gaussian ReTLo model's uncertainty (its covariance scale and the radii of its
+    50 %/90 % regions) on other chains, as training does on its validation file: for chains
+    unlike that file (longer, another lab) without retraining."""
+    from estimators.retlo.files import read_world
+    from estimators.retlo.models import TorchPredictor
+    from estimators.retlo.propagate import require_uncertain
+    from estimators.retlo.train import load_checkpoint, save_recalibrated
+    from macrostate_mj.core.io import check_writable_file
+    from macrostate_mj.core.run import Run
+
+    check_writable_file(out, overwrite, "--out")
+    net, ckpt = load_checkpoint(model)
+    require_uncertain(TorchPredictor(net), "calibrate")
+    with Run(out.parent, "calibrate retlo", {"model": str(model), "val": str(val),
+                                             "px_per_cm": px_per_cm}, seed, [out.name],
+             overwrite, manifest=out.name + ".manifest.json") as run:
+        with run.stage("calibrate"):
+            record = save_recalibrated(out, net, ckpt, read_world(val, px_per_cm), seed,
+                                       {"file": str(val)})
+        run.record(inputs=[str(model), str(val)])
+    r2 = record["region_radius2"]
+    typer.echo(f"checkpoint {out}  covariance scale {record['cov_scale']:.3g}, region radii² "
+               f"{r2['50%']:.3g} (50 %) and {r2['90%']:.3g} (90 %), fitted on {val.name}")
 
 
 @experiment_app.command("retlo")
