@@ -380,6 +380,22 @@ def retlo_calibration(folder: str) -> Table:
 
 
 @source
+def retlo_refit(folder: str) -> Table:
+    """`calibrate retlo` (results/retlo_lab5_calibrated): per arm and robot, the coverage of the
+    model's regions and of the plain Gaussian's χ² regions, mean ± std over model seeds."""
+    data = load(f"{folder}/summary.json")
+    rows = [["regions fitted on", "robot", "coverage 50 %", "coverage 90 %", "Gaussian χ² 50 %",
+             "Gaussian χ² 90 %"]]
+    label = {"trained": "lab 3-robot validation (training)",
+             "refitted": "lab 5-robot chains, seed 3 (calibrate retlo)"}
+    for arm, part in data.items():  # type: ignore[union-attr]
+        for who, cal in part["calibration"].items():
+            rows.append([label[arm], who, *(_stat(cal[k], ".2f") for k in (
+                "coverage_50", "coverage_90", "gaussian_coverage_50", "gaussian_coverage_90"))])
+    return rows
+
+
+@source
 def retlo_fig29(folder: str) -> Table:
     """Fig 2.9: the inside-of-curve bias (cm) and the largest-error share per robot and model."""
     data = load(f"{folder}/results.json")["fig2_9"]  # type: ignore[index]
