@@ -317,14 +317,24 @@ def recalibrate(net: RetloNet, val_world: np.ndarray, seed: int) -> tuple[float,
     al. 2018; Levi et al. 2019). The real errors are heavier-tailed than a Gaussian, so the
     likelihood's scale then over-covers the 50 % region (64-68 %): hence the radii. They come
     from the chains that also selected the checkpoint (never the test), so the test's coverage
-    is a fair check of them."""
+    is a fair check of them. On chains longer than 3 robots the Monte Carlo particles are drawn
+    from the scaled Σ, which moves the later modules' estimates: the radii come from a second
+    pass with the scale in place, as the model will then run."""
     net.cov_scale = 1.0
+    d2 = _validation_d2(net, val_world, seed)
+    scale = float(np.mean(d2) / 2)
+    if val_world.shape[2] == 3:       # no particles: Mahalanobis² under s²Σ is d2 / s²
+        return scale, Regions.fitted(d2 / scale)
+    net.cov_scale = scale
+    return scale, Regions.fitted(_validation_d2(net, val_world, seed))
+
+
+def _validation_d2(net: RetloNet, val_world: np.ndarray, seed: int) -> np.ndarray:
+    """Mahalanobis² of every finite estimate of the chains (32 Monte Carlo particles)."""
     est, cov = predict_chain_gaussian(TorchPredictor(net), val_world, 32,
                                       np.random.default_rng(seed))
     ok = np.isfinite(cov).all((-1, -2))
-    d2 = mahalanobis2(val_world[..., :2][ok], est[..., :2][ok], cov[ok])
-    scale = float(np.mean(d2) / 2)
-    return scale, Regions.fitted(d2 / scale)
+    return mahalanobis2(val_world[..., :2][ok], est[..., :2][ok], cov[ok])
 
 
 def _describe(cfg: ModelConfig) -> str:
