@@ -46,6 +46,22 @@ def test_a_quick_caging_estimator_is_not_reused_by_a_full_run(tmp_path, monkeypa
     assert trained == [20, 200]       # more seeds reuse it; more epochs retrain
 
 
+def test_a_retlo_model_is_keyed_by_every_setting_of_its_head():
+    """A Gaussian model was once keyed by its head's name alone: one trained with another β
+    would have been served from the cache. Point models keep the keys they always had."""
+    import numpy as np
+
+    from estimators.retlo.heads import GAUSSIAN, POINT, GaussianHead
+    from estimators.retlo.train import TrainConfig
+    from macrostate_mj.app.experiments.retlo import TrainTask
+
+    world = np.zeros((2, 26, 3, 3))
+    keys = {head: TrainTask([world], world, TrainConfig(), 3.0, head).key()
+            for head in (POINT, GAUSSIAN, GaussianHead(beta=1.0), GaussianHead(max_log_std=5.0))}
+    assert len(set(keys.values())) == 4
+    assert keys[POINT] == TrainTask([world], world, TrainConfig(), 3.0).key()
+
+
 def test_experiment_all_runs_keeps_and_skips_into_one_index(tmp_path, monkeypatch):
     """The quick profile of a cheap experiment runs; one whose real data is absent is skipped
     and said so; a second run keeps what finished; the index lists what each produced."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -167,7 +167,7 @@ class TrainTask:
 
     def key(self) -> str:       # a point model's key names no head (the keys it always had)
         return task_key(self.stage, self.version, {"train": self.cfg, "px_per_cm": self.px,
-                                                   **({"head": self.head.name,
+                                                   **({"head": asdict(self.head),
                                                        "head_version": self.uncertain_version}
                                                       if self.head.uncertain else {})},
                         [*self.trains, self.val])
