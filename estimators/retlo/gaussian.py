@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-COVERAGES = (0.5, 0.9)
+COVERAGES = (0.5, 0.9)     # the regions reports give
 LEVELS = tuple(round(0.01 * i, 2) for i in range(1, 100))   # where fitted radii are kept
 
 
@@ -39,43 +39,69 @@ def chi2_2dof(p: float) -> float:
 @dataclass(frozen=True)
 class Regions:
     """The Mahalanobis² radius r²(p) of an estimate's p-region: χ²₂(p) (a Gaussian's own, the
-    default) or, when `d2` holds the quantiles at `LEVELS` of validation chains' Mahalanobis²,
-    those quantiles (interpolated between levels, clamped beyond them)."""
+    default) or, when `tables` holds the quantiles at `LEVELS` of validation chains'
+    Mahalanobis², those quantiles (interpolated between levels, clamped beyond them). One table
+    per position in the chain (0: the robot module 0 estimates, next to the Tail's neighbour;
+    1: the next one out; ...): a module fed estimates errs unlike one fed tracked poses, so
+    each position has its own radii; positions beyond the last table use the last."""
 
-    d2: tuple[float, ...] = ()
+    tables: tuple[tuple[float, ...], ...] = ()
 
     @classmethod
-    def fitted(cls, d2: np.ndarray) -> Regions:
-        """Regions whose p-region holds a share p of these Mahalanobis² values."""
-        d2 = np.asarray(d2, float)
-        d2 = d2[np.isfinite(d2)]
-        if d2.size < 2:
-            raise ValueError(f"{d2.size} finite Mahalanobis² values fit no regions; want at "
-                             "least 2")
-        return cls(tuple(float(q) for q in np.quantile(d2, LEVELS)))
+    def fitted(cls, *d2: np.ndarray) -> Regions:
+        """Regions whose p-region at position j holds a share p of the j-th set of
+        Mahalanobis² values."""
+        tables = []
+        for j, values in enumerate(d2):
+            values = np.asarray(values, float)
+            values = values[np.isfinite(values)]
+            if values.size < 2:
+                raise ValueError(f"{values.size} finite Mahalanobis² values at chain position "
+                                 f"{j} fit no regions; want at least 2")
+            tables.append(tuple(float(q) for q in np.quantile(values, LEVELS)))
+        return cls(tuple(tables))
 
     @property
     def calibrated(self) -> bool:
-        return bool(self.d2)
+        return bool(self.tables)
 
-    def radius2(self, p: float) -> float:
+    def radius2(self, p: float, position: int | np.ndarray = 0) -> float | np.ndarray:
+        """r²(p) at a chain position (or an array of positions, giving an array)."""
         if not 0.0 < p < 1.0:
             raise ValueError(f"a region's probability must be in (0, 1), got {p}")
-        return float(np.interp(p, LEVELS, self.d2)) if self.d2 else chi2_2dof(p)
+        if not self.tables:
+            return chi2_2dof(p) if np.ndim(position) == 0 else np.full(np.shape(position),
+                                                                         chi2_2dof(p))
+        at = np.array([np.interp(p, LEVELS, t) for t in self.tables])
+        r2 = at[np.clip(position, 0, len(at) - 1)]
+        return float(r2) if np.ndim(r2) == 0 else r2
 
-    def outline_cov(self, cov: np.ndarray, p: float = 0.9) -> np.ndarray:
+    def outline_cov(self, cov: np.ndarray, p: float = 0.9,
+                    position: int | np.ndarray = 0) -> np.ndarray:
         """Covariances whose Gaussian p-outline (`ellipse`, what videos and recordings draw) is
-        this p-region: Σ · r²(p) / χ²₂(p)."""
-        return cov * (self.radius2(p) / chi2_2dof(p))
+        this p-region: Σ · r²(p) / χ²₂(p), `position` broadcast against cov's leading axes."""
+        return cov * (np.asarray(self.radius2(p, position)) / chi2_2dof(p))[..., None, None]
 
-    def check(self) -> Regions:
-        """Itself, if its radii are finite, non-negative, non-decreasing and one per level."""
-        d2 = np.asarray(self.d2, float)
-        if self.d2 and not (d2.shape == (len(LEVELS),) and np.isfinite(d2).all()
-                            and (d2 >= 0).all() and (np.diff(d2) >= 0).all()):
-            raise ValueError(f"region radii must be {len(LEVELS)} finite, non-negative, "
-                             "non-decreasing numbers")
-        return self
+    def summary(self) -> list[dict[str, float]]:
+        """r²(50 %) and r²(90 %) per position: what a training record keeps."""
+        return [{f"{p:.0%}": float(np.interp(p, LEVELS, t)) for p in COVERAGES}
+                for t in self.tables]
+
+    @classmethod
+    def from_record(cls, tables: object) -> Regions:
+        """Regions from a checkpoint's list of tables (or one flat table), checked: each
+        finite, non-negative, non-decreasing, one value per level."""
+        rows = list(tables or [])  # type: ignore[call-overload]
+        if rows and not isinstance(rows[0], list | tuple):
+            rows = [rows]
+        out = cls(tuple(tuple(float(v) for v in row) for row in rows))
+        for t in out.tables:
+            d2 = np.asarray(t)
+            if not (d2.shape == (len(LEVELS),) and np.isfinite(d2).all() and (d2 >= 0).all()
+                    and (np.diff(d2) >= 0).all()):
+                raise ValueError(f"region radii must be tables of {len(LEVELS)} finite, "
+                                 "non-negative, non-decreasing numbers")
+        return out
 
 
 GAUSSIAN_REGIONS = Regions()
@@ -96,17 +122,19 @@ def nll(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 
 def calibration(x: np.ndarray, mean: np.ndarray, cov: np.ndarray,
-                regions: Regions = GAUSSIAN_REGIONS) -> dict:
-    """coverage_50, coverage_90 (of `regions`) and mean NLL (of the Gaussian) of the finite
-    estimates among (..., 2), (..., 2, 2); with calibrated regions, also gaussian_coverage_50
-    and _90, the χ² regions' share. NaN estimates (steps out of reach) and covariances not
-    positive definite in floating point are left out; `n` says how many counted."""
+                regions: Regions = GAUSSIAN_REGIONS, position: int | np.ndarray = 0) -> dict:
+    """coverage_50, coverage_90 (of `regions`, each estimate at its chain `position`, an int or
+    an array like x's leading axes) and mean NLL (of the Gaussian) of the finite estimates
+    among (..., 2), (..., 2, 2); with calibrated regions, also gaussian_coverage_50 and _90, the
+    χ² regions' share. NaN estimates (steps out of reach) and covariances not positive definite
+    in floating point are left out; `n` says how many counted."""
     with np.errstate(invalid="ignore", over="ignore"):
         ok = np.isfinite(mean).all(-1) & np.isfinite(cov).all((-1, -2))
         ok &= (cov[..., 0, 0] > 0) & (cov[..., 0, 0] * cov[..., 1, 1] - cov[..., 0, 1] ** 2 > 0)
     x, mean, cov = x[ok], mean[ok], cov[ok]
+    position = np.broadcast_to(position, ok.shape)[ok]
     d2 = mahalanobis2(x, mean, cov)
-    out = {f"coverage_{round(100 * p)}": float(np.mean(d2 <= regions.radius2(p)))
+    out = {f"coverage_{round(100 * p)}": float(np.mean(d2 <= regions.radius2(p, position)))
            for p in COVERAGES}
     if regions.calibrated:
         out |= {f"gaussian_coverage_{round(100 * p)}": float(np.mean(d2 <= chi2_2dof(p)))
@@ -129,12 +157,12 @@ def circular_mean(angles: np.ndarray, axis: int = 0) -> np.ndarray:
     return np.arctan2(np.sin(angles).mean(axis=axis), np.cos(angles).mean(axis=axis))
 
 
-def ellipse(mean: np.ndarray, cov: np.ndarray, p: float = 0.9, n: int = 48,
-            regions: Regions = GAUSSIAN_REGIONS) -> np.ndarray:
-    """Outline (n, 2) of the p-region of an estimate (mean (2,), cov (2, 2)): the unit circle
-    through √r²(p) · Σ^½, in the unit of mean (y up or down alike: Σ carries the axes' signs)."""
+def ellipse(mean: np.ndarray, cov: np.ndarray, p: float = 0.9, n: int = 48) -> np.ndarray:
+    """Outline (n, 2) of the p-region of N(mean (2,), cov (2, 2)): the unit circle through
+    √χ²₂(p) · Σ^½, in the unit of mean (y up or down alike: Σ carries the axes' signs). A
+    model's fitted region is the outline of `Regions.outline_cov`."""
     vals, vecs = np.linalg.eigh(cov)
-    radii = np.sqrt(regions.radius2(p) * np.clip(vals, 0.0, None))
+    radii = np.sqrt(chi2_2dof(p) * np.clip(vals, 0.0, None))
     t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
     circle = np.stack([np.cos(t), np.sin(t)], -1)
     return mean + (circle * radii) @ vecs.T

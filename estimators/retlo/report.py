@@ -79,9 +79,10 @@ def calibration_report(est: np.ndarray, cov: np.ndarray, world: np.ndarray, hist
     x = CM_PER_M * world[:, first:, ::-1, :2][:, :, 2:]
     mean = CM_PER_M * est[:, first:, ::-1, :2][:, :, 2:]
     cov_cm = CM_PER_M ** 2 * cov[:, first:, ::-1][:, :, 2:]
-    per = {names[j + 2]: calibration(x[:, :, j], mean[:, :, j], cov_cm[:, :, j], regions)
+    per = {names[j + 2]: calibration(x[:, :, j], mean[:, :, j], cov_cm[:, :, j], regions, j)
            for j in range(x.shape[2])}
-    return {**per, "pooled": calibration(x, mean, cov_cm, regions), "nll_unit": "cm"}
+    position = np.arange(x.shape[2])          # robot j (Tail side first) is chain position j
+    return {**per, "pooled": calibration(x, mean, cov_cm, regions, position), "nll_unit": "cm"}
 
 
 def chain_errors(est: np.ndarray, truth: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from estimators.retlo.chain import (
     window,
 )
 from estimators.retlo.frames import Window, module_targets
-from estimators.retlo.gaussian import COVERAGES, Regions, mahalanobis2
+from estimators.retlo.gaussian import Regions, mahalanobis2
 from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
 from estimators.retlo.propagate import predict_chain_gaussian, require_uncertain
@@ -301,7 +301,7 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     if head.uncertain:
         net.cov_scale, net.regions = recalibrate(net, val_world, cfg.seed)
         info["cov_scale"] = net.cov_scale
-        info["region_radius2"] = {f"{p:.0%}": net.regions.radius2(p) for p in COVERAGES}
+        info["region_radius2"] = net.regions.summary()
     return net, info
 
 
@@ -319,22 +319,29 @@ def recalibrate(net: RetloNet, val_world: np.ndarray, seed: int) -> tuple[float,
     from the chains that also selected the checkpoint (never the test), so the test's coverage
     is a fair check of them. On chains longer than 3 robots the Monte Carlo particles are drawn
     from the scaled Σ, which moves the later modules' estimates: the radii come from a second
-    pass with the scale in place, as the model will then run."""
+    pass with the scale in place, as the model will then run. Radii are kept per chain position
+    (`gaussian.Regions`): 3-robot chains give one, the Head's."""
     net.cov_scale = 1.0
     d2 = _validation_d2(net, val_world, seed)
-    scale = float(np.mean(d2) / 2)
+    scale = float(np.mean(np.concatenate(d2)) / 2)
     if val_world.shape[2] == 3:       # no particles: Mahalanobis² under s²Σ is d2 / s²
-        return scale, Regions.fitted(d2 / scale)
+        return scale, Regions.fitted(*(d / scale for d in d2))
     net.cov_scale = scale
-    return scale, Regions.fitted(_validation_d2(net, val_world, seed))
+    return scale, Regions.fitted(*_validation_d2(net, val_world, seed))
 
 
-def _validation_d2(net: RetloNet, val_world: np.ndarray, seed: int) -> np.ndarray:
-    """Mahalanobis² of every finite estimate of the chains (32 Monte Carlo particles)."""
+def _validation_d2(net: RetloNet, val_world: np.ndarray, seed: int) -> list[np.ndarray]:
+    """Mahalanobis² of the finite estimates of the chains (32 Monte Carlo particles), one
+    array per chain position (0: the robot module 0 estimates)."""
     est, cov = predict_chain_gaussian(TorchPredictor(net), val_world, 32,
                                       np.random.default_rng(seed))
-    ok = np.isfinite(cov).all((-1, -2))
-    return mahalanobis2(val_world[..., :2][ok], est[..., :2][ok], cov[ok])
+    n = val_world.shape[2]
+    out = []
+    for r in range(n - 3, -1, -1):     # file order is Head first: position j is robot n-3-j
+        ok = np.isfinite(cov[:, :, r]).all((-1, -2))
+        out.append(mahalanobis2(val_world[:, :, r, :2][ok], est[:, :, r, :2][ok],
+                                cov[:, :, r][ok]))
+    return out
 
 
 def _describe(cfg: ModelConfig) -> str:
@@ -361,7 +368,7 @@ def checkpoint_bytes(net: RetloNet, px_per_cm: float, train_cfg: TrainConfig,
     if net.head.uncertain:
         ckpt["uncertainty"] = net.head.name
         ckpt["cov_scale"] = float(net.cov_scale)
-        ckpt["region_d2"] = list(net.regions.d2)
+        ckpt["region_d2"] = [list(t) for t in net.regions.tables]
     buf = io.BytesIO()
     torch.save(ckpt, buf)
     return buf.getvalue()
@@ -386,8 +393,9 @@ def save_recalibrated(path: str | os.PathLike, net: RetloNet, ckpt: dict, val_wo
     check_chain(val_world.shape, net.cfg.history, what="calibration file")
     net.cov_scale, net.regions = recalibrate(net, val_world, seed)
     record = {**source, "seed": seed, "cov_scale": net.cov_scale,
-              "region_radius2": {f"{p:.0%}": net.regions.radius2(p) for p in COVERAGES}}
-    ckpt = {**ckpt, "cov_scale": net.cov_scale, "region_d2": list(net.regions.d2),
+              "region_radius2": net.regions.summary()}
+    ckpt = {**ckpt, "cov_scale": net.cov_scale,
+            "region_d2": [list(t) for t in net.regions.tables],
             "train_info": {**ckpt["train_info"], "calibrated_on": record}}
     with atomic_path(Path(path)) as tmp:
         torch.save(ckpt, tmp)
@@ -428,7 +436,7 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[RetloNet, dict]:
         raise UserError(f"{path}: its covariance scale {net.cov_scale} is not a positive "
                         "number; retrain with `train retlo`")
     try:
-        net.regions = Regions(tuple(float(v) for v in ckpt.get("region_d2", ()))).check()
+        net.regions = Regions.from_record(ckpt.get("region_d2", ()))
     except (TypeError, ValueError) as err:
         raise UserError(f"{path}: {err}; retrain with `train retlo`") from None
     return net.eval(), ckpt

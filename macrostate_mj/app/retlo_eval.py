@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from estimators.retlo.api import as_world, predict, report
 from estimators.retlo.chain import Module
 from estimators.retlo.gaussian import GAUSSIAN_REGIONS
@@ -42,7 +44,9 @@ def evaluate_request(loaded: tuple[Module, str], data: Path, out: Path, px_per_c
               **report(module, world, est, cov if calibrate else None, particles, seed)}
     shown = slice(0, SHOWN)
     if cov is not None:    # the drawn 90 % ellipses are the model's 90 % regions
-        cov = getattr(module, "regions", GAUSSIAN_REGIONS).outline_cov(cov)
+        n = world.shape[2]                 # file order: robot r is chain position n-3-r
+        position = np.clip(n - 3 - np.arange(n), 0, None)[None, None, :]
+        cov = getattr(module, "regions", GAUSSIAN_REGIONS).outline_cov(cov, 0.9, position)
     if video is not None:
         from viz.retlo_figures import write_video_gaussian
 

@@ -125,7 +125,7 @@ def test_gaussian_checkpoint_records_and_checks_its_head(tmp_path, calibrated):
     for key, value, message in (("uncertainty", "laplace", "unknown uncertainty 'laplace'"),
                                 ("uncertainty", None, "does not match"),
                                 ("cov_scale", -1.0, "not a positive number"),
-                                ("region_d2", [1.0, 0.5] * 49 + [2.0], "region radii")):
+                                ("region_d2", [[1.0, 0.5] * 49 + [2.0]], "region radii")):
         bad = dict(ckpt)
         if value is None:
             del bad[key]          # Gaussian weights read as a point model
@@ -144,6 +144,7 @@ def test_recalibration_fits_the_covariance_to_validation_errors(calibrated):
     assert wider / same == pytest.approx(4.0, rel=0.25)
     for p in (0.5, 0.9):                           # Gaussian errors: the χ² radii, nearly
         assert regions.radius2(p) == pytest.approx(chi2_2dof(p), rel=0.3)
+    assert len(regions.tables) == 1            # 3-robot chains: the Head's position only
 
 
 def test_fitted_regions_cover_heavy_tailed_errors():
@@ -159,20 +160,46 @@ def test_fitted_regions_cover_heavy_tailed_errors():
         return x, np.zeros_like(x), np.broadcast_to(shape * w.mean(), (n, 2, 2))
 
     fit_x, fit_mean, fit_cov = draw(5000)
-    regions = Regions.fitted(mahalanobis2(fit_x, fit_mean, fit_cov)).check()
+    regions = Regions.fitted(mahalanobis2(fit_x, fit_mean, fit_cov))
+    assert Regions.from_record([list(t) for t in regions.tables]) == regions
     cal = calibration(*draw(20000), regions)
     assert cal["gaussian_coverage_50"] > 0.6
     assert cal["coverage_50"] == pytest.approx(0.5, abs=0.02)
     assert cal["coverage_90"] == pytest.approx(0.9, abs=0.02)
-    outline = ellipse(np.zeros(2), shape, 0.9, regions=regions)
+    outline = ellipse(np.zeros(2), regions.outline_cov(shape), 0.9)
     assert np.allclose(mahalanobis2(outline, np.zeros(2), shape), regions.radius2(0.9))
-    assert np.allclose(outline, ellipse(np.zeros(2), regions.outline_cov(shape), 0.9))
     assert "gaussian_coverage_50" not in calibration(fit_x, fit_mean, fit_cov)
     assert GAUSSIAN_REGIONS.radius2(0.9) == chi2_2dof(0.9)
     with pytest.raises(ValueError, match="finite Mahalanobis"):
         Regions.fitted(np.array([1.0, np.nan]))
     with pytest.raises(ValueError, match="in \\(0, 1\\)"):
         regions.radius2(1.0)
+    with pytest.raises(ValueError, match="tables of 99"):
+        Regions.from_record([1.0, 2.0])
+
+
+def test_regions_per_chain_position():
+    """Two positions whose errors differ fourfold in scale: one pooled table misses both,
+    a table per position holds each; positions past the last table use the last."""
+    rng = np.random.default_rng(1)
+    near, far = rng.chisquare(2, 4000), 4 * rng.chisquare(2, 4000)
+    regions = Regions.fitted(near, far)
+    assert regions.radius2(0.5, 1) == pytest.approx(4 * regions.radius2(0.5, 0), rel=0.1)
+    assert regions.radius2(0.5, 7) == regions.radius2(0.5, 1)
+    assert np.array_equal(regions.radius2(0.9, np.array([0, 1, 5])),
+                          [regions.radius2(0.9, j) for j in (0, 1, 1)])
+    # d2 = |x|² for unit covariances: test points drawn like the fitted ones
+    x = np.stack([np.sqrt(np.stack([near, far], -1)), np.zeros((4000, 2))], -1)
+    cov = np.broadcast_to(np.eye(2), (4000, 2, 2, 2))
+    pooled = calibration(x, np.zeros_like(x), cov, regions, np.arange(2))
+    assert pooled["coverage_50"] == pytest.approx(0.5, abs=0.01)
+    one = calibration(x, np.zeros_like(x), cov, Regions.fitted(np.concatenate([near, far])))
+    per = [calibration(x[:, j], np.zeros((4000, 2)), cov[:, j], regions, j)["coverage_50"]
+           for j in (0, 1)]
+    assert per == pytest.approx([0.5, 0.5], abs=0.01)
+    assert one["coverage_50"] == pytest.approx(0.5, abs=0.01)     # pooled right, each wrong:
+    assert calibration(x[:, 0], np.zeros((4000, 2)), cov[:, 0],
+                       Regions.fitted(np.concatenate([near, far])))["coverage_50"] > 0.7
 
 
 def test_covariances_turn_with_the_frame():

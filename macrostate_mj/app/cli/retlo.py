@@ -259,9 +259,10 @@ def calibrate_retlo(
             record = save_recalibrated(out, net, ckpt, read_world(val, px_per_cm), seed,
                                        {"file": str(val)})
         run.record(inputs=[str(model), str(val)])
-    r2 = record["region_radius2"]
+    radii = "; ".join(f"{r['50%']:.3g} / {r['90%']:.3g}" for r in record["region_radius2"])
     typer.echo(f"checkpoint {out}  covariance scale {record['cov_scale']:.3g}, region radii² "
-               f"{r2['50%']:.3g} (50 %) and {r2['90%']:.3g} (90 %), fitted on {val.name}")
+               f"(50 % / 90 %, per chain position from the Tail's side) {radii}; fitted on "
+               f"{val.name}")
 
 
 @experiment_app.command("retlo")
