@@ -16,5 +16,5 @@ inputs (`models`: they were designed and first trained in cm).
 """
 
 MODEL_KINDS = ("fc", "lstm")   # here, not in models: the CLI lists them without importing torch
-UNCERTAINTIES = ("none", "gaussian")   # `heads.HEADS`' names, likewise
+UNCERTAINTIES = ("none", "gaussian", "gaussian-faithful")   # `heads.HEADS`' names, likewise
 CM_PER_M = 100.0

@@ -87,6 +87,22 @@ def test_gaussian_head_is_calibrated_on_known_noise(calibrated):
     assert report["mean_error_cm"] < 1.15 * 100 * SIGMA * np.sqrt(np.pi / 2)
 
 
+def test_the_faithful_head_trains_its_mean_as_a_point_model_does():
+    """Its mean gets exactly the point model's gradient; its covariance the NLL's."""
+    from estimators.retlo.heads import FAITHFUL
+
+    raw = torch.tensor([[0.3, -0.2, 0.1, 0.4, -0.3]], requires_grad=True)
+    target = torch.tensor([[1.0, 0.5]])
+    FAITHFUL.position_loss(raw, target).sum().backward()
+    point = raw[:, :2].detach().requires_grad_(True)
+    POINT.position_loss(point, target).sum().backward()
+    assert torch.allclose(raw.grad[:, :2], point.grad)
+    assert raw.grad[:, 2:].abs().sum() > 0
+    net, _, _ = _fit(FAITHFUL)
+    pooled = evaluate(TorchPredictor(net), _noisy(40, 3), calibrate=True)["calibration"]["pooled"]
+    assert abs(pooled["coverage_90"] - 0.9) < 0.06, pooled
+
+
 def test_point_models_are_unchanged(tmp_path, calibrated):
     net, info, cfg = _fit(POINT, epochs=1)
     assert net.head is POINT and net.g_p.out_features == 2

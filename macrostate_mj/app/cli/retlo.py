@@ -36,7 +36,8 @@ Chained = Switch(True, "Also train on Followers carrying another instance's Head
                  "--chained/--no-chained")
 Uncertainty = Choice("none", "none: a point estimate per robot; gaussian: a 2-D Gaussian per "
                      "robot (mean and covariance), trained on its negative log-likelihood, "
-                     "whose calibration the reports then carry.", UNCERTAINTIES)
+                     "whose calibration the reports then carry; gaussian-faithful: the same, "
+                     "its mean trained on the point model's loss.", UNCERTAINTIES)
 History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
                 max=24)
 CSV = (".csv",)
