@@ -97,9 +97,8 @@ class GaussianHead:
         if mean_only is not None:
             tril = torch.where(mean_only.view(-1, 1, 1) > 0, tril.detach(), tril)
         if self.faithful:
-            point = torch.linalg.vector_norm(self.mean(raw) - target, dim=-1)
-            return point - MultivariateNormal(self.mean(raw).detach(),
-                                              scale_tril=tril).log_prob(target)
+            return POINT.position_loss(self.mean(raw), target) - MultivariateNormal(
+                self.mean(raw).detach(), scale_tril=tril).log_prob(target)
         nll = -MultivariateNormal(self.mean(raw), scale_tril=tril).log_prob(target)
         if self.beta == 0.0:
             return nll

@@ -25,6 +25,13 @@ def report_names(n_robots: int) -> list[str]:
     return ["T", *(f"F{j}" for j in range(1, n_robots - 1)), "H"]
 
 
+def chain_positions(n_robots: int) -> np.ndarray:
+    """Each robot's chain position in file order (Head first), the index `gaussian.Regions`
+    keeps radii by: position j is robot j + 2 from the Tail, the robot module j estimates
+    (file column N-3-j). The Tail and its neighbour, never estimated, get 0."""
+    return np.clip(n_robots - 3 - np.arange(n_robots), 0, None)
+
+
 def unseen_names(n: int) -> list[str]:
     """Names of robots 2.. (Tail first), as the reports of both chapters call them."""
     return report_names(n)[2:]

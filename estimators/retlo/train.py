@@ -33,7 +33,7 @@ from estimators.retlo.gaussian import Regions, mahalanobis2
 from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
 from estimators.retlo.propagate import predict_chain_gaussian, require_uncertain
-from estimators.retlo.report import evaluate_chain
+from estimators.retlo.report import chain_positions, evaluate_chain
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
 
@@ -336,11 +336,11 @@ def _validation_d2(net: RetloNet, val_world: np.ndarray, seed: int) -> list[np.n
     est, cov = predict_chain_gaussian(TorchPredictor(net), val_world, 32,
                                       np.random.default_rng(seed))
     n = val_world.shape[2]
-    out = []
-    for r in range(n - 3, -1, -1):     # file order is Head first: position j is robot n-3-j
+    out: list[np.ndarray] = [np.empty(0)] * (n - 2)
+    for r, j in enumerate(chain_positions(n)[:n - 2]):    # the estimated robots, file order
         ok = np.isfinite(cov[:, :, r]).all((-1, -2))
-        out.append(mahalanobis2(val_world[:, :, r, :2][ok], est[:, :, r, :2][ok],
-                                cov[:, :, r][ok]))
+        out[j] = mahalanobis2(val_world[:, :, r, :2][ok], est[:, :, r, :2][ok],
+                              cov[:, :, r][ok])
     return out
 
 
@@ -389,7 +389,7 @@ def save_recalibrated(path: str | os.PathLike, net: RetloNet, ckpt: dict, val_wo
     `val_world` (`recalibrate`; chains of any length, Monte Carlo from `seed`), written
     atomically to `path`; the weights are untouched. `source` (what the chains were) goes
     into the training record's "calibrated_on". Returns that record."""
-    require_uncertain(TorchPredictor(net))
+    require_uncertain(TorchPredictor(net), "calibrate")
     check_chain(val_world.shape, net.cfg.history, what="calibration file")
     net.cov_scale, net.regions = recalibrate(net, val_world, seed)
     record = {**source, "seed": seed, "cov_scale": net.cov_scale,

@@ -6,12 +6,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from estimators.retlo.api import as_world, predict, report
 from estimators.retlo.chain import Module
 from estimators.retlo.gaussian import GAUSSIAN_REGIONS
 from estimators.retlo.propagate import require_uncertain
+from estimators.retlo.report import chain_positions
 from macrostate_mj.core.io import check_writable_file, write_json_atomic
 
 SHOWN = 3    # instances in the video and the recording
@@ -44,8 +43,7 @@ def evaluate_request(loaded: tuple[Module, str], data: Path, out: Path, px_per_c
               **report(module, world, est, cov if calibrate else None, particles, seed)}
     shown = slice(0, SHOWN)
     if cov is not None:    # the drawn 90 % ellipses are the model's 90 % regions
-        n = world.shape[2]                 # file order: robot r is chain position n-3-r
-        position = np.clip(n - 3 - np.arange(n), 0, None)[None, None, :]
+        position = chain_positions(world.shape[2])[None, None, :]
         cov = getattr(module, "regions", GAUSSIAN_REGIONS).outline_cov(cov, 0.9, position)
     if video is not None:
         from viz.retlo_figures import write_video_gaussian

@@ -244,15 +244,12 @@ def calibrate_retlo(
     50 %/90 % regions) on other chains, as training does on its validation file: for chains
     unlike that file (longer, another lab) without retraining."""
     from estimators.retlo.files import read_world
-    from estimators.retlo.models import TorchPredictor
-    from estimators.retlo.propagate import require_uncertain
     from estimators.retlo.train import load_checkpoint, save_recalibrated
     from macrostate_mj.core.io import check_writable_file
     from macrostate_mj.core.run import Run
 
     check_writable_file(out, overwrite, "--out")
     net, ckpt = load_checkpoint(model)
-    require_uncertain(TorchPredictor(net), "calibrate")
     with Run(out.parent, "calibrate retlo", {"model": str(model), "val": str(val),
                                              "px_per_cm": px_per_cm}, seed, [out.name],
              overwrite, manifest=out.name + ".manifest.json") as run:
