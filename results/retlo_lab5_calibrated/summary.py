@@ -1,21 +1,17 @@
 """summary.json from reports/: per arm (trained: the regions fitted on the lab 3-robot
 validation file during training; refitted: `calibrate retlo` on the 5-robot lab chains of seed
 3), the mean error and the calibration per robot and pooled on the 5-robot test chains, mean ±
-std over the model seeds."""
+std over the model seeds (`mean_std`, as every results file gives it)."""
 
 from __future__ import annotations
 
 import json
-import statistics
 import sys
 from pathlib import Path
 
+from macrostate_mj.app.experiments import mean_std
+
 KEYS = ("coverage_50", "coverage_90", "gaussian_coverage_50", "gaussian_coverage_90", "nll")
-
-
-def _ms(values: list[float]) -> dict:
-    return {"mean": statistics.fmean(values), "std": statistics.stdev(values) if len(values) > 1
-            else 0.0, "n": len(values)}
 
 
 def main(reports: str) -> None:
@@ -27,8 +23,8 @@ def main(reports: str) -> None:
             continue
         who = [k for k in runs[0]["calibration"] if k != "nll_unit"]
         out[arm] = {"seeds": len(runs),
-                    "mean_error_cm": _ms([r["mean_error_cm"] for r in runs]),
-                    "calibration": {w: {k: _ms([r["calibration"][w][k] for r in runs])
+                    "mean_error_cm": mean_std([r["mean_error_cm"] for r in runs]),
+                    "calibration": {w: {k: mean_std([r["calibration"][w][k] for r in runs])
                                         for k in KEYS if k in runs[0]["calibration"][w]}
                                     for w in who}}
     print(json.dumps(out, indent=1))
