@@ -18,6 +18,13 @@ from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs
 from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
+from macrostate_mj.chain.team import (
+    BranchedSim,
+    TeamCaging,
+    ring_order,
+    split_branches,
+    team_start_poses,
+)
 from macrostate_mj.chain.world import build_world
 
 
@@ -83,11 +90,15 @@ class LiveHeadSource:
     """The Head's position as the Tail's live estimator (`chain`, e.g. ReTLo's `OnlineChain`) has
     it after each of its steps (every `stride` ticks; lagging n - 2 steps), from the Tail's
     observations and the poses the team shares (at τ: `team_at_start`, Head first, and in the
-    step info's `team`); None between steps. A `chain.caging.HeadSource`."""
+    step info's `team`); None between steps. A `chain.caging.HeadSource`. In a team of several
+    chains (`chain.team`), `robots` are the team's rows of this Tail's chain, Head first: the
+    estimator sees only those of what the team shares."""
 
-    def __init__(self, chain: OnlineEstimator, team_at_start: np.ndarray, stride: int):
+    def __init__(self, chain: OnlineEstimator, team_at_start: np.ndarray, stride: int,
+                 robots: np.ndarray | None = None):
         self.chain, self.stride = chain, stride
-        chain.start(team_at_start[::-1])            # Tail first
+        self.robots = slice(None) if robots is None else np.asarray(robots)
+        chain.start(team_at_start[self.robots][::-1])            # Tail first
         self._tick = -1          # the observation of tick k comes with the info of tick k
 
     def __call__(self, obs: dict, info: dict) -> np.ndarray | None:
@@ -96,7 +107,7 @@ class LiveHeadSource:
             return None
         self.chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
         if "team" in info:
-            self.chain.share(info["team"][::-1])
+            self.chain.share(info["team"][self.robots][::-1])
         t, head = self.chain.head
         return head.copy() if t > 0 else None
 
@@ -158,24 +169,46 @@ def rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
     caging = CagingConfig()
     world = build_world(get_scenario("robotarium"), 6)
     sim = ChainSim(world, mission=CagingMission(caging))
+    return _rehearse(sim, runs, seconds, [np.arange(sim.n)],
+                     lambda rng: start_poses(caging, sim.n, sim.cfg.spacing, rng))
+
+
+def team_rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
+    """As `rehearsal_runs`, of the two-chain caging team (`chain.team`, 6 robots, both Tails
+    passive: the Head parks at the object): every three consecutive robots of either chain."""
+    caging = CagingConfig()
+    world = build_world(get_scenario("robotarium"), 6)
+    branches = split_branches(6, 2)
+    sim = BranchedSim(world, branches, mission=TeamCaging(caging, ring_order(branches)))
+    return _rehearse(sim, runs, seconds, branches,
+                     lambda rng: team_start_poses(caging, branches, sim.cfg.spacing, rng))
+
+
+def _rehearse(sim: ChainSim, runs: int, seconds: float, chains: list[np.ndarray],
+              start: Callable[[np.random.Generator], np.ndarray]) -> np.ndarray:
+    """`runs` episodes of `sim` (seeds 10000..) from `start`, logged at the log rate; each
+    chain's (Head first) consecutive triples as module runs."""
     out = []
     for i in range(runs):
         rng = np.random.default_rng(10_000 + i)
-        sim.reset(rng, start=start_poses(caging, sim.n, sim.cfg.spacing, rng))
+        sim.reset(rng, start=start(rng))
         log: list[np.ndarray] = []
         sim.run(seconds, [Every(1 / sim.cfg.log_hz, lambda s, log=log: log.append(s.poses))])
         poses = np.array(log)
-        out += [poses[:, k:k + 3] for k in range(sim.n - 2)]
+        out += [poses[:, c[k:k + 3]] for c in chains for k in range(len(c) - 2)]
     return np.array(out)
 
 
 def estimator_runs(train_steps: int, rehearsals: int, seconds: float, stride: int,
-                   rng: np.random.Generator) -> list[np.ndarray]:
+                   rng: np.random.Generator,
+                   rehearse: Callable[[int, float], np.ndarray] = rehearsal_runs
+                   ) -> list[np.ndarray]:
     """What the caging Tail's estimator learns from: the robotarium training runs of `experiment
-    retlo-sim` and `rehearsals` passive-Tail caging runs of `seconds`, each taken at every
-    `stride`-th log step from each phase, as 5 noisy replicas (σ 1 mm): one array per (source,
-    phase), in that order (the draws from `rng` follow it)."""
+    retlo-sim` and `rehearsals` passive-Tail caging runs of `seconds` (`rehearse`: of the line
+    team, or `team_rehearsal_runs`), each taken at every `stride`-th log step from each phase,
+    as 5 noisy replicas (σ 1 mm): one array per (source, phase), in that order (the draws from
+    `rng` follow it)."""
     runs = training_runs(get_scenario("robotarium"), train_steps, K_T_FACTORS)
-    rehearsed = rehearsal_runs(rehearsals, seconds)
+    rehearsed = rehearse(rehearsals, seconds)
     return [noisy_replicas(r[:, k::stride], 5, 0.001, rng)
             for r in (runs, rehearsed) for k in range(stride)]

@@ -92,22 +92,24 @@ class SRSPolicy:
         self._rows: dict[str, list] = {"t": [], "e": [], "offsets": [], "pick": []}
 
     def __call__(self, sim: ChainSim) -> None:
+        sim.tail_offset = self.choose(sim)
+
+    def choose(self, sim: ChainSim) -> np.ndarray:
+        """This log step's destination offset (2,) m, from the team's poses in `sim`."""
         seen = sim.poses if self.tracker is None else self.tracker.latest.copy()
         self._history = [*self._history[-(WINDOW - 1):], seen]
         random_mode = (self.step // self.cfg.alternate) % 2 == 0
         self.step += 1
         if not random_mode:
-            sim.tail_offset = np.zeros(2)
-            return
+            return np.zeros(2)
         if len(self._history) < WINDOW or not np.isfinite(self._history).all():
-            sim.tail_offset = draw_tail_offsets(self.rng, self.cfg.sigma)
-            return
+            return draw_tail_offsets(self.rng, self.cfg.sigma)
         offsets = draw_tail_offsets(self.rng, self.cfg.sigma, (self.cfg.k,))
         e = self.scores(sim, np.array(self._history), offsets)
         pick = pick_index(e, PICKS[self.cfg.pick])
-        sim.tail_offset = offsets[pick]
         for key, value in (("t", sim.time), ("e", e), ("offsets", offsets), ("pick", pick)):
             self._rows[key].append(value)
+        return offsets[pick]
 
     def scores(self, sim: ChainSim, history: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """e of each candidate offset (K, 2) from the team's last WINDOW poses (WINDOW, n, 3)."""

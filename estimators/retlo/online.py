@@ -56,10 +56,21 @@ class OnlineChain:
             module_step(self.module, self.tracks, k, t)
 
     @property
+    def history(self) -> int:
+        """Steps of every pose the module reads before its first estimate (its window, ℓ): a
+        live Tail is given them, as an instance's first ℓ steps are known."""
+        return int(self.module.history)
+
+    @property
     def head(self) -> tuple[int, np.ndarray]:
         """(step, position) of the latest Head estimate (step 0: the truth at τ)."""
         t = max(0, self.step - (self.n - 2))
         return t, self.pos[t, -1]
+
+    @property
+    def head_known(self) -> bool:
+        """Whether `head` is the truth (τ or a sync step), not an estimate."""
+        return bool(self.tracks.known[self.head[0]])
 
     @property
     def head_cov(self) -> np.ndarray | None:

@@ -1,22 +1,34 @@
 """Environments that need an estimator (a layer above both `env` and `estimators`): what the
-`LocalizeTail-v0` id makes."""
+`LocalizeTail-v0` id makes, and the estimator it carries unless told otherwise."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
+from macrostate_mj.core.paths import MODELS
 
-def localize_tail(checkpoint: str | Path | None = None, scenario: Any = "lab", robots: int = 3,
-                  history: int = 10, observe: str = "truth", time_limit: float = 60.0,
-                  render_mode: str | None = None) -> Any:
-    """The `localize` task's Gymnasium env with a frozen estimator: the ReTLo `checkpoint`
-    (from `train retlo`), or the 2X heuristic of §2.6.2.3 when none is given (a default that
-    needs no training data; a trained model localizes better)."""
-    from estimators.retlo.heuristic import Heuristic2X
+# The default: a Gaussian FC ReTLo module trained on a passive `webots` 3-robot collection (the
+# id's scenario); how it was made and what it scores: macrostate_mj/assets/models/README.md.
+DEFAULT_CHECKPOINT = MODELS / "webots3_fc_gaussian.pt"
+
+
+def load_estimator(checkpoint: str | Path | None = None) -> Any:
+    """The ReTLo module of `checkpoint` (from `train retlo`), or of `DEFAULT_CHECKPOINT`."""
     from estimators.retlo.models import TorchPredictor
-    from estimators.retlo.online import OnlineChain
     from estimators.retlo.train import load_checkpoint
+
+    return TorchPredictor(load_checkpoint(checkpoint or DEFAULT_CHECKPOINT)[0])
+
+
+def localize_tail(checkpoint: str | Path | None = None, scenario: Any = "webots",
+                  robots: int = 5, history: int = 10, observe: str = "truth",
+                  time_limit: float = 60.0, render_mode: str | None = None,
+                  estimator: Any = None) -> Any:
+    """The `localize` task's Gymnasium env with a frozen estimator: the ReTLo `checkpoint`
+    (from `train retlo`; default `DEFAULT_CHECKPOINT`), or `estimator`, any ReTLo module
+    object (e.g. `estimators.retlo.heuristic.Heuristic2X()`, the baseline of §2.6.2.3)."""
+    from estimators.retlo.online import OnlineChain
     from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.core.errors import UserError
     from macrostate_mj.env.gym import TailEnv
@@ -24,8 +36,9 @@ def localize_tail(checkpoint: str | Path | None = None, scenario: Any = "lab", r
     if not (isinstance(time_limit, int | float) and 0 < time_limit < float("inf")):
         raise UserError(f"time_limit must be a positive finite number of seconds, got "
                         f"{time_limit!r}", "time_limit")
-    module = (Heuristic2X() if checkpoint is None
-              else TorchPredictor(load_checkpoint(checkpoint)[0]))
+    if checkpoint is not None and estimator is not None:
+        raise UserError("pass a checkpoint or an estimator, not both", "estimator")
+    module = estimator if estimator is not None else load_estimator(checkpoint)
     steps = int(time_limit * get_scenario(scenario).log_hz) + 2     # every log step, and τ
 
     def localizer(n: int) -> OnlineChain:

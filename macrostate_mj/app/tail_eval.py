@@ -7,6 +7,8 @@ perturbs), so the learned policy and the baselines meet the same environment:
 - passive: offset 0 (the chain's own rule);
 - random: Rand-Only (§3.3): N(0, (σ · robot size)² I) each log step in random mode, alternating
   with passive mode every `alternate` steps, as `collectors.policies.TailPolicy` draws it;
+- srs_med: SRS-Med's Tail (§3.3.1; the novelty models trained on a Rand-Only collection of the
+  scenario), reading the team's true poses as the SR phase does;
 - chain_offset: the scripted heuristic: a fixed offset in the chain's frame (along the Tail ->
   neighbour direction and to its left), the one of a small grid with the lowest mean Head error
   on tuning seeds (`tune_chain_offset`), held out from the evaluation seeds;
@@ -72,6 +74,26 @@ class ChainOffset:
         d = obs["neighbour"][-1, :2] - obs["tail"][-1, :2]
         u = d / max(float(np.linalg.norm(d)), 1e-9)
         return (self.along * u + self.left * np.array([-u[1], u[0]])).astype(np.float32)
+
+
+class SRSTail:
+    """SRS's Tail (§3.3.1) with a pick policy (SRS-Med: the median novelty), its SR phase's
+    choice each log step, held between them. Like the SR phase that collects data, it reads the
+    whole team's true poses (`policy` scores candidates by what the Head and Follower would
+    do): privileged, where the other Tails see only their neighbour."""
+
+    def __init__(self, env: Any, policy: Any, bound: float):
+        task = env.unwrapped.task
+        self.sim, self.every, self.policy, self.bound = task.sim, task.every, policy, bound
+        self.step = 0
+        self.offset = np.zeros(2, np.float32)
+
+    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        if self.step % self.every == 0:
+            self.offset = np.clip(self.policy.choose(self.sim), -self.bound,
+                                  self.bound).astype(np.float32)
+        self.step += 1
+        return self.offset
 
 
 def shield(obs: dict[str, np.ndarray], action: np.ndarray, limit_m: float | None

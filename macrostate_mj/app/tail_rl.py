@@ -65,7 +65,8 @@ def require_sb3() -> Any:
 
 def folder_for(root: Path, spec: PPOSpec, checkpoint: str | None) -> Path:
     inputs = [checkpoint] if checkpoint is not None else []
-    return root / task_key("learned-tail-ppo", 1, asdict(spec), inputs)[:16]
+    # version 2: the estimator is given the first ℓ log steps (env.localize), scored after
+    return root / task_key("learned-tail-ppo", 2, asdict(spec), inputs)[:16]
 
 
 def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: float | None

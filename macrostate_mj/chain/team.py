@@ -146,12 +146,14 @@ class SideTails:
     approach, and take opposite sides together: the Tail to the left of the Head's line of
     approach wraps clockwise, the other counter-clockwise, so the chains never cross and meet
     on the far side. The object's centre is shared: once either Tail's own sensor has it, both
-    encircle the sensed centre. Actions are destination offsets within ±`bound`."""
+    encircle the sensed centre. Actions are destination offsets within ±`bound`. The head
+    source reads the observations of Tail `seer` (where an estimator runs, it runs on that
+    Tail; the other is told the Head's position, as the object's centre is shared)."""
 
     def __init__(self, scenario: ScenarioConfig, k_t: float, caging: CagingConfig,
-                 bound: float, head_source: HeadSource):
+                 bound: float, head_source: HeadSource, seer: int = 0):
         self.scenario, self.k_t, self.caging, self.bound = scenario, k_t, caging, bound
-        self.head_source = head_source
+        self.head_source, self.seer = head_source, seer
         self.track: list[np.ndarray] = []
         self.centre: np.ndarray | None = None
         self.sensed = False
@@ -164,7 +166,7 @@ class SideTails:
 
     def act(self, obs: list[dict], info: dict, t: float) -> list[np.ndarray]:
         """The two Tails' actions for their observations `obs` (chain A's first) at time t."""
-        head = self.head_source(obs[0], info)
+        head = self.head_source(obs[self.seer], info)
         if head is not None:
             self.track.append(head)
             if self.centre is None and self._parked():

@@ -11,6 +11,7 @@ from importlib.resources import files
 from pathlib import Path
 
 ASSETS = Path(str(files("macrostate_mj") / "assets" / "mjcf"))
+MODELS = ASSETS.parent / "models"       # trained estimators the package ships (README.md there)
 
 
 def _checkout() -> Path | None:

@@ -2,7 +2,9 @@
 move so that the estimator localizes the Head well, wherever the Head leads.
 
 The estimator runs live as chapter 2's Tail runs it (`estimators.retlo.online.OnlineChain`: every
-pose true at τ, then only the Tail's own position and its neighbour's, one log step at a time).
+pose true from τ over the first ℓ log steps, the window the model reads, as the first ℓ steps of
+a ThymioLoc instance are known; then only the Tail's own position and its neighbour's, one log
+step at a time).
 This module does not import it (the environments and the estimators are sibling layers); the
 task takes any object of the `Localizer` shape, and `macrostate_mj.app.envs` builds the one
 behind `LocalizeTail-v0` from a checkpoint.
@@ -10,7 +12,7 @@ behind `LocalizeTail-v0` from a checkpoint.
 Action: the Tail's destination offset, as in `explore` (the control SRS perturbs); the Head's
 planner is untouched, so the Tail cannot make the task easy by steering the Head. Observation:
 the Tail's and its neighbour's poses, and `estimate`: the latest Head estimate relative to the
-Tail (world axes, m) and 1, or zeros before the first; with an estimator that gives
+Tail (world axes, m) and 1, or zeros while it is the shared truth; with an estimator that gives
 uncertainty (a `Localizer` whose `head_cov` is not None), also `estimate_cov`: that estimate's
 covariance (Σxx, Σxy, Σyy, m²), zeros before the first estimate and where the estimate is the
 shared truth. Reward: minus the distance (m) between
@@ -43,6 +45,17 @@ class Localizer(Protocol):
 
     def observe(self, sensed: np.ndarray) -> None:
         """The Tail's and its neighbour's positions (2, 2) at the next log step."""
+
+    def share(self, poses: np.ndarray) -> None:
+        """Every robot's true pose (n, 3) at the latest log step."""
+
+    @property
+    def history(self) -> int:
+        """Log steps of every pose it needs before its first estimate."""
+
+    @property
+    def head_known(self) -> bool:
+        """Whether `head` is a shared truth, not an estimate."""
 
     @property
     def head(self) -> tuple[int, np.ndarray]:
@@ -78,7 +91,7 @@ class LocalizeTask(TailTask):
         """The task with `localizer(n)` making a fresh estimator for n robots per episode."""
         if localizer is None:
             raise UserError("the localize task needs its estimator: pass localizer=..., or make "
-                            "macrostate_mj/LocalizeTail-v0 (its default is the 2X heuristic)",
+                            "macrostate_mj/LocalizeTail-v0 (it carries a trained default)",
                             "localizer")
         return cls(ChainSim(world, data=data), localizer, history, observe, random)
 
@@ -96,18 +109,20 @@ class LocalizeTask(TailTask):
         if self._ticks % self.every == 0:          # a log tick: the estimator's next step
             self.localizer.observe(np.array([self._tail[-1][:2], self._neighbour[-1][:2]]))
             self.truth.append(self.sim.poses[0, :2].copy())
+            if len(self.truth) <= self.localizer.history:     # the window the model reads
+                self.localizer.share(self.sim.poses[::-1])
 
     def head_error(self) -> float | None:
         """Distance (m) of the latest Head estimate from the truth at its step; None before
         the first estimate."""
         step, xy = self.localizer.head
-        if step == 0 or not np.all(np.isfinite(xy)):
+        if self.localizer.head_known or not np.all(np.isfinite(xy)):
             return None
         return float(np.linalg.norm(xy - self.truth[step]))
 
     def extra_observations(self) -> dict[str, np.ndarray]:
         step, xy = self.localizer.head
-        seen = step > 0 and np.all(np.isfinite(xy))
+        seen = not self.localizer.head_known and np.all(np.isfinite(xy))
         out = {"estimate": np.append(xy - self._tail[-1][:2], 1.0) if seen else np.zeros(3)}
         cov = self.localizer.head_cov
         if cov is not None:

@@ -4,8 +4,10 @@ the trained policy, a killed training that continues from its last save, and bad
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 from clitools import assert_clean_error, cli
 
@@ -18,7 +20,10 @@ def test_quick_runs_end_to_end_then_reuses_its_policy(tmp_path):
     assert res.returncode == 0, res.stderr
     results = json.loads((out / "results.json").read_text())
     table = results["table"]
-    assert set(table) == {"passive", "random", "chain_offset", "learned"}
+    assert set(table) == {"passive", "random", "srs_med", "chain_offset", "learned"}
+    novelty = results["srs_novelty"]                  # SRS-Med's models, from its RO phase
+    assert Path(novelty["path"]).is_file() and len(novelty["sha256"]) == 64
+    assert len(results["estimator_sha256"]) == 64     # the env's default estimator, by content
     for row in table.values():
         assert row["seeds"] == 2 and row["head_error_m"]["n"] == 2
         assert row["spacing_m"]["mean"] > 0 and 0 <= row["breaks"] <= 2
@@ -85,3 +90,29 @@ def test_the_spacing_shield_turns_a_far_tail_passive():
     assert np.array_equal(shield(obs, action, 0.6), action)
     assert np.array_equal(shield(obs, action, 0.5), np.zeros(2, np.float32))
     assert np.array_equal(shield(obs, action, None), action)
+
+
+def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
+    """SRS-Med's Tail asks its SR-phase policy once per log step and holds that offset,
+    clipped to the action bounds."""
+    import gymnasium
+
+    import macrostate_mj  # noqa: F401
+    from macrostate_mj.app.tail_eval import ENV_ID, SRSTail
+
+    class Far:
+        calls = 0
+
+        def choose(self, sim):
+            Far.calls += 1
+            return np.array([5.0, -5.0])
+
+    env = gymnasium.make(ENV_ID, time_limit=5.0, robots=3)
+    obs, _ = env.reset(seed=3)
+    tail = SRSTail(env, Far(), float(env.action_space.high[0]))
+    every = env.unwrapped.task.every
+    for _ in range(3 * every):
+        action = tail.act(obs)
+        assert env.action_space.contains(action) and abs(action[0]) == env.action_space.high[0]
+        obs, *_ = env.step(action)
+    assert Far.calls == 3

@@ -95,3 +95,34 @@ def test_an_uncertain_estimator_shows_its_covariance(tmp_path):
         obs, *_ = env.step(np.zeros(2, np.float32))
     sxx, sxy, syy = obs["estimate_cov"]
     assert sxx > 0 and syy > 0 and sxx * syy > sxy ** 2
+
+
+def test_the_default_estimator_is_trained_and_beats_the_2x_heuristic():
+    """The packaged default (a Gaussian FC ReTLo module trained on a passive webots collection,
+    macrostate_mj/assets/models/README.md) localizes the Head better than the 2X heuristic
+    over minute-long passive episodes (seeds 600-603; its README's tuning seeds), gives its
+    covariance, and refuses to be combined with another estimator."""
+    from estimators.retlo.heuristic import Heuristic2X
+    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
+
+    assert DEFAULT_CHECKPOINT.is_file()
+
+    def head_error(**kwargs) -> float:
+        errors = []
+        for seed in range(600, 604):
+            env = gymnasium.make(ID, time_limit=60.0, **kwargs)
+            env.reset(seed=seed)
+            truncated = terminated = False
+            while not (truncated or terminated):
+                obs, _, terminated, truncated, info = env.step(np.zeros(2, np.float32))
+                if info["head_error_m"] is not None:
+                    errors.append(info["head_error_m"])
+            assert not terminated
+        return float(np.mean(errors))
+
+    default, heuristic = head_error(), head_error(estimator=Heuristic2X())
+    assert default < 0.8 * heuristic, (default, heuristic)
+    env = gymnasium.make(ID, time_limit=5.0)
+    assert "estimate_cov" in env.observation_space.spaces
+    with pytest.raises(ValueError, match="not both"):
+        gymnasium.make(ID, checkpoint=str(DEFAULT_CHECKPOINT), estimator=Heuristic2X())

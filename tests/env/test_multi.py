@@ -138,7 +138,24 @@ def test_experiment_caging_multi_quick(tmp_path):
               "--time-limit", "25", "--out", str(out))
     assert res.returncode == 0, res.stderr
     results = json.loads((out / "results.json").read_text())
-    assert set(results["table"]) == {"one_tail", "two_tails", "two_passive"}
+    assert set(results["table"]) == {"one_tail", "two_tails", "two_passive", "one_tail_retlo",
+                                     "two_tails_retlo"}
     assert results["table"]["two_tails"]["success_rate"] == 1.0
-    assert results["paired"]["seeds"] == 1 and results["paired"]["both_caged"] == 1
+    oracle = results["paired"]["oracle"]
+    assert oracle["seeds"] == 1 and oracle["both_caged"] == 1
+    assert set(results["paired"]) == {"oracle", "retlo", "scripted_vs_retlo"}
+    # the estimated arms score their Head estimates; the oracle-fed ones have none
+    assert results["table"]["two_tails_retlo"]["head_estimate_error_m"]["n"] == 1
+    assert results["table"]["two_tails"]["head_estimate_error_m"]["n"] == 0
     assert (out / "manifest.json").exists()
+
+
+def test_the_team_rehearsals_are_every_chains_consecutive_triples():
+    """The two-chain ReTLo arm's estimator rehearses on the team: each chain's three-robot
+    windows, Head first (chains H-A1-A2-TA and H-B1-TB: three triples, two holding the Head)."""
+    from collectors.caging import team_rehearsal_runs
+
+    runs = team_rehearsal_runs(1, 3.0)
+    assert runs.shape[0] == 3 and runs.shape[2:] == (3, 3)
+    heads = runs[:, :, 0]
+    assert np.array_equal(heads[0], heads[2]) and not np.array_equal(heads[0], heads[1])

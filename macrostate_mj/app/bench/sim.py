@@ -125,10 +125,9 @@ def bench_env(seconds: float = 60.0) -> list[dict]:
     `ChainSim` (controller, mission and physics, no hooks; for LocalizeTail plus one call of
     the same estimator per log step): the issues' bounds are 1.2x (ratio >= 0.83) and 1.3x for
     LocalizeTail (>= 0.77). ExploreTail on lab with 3 robots, CagingTail on robotarium with 6,
-    LocalizeTail on webots with 5 (the 2X heuristic as its estimator)."""
-    from estimators.retlo.heuristic import Heuristic2X
+    LocalizeTail on webots with 5 (its default estimator, `app.envs.DEFAULT_CHECKPOINT`)."""
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.app.envs import localize_tail
+    from macrostate_mj.app.envs import load_estimator, localize_tail
     from macrostate_mj.chain.caging import CagingConfig, CagingMission
     from macrostate_mj.env.gym import TailEnv
 
@@ -156,7 +155,7 @@ def bench_env(seconds: float = 60.0) -> list[dict]:
             sim.reset(np.random.default_rng(0), start)
             hooks = []
             if task == "localize":           # the estimator's own work, once per log step
-                chain = OnlineChain(Heuristic2X(), sim.n, int(seconds * cfg.log_hz) + 2)
+                chain = OnlineChain(load_estimator(), sim.n, int(seconds * cfg.log_hz) + 2)
                 chain.start(sim.poses[::-1])
                 hooks = [Every(1 / cfg.log_hz, lambda s: chain.observe(s.poses[:-3:-1, :2]),
                                1 / cfg.log_hz)]

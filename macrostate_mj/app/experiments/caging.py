@@ -121,13 +121,21 @@ class EstimatorTask:
     def key(self) -> str:
         return task_key(self.stage, self.version, self.training)
 
+    @staticmethod
+    def rehearse(runs: int, seconds: float) -> np.ndarray:
+        """The rehearsal runs: passive-Tail caging episodes of the line team."""
+        from collectors.caging import rehearsal_runs
+
+        return rehearsal_runs(runs, seconds)
+
     def compute(self) -> dict[str, bytes]:
         from collectors.caging import estimator_runs
         from estimators.retlo.mlp import fit_runs
 
         t = self.training
         rng = np.random.default_rng(t["seed"])
-        runs = estimator_runs(t["train_steps"], t["rehearsals"], t["seconds"], t["stride"], rng)
+        runs = estimator_runs(t["train_steps"], t["rehearsals"], t["seconds"], t["stride"], rng,
+                              self.rehearse)
         return {"mlp.npz": fit_runs(runs, rng, t["epochs"]).to_npz()}
 
 

@@ -2,25 +2,25 @@
 §5.2) on `LocalizeTail-v0`, against scripted Tails, through the Gymnasium API only.
 
 PPO (stable-baselines3, the `rl` extra; `MultiInputPolicy` on the Tail's and its neighbour's
-pose histories and the latest Head estimate) learns the destination offset that SRS perturbs,
-rewarded by minus the frozen estimator's Head error (m) each step (the 2X heuristic, or a
-`train retlo` checkpoint), on training seeds from 1000 up. A chain break costs the steps it cut
-short, and the policy acts through a spacing shield, passive while its neighbour is over 2 d
-away (`tail_rl`). Then every Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive,
-Rand-Only (σ = 75 % of the robot size), the scripted chain-offset Tail (tuned on seeds 500 up)
-and the learned one. Per Tail: the estimator's mean Head error over the episode and over every
-robot it estimates (mean ± std over seeds), the Wilcoxon signed-rank test against passive
-paired by seed, the mean neighbour spacing, and the episodes a chain break ended.
-
-SRS-Med's Tail is left out: it needs the SR phase's novelty models, trained on an RO collection
-(`experiment srs`'s pipeline), for this robot count and scenario.
+pose histories and the latest Head estimate with its covariance) learns the destination offset
+that SRS perturbs, rewarded by minus the frozen estimator's Head error (m) each step (the env's
+default ReTLo module, `app.envs.DEFAULT_CHECKPOINT`, or a `train retlo` checkpoint), on
+training seeds from 1000 up. A chain break costs the steps it cut short, and the policy acts
+through a spacing shield, passive while its neighbour is over 2 d away (`tail_rl`). Then every
+Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive, Rand-Only (σ = 75 % of the
+robot size), SRS-Med (its novelty models trained on the RO phase of an SRS collection of the
+env's scenario, seeds 700 on), the scripted chain-offset Tail (tuned on seeds 500 up) and the
+learned one. Per Tail: the estimator's mean Head error over the episode and over every robot
+it estimates (mean ± std over seeds), the Wilcoxon signed-rank test against passive paired by
+seed, the mean neighbour spacing, and the episodes a chain break ended.
 """
 
 from __future__ import annotations
 
+import hashlib
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -30,11 +30,13 @@ from macrostate_mj.app.experiments import Progress, mean_std, show
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 
-POLICIES = ("passive", "random", "chain_offset", "learned")
+POLICIES = ("passive", "random", "srs_med", "chain_offset", "learned")
 PRODUCTS = ["results.json", "learning_curve.png", "episodes"]
 TUNE_SEEDS = 500          # the scripted Tail's tuning seeds start here (evaluation: 0..seeds-1)
 GRID = tuple((a, b) for a in (-0.1, 0.0, 0.1) for b in (-0.1, 0.0, 0.1))    # (along, left) m
 CHECKPOINTS = "checkpoints"
+SRS = "srs"               # SRS-Med's collection: its RO phase trains the novelty models
+SRS_SEED = 700            # ... collected from seed 700 (700 + its episode index draws)
 
 
 @dataclass(frozen=True)
@@ -47,14 +49,16 @@ class Config:
     seeds: int = 20                 # evaluation seeds 0..seeds-1
     tune_seeds: int = 4
     time_limit: float = 60.0
-    sigma: float = 0.75             # Rand-Only's σ, a fraction of the robot size
-    checkpoint: str | None = None   # a `train retlo` .pt; None: the 2X heuristic
+    sigma: float = 0.75             # Rand-Only's σ, a fraction of the robot size (and SRS's)
+    srs_ro_instances: int = 100     # SRS's RO phase, 3 robots of the env's scenario (§3.5)
+    srs_k: int = 30                 # SRS's candidates per step
+    checkpoint: str | None = None   # a `train retlo` .pt; None: the env's default estimator
     policies: tuple[str, ...] = POLICIES
     seed: int = 0
 
     def __post_init__(self) -> None:
         for name in ("timesteps", "envs", "n_steps", "batch_size", "save_every", "seeds",
-                     "tune_seeds"):
+                     "tune_seeds", "srs_ro_instances", "srs_k"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise UserError(f"{name} must be a positive whole number, got {value!r}", name)
@@ -78,7 +82,8 @@ class Config:
 
 PROFILES = {"full": Config(),
             "quick": Config(timesteps=512, envs=2, n_steps=128, batch_size=64, save_every=256,
-                            seeds=2, tune_seeds=1, time_limit=20.0)}
+                            seeds=2, tune_seeds=1, time_limit=20.0, srs_ro_instances=3,
+                            srs_k=4)}
 
 
 def missing(cfg: Config) -> str | None:
@@ -105,9 +110,11 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
     learning_curve.png; summary lines."""
     from macrostate_mj.app import tail_eval, tail_rl
+    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
     from viz.learned_tail_figures import plot_learning_curve
 
     check_checkpoint(cfg)
+    cfg = replace(cfg, checkpoint=cfg.checkpoint or str(DEFAULT_CHECKPOINT))
     spec = cfg.ppo()
     model, training = None, {"steps": 0, "curve": [], "resumed_from": 0, "steps_run_now": 0}
     if "learned" in cfg.policies:
@@ -129,12 +136,17 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
             tuned = tail_eval.tune_chain_offset(
                 GRID, range(TUNE_SEEDS, TUNE_SEEDS + cfg.tune_seeds), cfg.checkpoint,
                 cfg.time_limit)
-    episodes = _evaluate(cfg, model, tuned, progress, out / PRODUCTS[2])
+    novelty = None
+    if "srs_med" in cfg.policies:
+        with progress.stage("srs_novelty_models"):
+            novelty = srs_models(cfg, out / SRS, progress.workers)
+    episodes = _evaluate(cfg, model, tuned, novelty, progress, out / PRODUCTS[2])
     by = {p: [e for e in episodes if e["policy"] == p] for p in cfg.policies}
     table = {p: _summary(eps, by["passive"]) for p, eps in by.items()}
     results = {"config": asdict(cfg), "ppo": asdict(spec), "training": training,
+               "estimator_sha256": hashlib.sha256(Path(cfg.checkpoint).read_bytes()).hexdigest(),
                "chain_offset": tuned, "table": table, "episodes": episodes,
-               "srs_med": "not run: needs the SR phase's novelty models (experiment srs)"}
+               "srs_novelty": None if novelty is None else asdict(novelty)}
     write_json_atomic(out / "results.json", results)
     plot_learning_curve(training["curve"], float(np.mean([e["return"] for e in by["passive"]])),
                         out / "learning_curve.png")
@@ -144,8 +156,28 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     return [*lines, f"PPO: {training['steps']} steps ({training['steps_run_now']} run now)"]
 
 
-def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress,
-              videos: Path) -> list[dict]:
+def srs_models(cfg: Config, out: Path, workers: int) -> Any:
+    """SRS-Med's novelty models: an SRS collection of 3 robots in the env's scenario (seed
+    `SRS_SEED`), its RO phase of `srs_ro_instances` instances at σ, then the one SR instance
+    the collection needs (`collectors.srs`; cached, resumed); the stored models' source."""
+    from collectors.runner import CollectRequest
+    from collectors.srs import NOVELTY, SRSRequest, collect_srs, finished_srs
+    from estimators.srs.novelty import NoveltyTraining
+    from macrostate_mj.gym_ids import ENVS
+
+    scenario = ENVS["macrostate_mj/LocalizeTail-v0"]["scenario"]
+    base = CollectRequest(scenario, 3, 0.0, SRS_SEED, out, "random", cfg.sigma, workers,
+                          overwrite=True)
+    req = SRSRequest(base, "med", cfg.srs_ro_instances + 1, cfg.srs_ro_instances, cfg.srs_k)
+    novelty = NoveltyTraining()
+    if not finished_srs(req, novelty):
+        collect_srs(req, novelty)
+    path = (out / NOVELTY).resolve()
+    return novelty.source(path, hashlib.sha256(path.read_bytes()).hexdigest())
+
+
+def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
+              progress: Progress, videos: Path) -> list[dict]:
     """Every Tail on every evaluation seed; seed 0's episode of each also as a video with the
     estimates drawn (`videos/<policy>_seed0.mp4`)."""
     from macrostate_mj.app import tail_eval
@@ -158,6 +190,13 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
             rng = np.random.default_rng([cfg.seed, seed, 11])
             return lambda env: tail_eval.RandOnly(rng, cfg.sigma,
                                                   float(env.action_space.high[0]))
+        if policy == "srs_med":
+            from collectors.srs_policy import SRSConfig
+
+            srs = SRSConfig(novelty, "med", cfg.srs_k, cfg.sigma)
+            rng = np.random.default_rng([cfg.seed, seed, 13])
+            return lambda env: tail_eval.SRSTail(env, srs.build(rng),
+                                                 float(env.action_space.high[0]))
         if policy == "chain_offset" and tuned is not None:
             return lambda env: tail_eval.ChainOffset(tuned["along"], tuned["left"])
         spacings = cfg.ppo().shield_spacings
@@ -172,8 +211,7 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, progress: Progress
                 if seed == 0:
                     videos.mkdir(exist_ok=True)
                     write_episode_video(videos / f"{policy}_seed0.mp4", ep.pop("truth"),
-                                        ep.pop("estimate"), "2X heuristic"
-                                        if cfg.checkpoint is None else "ReTLo")
+                                        ep.pop("estimate"), "ReTLo")
                 episodes.append({"policy": policy, **ep})
                 done += 1
                 progress.report("episodes", done, len(cfg.policies) * cfg.seeds)
