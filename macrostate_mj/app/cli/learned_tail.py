@@ -36,7 +36,8 @@ def experiment_learned_tail(
                                "runs, the baseline of the paired test); default all.", POLICIES,
                                "--policy"),
     checkpoint: Path = InputFile(None, "The Tail's frozen estimator: a ReTLo checkpoint from "
-                                 "`train retlo`; default the 2X heuristic.", (".pt",)),
+                                 "`train retlo`; default the env's trained one "
+                                 "(macrostate_mj/assets/models).", (".pt",)),
     workers: int = Count(1, "Processes for the vector environments (1: all in this one; the "
                          "result does not depend on it).", max=MAX_WORKERS),
     seed: int = Seed(0, "Seed of the PPO training and the random Tail's draws."),
@@ -44,8 +45,8 @@ def experiment_learned_tail(
                           "checkpoint there)."),
     overwrite: bool = Switch(False, "Replace existing outputs (the trained policy is kept)."),
 ) -> None:
-    """PPO Tail on LocalizeTail-v0 against passive, Rand-Only and a scripted chain-offset
-    Tail: the estimator's Head error over held-out seeds, paired tests against passive,
+    """PPO Tail on LocalizeTail-v0 against passive, Rand-Only, SRS-Med and a scripted
+    chain-offset Tail: the estimator's Head error over held-out seeds, paired tests against passive,
     spacing, chain breaks, and the learning curve."""
     from macrostate_mj.app.experiments import profile as chosen
 
