@@ -446,6 +446,24 @@ def learned_tail(folder: str) -> Table:
 
 
 @source
+def learned_tail_seeds(*folders: str) -> Table:
+    """The learned Tail of each PPO training seed (one `experiment learned-tail --seed` run
+    per folder) on the same held-out seeds: its Head error, the paired test against Passive,
+    its breaks."""
+    rows = [["PPO seed", "Head error (cm)", "Passive (cm)", "p vs passive", "better seeds",
+             "breaks"]]
+    for folder in folders:
+        data = load(f"{folder}/results.json")
+        table = data["table"]  # type: ignore[index]
+        learned, test = table["learned"], table["learned"]["vs_passive"]
+        rows.append([str(data["config"]["seed"]), _stat(learned["head_error_m"], ".1f", 100),  # type: ignore[index]
+                     _stat(table["passive"]["head_error_m"], ".1f", 100),
+                     f"{test['wilcoxon_p']:.2g}", f"{test['better']} / {test['pairs']}",
+                     f"{learned['breaks']} / {learned['seeds']}"])
+    return rows
+
+
+@source
 def soak(folder: str) -> Table:
     """A soak's summary: runs, simulated time and every fault count."""
     summary = load(f"{folder}/soak.json")["summary"]  # type: ignore[index]

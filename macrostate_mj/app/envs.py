@@ -36,6 +36,9 @@ def localize_tail(checkpoint: str | Path | None = None, scenario: Any = "webots"
     if not (isinstance(time_limit, int | float) and 0 < time_limit < float("inf")):
         raise UserError(f"time_limit must be a positive finite number of seconds, got "
                         f"{time_limit!r}", "time_limit")
+    if isinstance(robots, int) and not isinstance(robots, bool) and robots < 3:
+        raise UserError(f"the localize task estimates a chain of a Tail, a Follower and a Head: "
+                        f"robots must be at least 3, got {robots}", "robots")
     if checkpoint is not None and estimator is not None:
         raise UserError("pass a checkpoint or an estimator, not both", "estimator")
     module = estimator if estimator is not None else load_estimator(checkpoint)

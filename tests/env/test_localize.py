@@ -68,6 +68,8 @@ def test_a_trained_checkpoint_is_the_estimator_and_a_bad_one_is_refused(tmp_path
         gymnasium.make(ID, checkpoint=str(tmp_path / "bad.pt"))
     with pytest.raises(ValueError, match="time_limit"):
         gymnasium.make(ID, time_limit=-1.0)
+    with pytest.raises(ValueError, match="at least 3"):
+        gymnasium.make(ID, robots=2)
     with pytest.raises(gymnasium.error.InvalidAction):
         env.step(np.array([5.0, 0.0], np.float32))
     assert "estimate_cov" not in env.observation_space.spaces     # a point model: no covariance
