@@ -11,13 +11,18 @@ from macrostate_mj.core.paths import MODELS
 # The default: a Gaussian FC ReTLo module trained on a passive `webots` 3-robot collection (the
 # id's scenario); how it was made and what it scores: macrostate_mj/assets/models/README.md.
 DEFAULT_CHECKPOINT = MODELS / "webots3_fc_gaussian.pt"
+HEURISTIC = "heuristic2x"     # the 2X heuristic of §2.6.2.3, named where a checkpoint may go
 
 
 def load_estimator(checkpoint: str | Path | None = None) -> Any:
-    """The ReTLo module of `checkpoint` (from `train retlo`), or of `DEFAULT_CHECKPOINT`."""
+    """The ReTLo module of `checkpoint` (from `train retlo`; `HEURISTIC`: the 2X heuristic),
+    or of `DEFAULT_CHECKPOINT`."""
+    from estimators.retlo.heuristic import Heuristic2X
     from estimators.retlo.models import TorchPredictor
     from estimators.retlo.train import load_checkpoint
 
+    if checkpoint == HEURISTIC:
+        return Heuristic2X()
     return TorchPredictor(load_checkpoint(checkpoint or DEFAULT_CHECKPOINT)[0])
 
 
@@ -26,8 +31,8 @@ def localize_tail(checkpoint: str | Path | None = None, scenario: Any = "webots"
                   time_limit: float = 60.0, render_mode: str | None = None,
                   estimator: Any = None) -> Any:
     """The `localize` task's Gymnasium env with a frozen estimator: the ReTLo `checkpoint`
-    (from `train retlo`; default `DEFAULT_CHECKPOINT`), or `estimator`, any ReTLo module
-    object (e.g. `estimators.retlo.heuristic.Heuristic2X()`, the baseline of §2.6.2.3)."""
+    (from `train retlo`, or "heuristic2x"; default `DEFAULT_CHECKPOINT`), or `estimator`, any
+    ReTLo module object."""
     from estimators.retlo.online import OnlineChain
     from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.core.errors import UserError

@@ -64,7 +64,9 @@ def require_sb3() -> Any:
 
 
 def folder_for(root: Path, spec: PPOSpec, checkpoint: str | None) -> Path:
-    inputs = [checkpoint] if checkpoint is not None else []
+    # a checkpoint by its bytes; a name (the 2X heuristic) by itself
+    inputs = [] if checkpoint is None else [checkpoint] if Path(checkpoint).is_file() else \
+        [checkpoint.encode()]
     # version 2: the estimator is given the first ℓ log steps (env.localize), scored after
     return root / task_key("learned-tail-ppo", 2, asdict(spec), inputs)[:16]
 

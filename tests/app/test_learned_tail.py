@@ -116,3 +116,14 @@ def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
         assert env.action_space.contains(action) and abs(action[0]) == env.action_space.high[0]
         obs, *_ = env.step(action)
     assert Far.calls == 3
+
+
+def test_the_2x_heuristic_is_an_estimator_by_name_with_its_own_policy_folder(tmp_path):
+    from estimators.retlo.heuristic import Heuristic2X
+    from macrostate_mj.app.tail_eval import make_env
+    from macrostate_mj.app.tail_rl import PPOSpec, folder_for
+
+    env = make_env("heuristic2x", 5.0)
+    assert isinstance(env.unwrapped.task.localizer.module, Heuristic2X)
+    spec = PPOSpec(timesteps=512)
+    assert folder_for(tmp_path, spec, "heuristic2x") != folder_for(tmp_path, spec, None)

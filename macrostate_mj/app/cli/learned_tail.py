@@ -12,12 +12,13 @@ from macrostate_mj.app.cli.params import (
     MAX_WORKERS,
     Choice,
     Count,
-    InputFile,
+    InputFileOr,
     OutputDir,
     Positive,
     Seed,
     Switch,
 )
+from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.app.experiments.learned_tail import POLICIES
 
 
@@ -35,9 +36,9 @@ def experiment_learned_tail(
     policy: list[str] = Choice(None, "Evaluate only this Tail (repeatable; passive always "
                                "runs, the baseline of the paired test); default all.", POLICIES,
                                "--policy"),
-    checkpoint: Path = InputFile(None, "The Tail's frozen estimator: a ReTLo checkpoint from "
-                                 "`train retlo`; default the env's trained one "
-                                 "(macrostate_mj/assets/models).", (".pt",)),
+    checkpoint: str = InputFileOr(None, "The Tail's frozen estimator: a ReTLo checkpoint from "
+                                  "`train retlo`, or heuristic2x; default the env's trained one "
+                                  "(macrostate_mj/assets/models).", (HEURISTIC,), (".pt",)),
     workers: int = Count(1, "Processes for the vector environments (1: all in this one; the "
                          "result does not depend on it).", max=MAX_WORKERS),
     seed: int = Seed(0, "Seed of the PPO training and the random Tail's draws."),
@@ -51,7 +52,7 @@ def experiment_learned_tail(
     from macrostate_mj.app.experiments import profile as chosen
 
     given = {"timesteps": timesteps, "seeds": seeds, "time_limit": time_limit,
-             "checkpoint": str(checkpoint) if checkpoint is not None else None,
+             "checkpoint": checkpoint,
              "policies": ("passive", *sorted(set(policy) - {"passive"}, key=POLICIES.index))
              if policy else None}
     config = replace(chosen("learned-tail", "quick" if quick else profile), seed=seed,

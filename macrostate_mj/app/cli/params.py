@@ -179,6 +179,17 @@ def InputFile(default: Any, help: str, suffixes: tuple[str, ...] = (),  # noqa: 
                         callback=_checked(_input_file(suffixes), "input_file"), **kw)
 
 
+def InputFileOr(default: Any, help: str, names: tuple[str, ...],  # noqa: N802
+                suffixes: tuple[str, ...] = ()) -> Any:
+    """An existing file, or one of `names` (a built-in that needs no file)."""
+    files = _input_file(suffixes)
+
+    def check(value: str) -> None:
+        if value not in names:
+            files(Path(value))
+    return typer.Option(default, help=help, callback=_checked(check, "input_file"))
+
+
 def InputFiles(help: str, suffixes: tuple[str, ...] = ()) -> Any:  # noqa: N802
     """Positional existing files."""
     return typer.Argument(..., help=help, callback=_checked(_input_file(suffixes), "input_file"))

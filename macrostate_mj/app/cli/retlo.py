@@ -23,12 +23,12 @@ from macrostate_mj.app.cli.params import (
     Seed,
     Switch,
 )
+from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 if TYPE_CHECKING:
     from estimators.retlo.chain import Module
 
-HEURISTIC = "heuristic2x"
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
 PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
 Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "

@@ -52,7 +52,8 @@ class Config:
     sigma: float = 0.75             # Rand-Only's σ, a fraction of the robot size (and SRS's)
     srs_ro_instances: int = 100     # SRS's RO phase, 3 robots of the env's scenario (§3.5)
     srs_k: int = 30                 # SRS's candidates per step
-    checkpoint: str | None = None   # a `train retlo` .pt; None: the env's default estimator
+    checkpoint: str | None = None   # a `train retlo` .pt or "heuristic2x"; None: the env's
+                                    # default estimator
     policies: tuple[str, ...] = POLICIES
     seed: int = 0
 
@@ -97,7 +98,9 @@ def missing(cfg: Config) -> str | None:
 
 def check_checkpoint(cfg: Config) -> None:
     """Refuse a bad estimator checkpoint before training (one line)."""
-    if cfg.checkpoint is not None:
+    from macrostate_mj.app.envs import HEURISTIC
+
+    if cfg.checkpoint not in (None, HEURISTIC):
         from estimators.retlo.train import load_checkpoint
 
         try:
@@ -110,7 +113,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
     learning_curve.png; summary lines."""
     from macrostate_mj.app import tail_eval, tail_rl
-    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
+    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT, HEURISTIC
     from viz.learned_tail_figures import plot_learning_curve
 
     check_checkpoint(cfg)
@@ -144,7 +147,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     by = {p: [e for e in episodes if e["policy"] == p] for p in cfg.policies}
     table = {p: _summary(eps, by["passive"]) for p, eps in by.items()}
     results = {"config": asdict(cfg), "ppo": asdict(spec), "training": training,
-               "estimator_sha256": hashlib.sha256(Path(cfg.checkpoint).read_bytes()).hexdigest(),
+               "estimator_sha256": None if cfg.checkpoint == HEURISTIC else
+               hashlib.sha256(Path(cfg.checkpoint).read_bytes()).hexdigest(),
                "chain_offset": tuned, "table": table, "episodes": episodes,
                "srs_novelty": None if novelty is None else asdict(novelty)}
     write_json_atomic(out / "results.json", results)
@@ -181,6 +185,7 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
     """Every Tail on every evaluation seed; seed 0's episode of each also as a video with the
     estimates drawn (`videos/<policy>_seed0.mp4`)."""
     from macrostate_mj.app import tail_eval
+    from macrostate_mj.app.envs import HEURISTIC
     from viz.learned_tail_figures import write_episode_video
 
     def tail_for(policy: str, seed: int) -> Callable[[Any], tail_eval.Tail]:
@@ -211,7 +216,8 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
                 if seed == 0:
                     videos.mkdir(exist_ok=True)
                     write_episode_video(videos / f"{policy}_seed0.mp4", ep.pop("truth"),
-                                        ep.pop("estimate"), "ReTLo")
+                                        ep.pop("estimate"), "2X heuristic"
+                                        if cfg.checkpoint == HEURISTIC else "ReTLo")
                 episodes.append({"policy": policy, **ep})
                 done += 1
                 progress.report("episodes", done, len(cfg.policies) * cfg.seeds)
