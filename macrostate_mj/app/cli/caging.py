@@ -37,8 +37,8 @@ def experiment_caging(
 
 @experiment_app.command("caging-multi")
 def experiment_caging_multi(
-    profile: str = Choice("full", "full: 20 seeds of 90 s; quick: a smoke run (2 seeds, 40 s).",
-                          ("full", "quick")),
+    profile: str = Choice("full", "full: 20 seeds of 90 s, the estimators trained 200 epochs; "
+                          "quick: a smoke run (2 seeds, 40 s, 20 epochs).", ("full", "quick")),
     quick: bool = Switch(False, "Shorthand for --profile quick."),
     seeds: int = Count(None, "Episodes per arm; default: the profile's."),
     first_seed: int = Seed(0, "The first episode's seed (seeds first..first+seeds-1)."),
@@ -47,9 +47,9 @@ def experiment_caging_multi(
     out: Path = OutputDir(..., "Output folder."),
     overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
-    """Two cooperating scripted Tails of a Head leading two chains against the one oracle Tail
-    of `experiment caging`, and the two-chain team with passive Tails: success rate, time to
-    cage, paired by seed."""
+    """Two cooperating scripted Tails of a Head leading two chains against the one Tail of
+    `experiment caging`, each fed the Head's true position or a live ReTLo estimate, and the
+    two-chain team with passive Tails: success rate, time to cage, paired by seed."""
     from macrostate_mj.app.experiments import profile as chosen
 
     given = {"seeds": seeds, "time_limit": time_limit}

@@ -36,7 +36,7 @@ TUNE_SEEDS = 500          # the scripted Tail's tuning seeds start here (evaluat
 GRID = tuple((a, b) for a in (-0.1, 0.0, 0.1) for b in (-0.1, 0.0, 0.1))    # (along, left) m
 CHECKPOINTS = "checkpoints"
 SRS = "srs"               # SRS-Med's collection: its RO phase trains the novelty models
-SRS_SEED = 700            # ... collected from seed 700 (700 + its episode index draws)
+SRS_SEED = 700            # that collection's seed: its own stream, apart from every episode seed
 
 
 @dataclass(frozen=True)
