@@ -185,8 +185,11 @@ def InputFileOr(default: Any, help: str, names: tuple[str, ...],  # noqa: N802
     files = _input_file(suffixes)
 
     def check(value: str) -> None:
-        if value not in names:
-            files(Path(value))
+        if value in names:
+            return
+        if not Path(value).exists():
+            _fail(f"{value} is neither a file nor one of {', '.join(names)}")
+        files(Path(value))
     return typer.Option(default, help=help, callback=_checked(check, "input_file"))
 
 
