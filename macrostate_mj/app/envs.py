@@ -7,6 +7,10 @@ from pathlib import Path
 from typing import Any
 
 from macrostate_mj.core.paths import MODELS
+from macrostate_mj.gym_ids import ENVS
+
+ID = "macrostate_mj/LocalizeTail-v0"
+ID_DEFAULTS = ENVS[ID]        # its scenario and team size: set once, where the id is registered
 
 # The default: a Gaussian FC ReTLo module trained on a passive `webots` 3-robot collection (the
 # id's scenario); how it was made and what it scores: macrostate_mj/assets/models/README.md.
@@ -26,8 +30,8 @@ def load_estimator(checkpoint: str | Path | None = None) -> Any:
     return TorchPredictor(load_checkpoint(checkpoint or DEFAULT_CHECKPOINT)[0])
 
 
-def localize_tail(checkpoint: str | Path | None = None, scenario: Any = "webots",
-                  robots: int = 5, history: int = 10, observe: str = "truth",
+def localize_tail(checkpoint: str | Path | None = None, scenario: Any = ID_DEFAULTS["scenario"],
+                  robots: int = ID_DEFAULTS["robots"], history: int = 10, observe: str = "truth",
                   time_limit: float = 60.0, render_mode: str | None = None,
                   estimator: Any = None) -> Any:
     """The `localize` task's Gymnasium env with a frozen estimator: the ReTLo `checkpoint`

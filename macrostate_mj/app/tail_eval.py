@@ -27,10 +27,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from macrostate_mj.app.envs import ID as ENV_ID
 from macrostate_mj.app.experiments import wilcoxon_p
 from macrostate_mj.core.errors import UserError
-
-ENV_ID = "macrostate_mj/LocalizeTail-v0"
 
 
 class Tail(Protocol):

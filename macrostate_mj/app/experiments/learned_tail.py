@@ -167,9 +167,9 @@ def srs_models(cfg: Config, out: Path, workers: int) -> Any:
     from collectors.runner import CollectRequest
     from collectors.srs import NOVELTY, SRSRequest, collect_srs, finished_srs
     from estimators.srs.novelty import NoveltyTraining
-    from macrostate_mj.gym_ids import ENVS
+    from macrostate_mj.app.envs import ID_DEFAULTS
 
-    scenario = ENVS["macrostate_mj/LocalizeTail-v0"]["scenario"]
+    scenario = ID_DEFAULTS["scenario"]
     base = CollectRequest(scenario, 3, 0.0, SRS_SEED, out, "random", cfg.sigma, workers,
                           overwrite=True)
     req = SRSRequest(base, "med", cfg.srs_ro_instances + 1, cfg.srs_ro_instances, cfg.srs_k)
