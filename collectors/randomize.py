@@ -25,7 +25,8 @@ from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision.imaging import NoiseConfig
 
 # Where each parameter lives: the scenario's rules, the compiled model, or the imaging chain.
-SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "marker_jitter")
+SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "marker_jitter",
+            "head_jitter_scale")
 RULES = ("wait_slack",)          # the lab Followers' wait rule (`WaitForBehind.slack`)
 MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")

@@ -2,18 +2,19 @@
 
 What is fitted: factors on the scenario's own values (`collectors.randomize` names, so a fit is
 a fixed-factor profile that `collect --randomize fitted.json` reads): the Follower and Tail
-gains, the heading gain, the Head's and the chain's speed caps, the lab wait rule's slack and
-the tracker's position noise (`marker_jitter`).
+gains, the heading gain, the Head's and the chain's speed caps, the lab wait rule's slack, the
+tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`).
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
 outweigh the rest twentyfold.
 How: every candidate is a collection with the same seed (common random numbers: the same starts
 and Head routes, so the scores differ by the parameters, not by luck). Stage 1 draws scrambled
-Sobol points over log-factors in [0.6, 1.6], with the scenario's own values (all factors 1) as
-point 0; stage 2 draws Sobol points in a box a quarter as wide around stage 1's best. The best
-of both is checked on the real Val file against the unfitted scenario. Each candidate is cached
-(its collection and its score), so an interrupted fit resumes.
+Sobol points over log-factors in each parameter's box (`BOUNDS`), with the scenario's own
+values (all factors 1) as point 0; stage 2 draws Sobol points in a box a quarter as wide around
+stage 1's best. The best of both is checked on the real Val file against the unfitted
+scenario. Each candidate is cached (its collection and its score), so an interrupted fit
+resumes.
 """
 
 from __future__ import annotations
@@ -32,8 +33,16 @@ from macrostate_mj.formats import motion_stats
 from macrostate_mj.formats.instances import INSTANCE_STEPS
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
-FITTED = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "wait_slack", "marker_jitter")
-LOW, HIGH = 0.6, 1.6
+# Each factor's box: 0.6-1.6 around the scenario's value, wider where the real data lies
+# farther off. The real rear robots drive at about the Head's speed and stop once within their
+# spacing (their median speed jumps from 1.5 to 6 cm/s between gaps of 29 and 31 cm), which the
+# lab's proportional rule reaches only with gains several times its own and a speed cap near the
+# Head's; the real Head's marker jitter is lower than the others' (docs: decisions/sysid).
+BOUNDS: dict[str, tuple[float, float]] = {
+    "k_f": (0.6, 10.0), "k_t": (0.6, 10.0), "k_omega": (0.6, 1.6), "head_speed": (0.6, 1.6),
+    "chain_speed": (0.3, 1.6), "wait_slack": (0.6, 1.6), "marker_jitter": (0.6, 1.6),
+    "head_jitter_scale": (0.5, 1.6)}
+FITTED = tuple(BOUNDS)
 SCORE_VERSION = 1          # bump when the motion features or the score change
 
 
@@ -71,10 +80,15 @@ def _sobol(n: int, seed: int) -> np.ndarray:
     return qmc.Sobol(len(FITTED), scramble=True, seed=seed).random_base2(m)[:n]
 
 
+def box() -> tuple[np.ndarray, np.ndarray]:
+    """The log-factor box's lower and upper corners, in FITTED's order."""
+    return tuple(np.log([BOUNDS[k][i] for k in FITTED]) for i in (0, 1))
+
+
 def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray:
     """Log-factor points (k, len(FITTED)): stage 1 over the whole box (point 0 = no change),
     or stage 2 around `centre`."""
-    lo, hi = np.log(LOW), np.log(HIGH)
+    lo, hi = box()
     if centre is None:
         pts = _sobol(cfg.first - 1, cfg.seed)
         return np.vstack([np.zeros(len(FITTED)), lo + pts * (hi - lo)])

@@ -27,15 +27,16 @@ def plot_curve(results: dict, path: str | os.PathLike) -> None:
         m = np.array([c["head_cm"]["mean"] for c in cells.values()])
         s = np.array([c["head_cm"]["std"] for c in cells.values()])
         ax.errorbar(x, m, yerr=s, fmt=style, capsize=3, label=label)
-    sim = results["arms"]["sim"]["0"]["head_cm"]
-    ax.axhline(sim["mean"], color="grey", ls="--", label=f"sim only ({sim['mean']:.1f} cm)")
+    if "sim" in results["arms"]:        # a run of some arms (`--arm`) may lack it
+        sim = results["arms"]["sim"]["0"]["head_cm"]
+        ax.axhline(sim["mean"], color="grey", ls="--", label=f"sim only ({sim['mean']:.1f} cm)")
     ax.set_xscale("log")
-    shares = [float(f) * 100 for f in results["arms"]["real"]]
+    shares = [float(f) * 100 for f in results["profile"]["fractions"]]
     ax.set_xticks(shares, [f"{v:g}" for v in shares])
     ax.minorticks_off()
     ax.set_xlabel("real training data used (% of the pool, log scale)")
     ax.set_ylabel("Head error on held-out real instances (cm)")
-    n = results["arms"]["sim"]["0"]["head_cm"]["n"]
+    n = results["profile"]["seeds"]
     ax.set_title(f"Sim-to-real: mean ± std over {n} seeds (one held-out fold each)", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)

@@ -86,6 +86,7 @@ MEANINGS = {
     "chain.avoid_gain": "strength of that repulsion",
     "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
     "noise.marker_jitter": "white noise added to every tracked position, m (σ)",
+    "noise.head_jitter_scale": "the Head's marker jitter as a share of marker_jitter",
     "noise.light_scale": "[low, high] of the diffuse light's intensity factor, drawn per episode",
     "noise.light_tilt_deg": "largest tilt of the key light from vertical, degrees",
     "noise.cam_shift_m": "camera position error the tracker's calibration does not know, m (σ)",

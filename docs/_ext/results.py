@@ -463,6 +463,59 @@ def learned_tail_seeds(*folders: str) -> Table:
     return rows
 
 
+SYSID_FEATURES = {"spacing_cm": "spacing (cm)", "speed_cm_s": "speed (cm/s)",
+                  "wait_share": "time waiting", "jitter_cm": "jitter (cm)",
+                  "turn_deg_s": "turn rate (°/s)", "accel_cm_s2": "acceleration (cm/s²)",
+                  "heading_change_deg": "heading change (°)",
+                  "speed_acf": "speed autocorr. (lag 1; KS over lags 1-10)",
+                  "turn_acf": "turn autocorr. (lag 1; KS over lags 1-10)"}
+
+
+def _ks_rows(rows: list[dict]) -> dict[tuple[str, str], tuple[float, float, float]]:
+    """(feature, robot) -> (KS, sim median, real median), each autocorrelation's lags as the
+    fit scores them (KS averaged over lags, medians of lag 1); pooled rows left out."""
+    out: dict[tuple[str, str], list] = {}
+    for r in rows:
+        if r["robot"] == "pooled":
+            continue
+        family = r["feature"].split("_lag")[0]
+        cell = out.setdefault((family, r["robot"]), [[], None, None])
+        cell[0].append(r["ks"])
+        if "_lag" not in r["feature"] or r["feature"].endswith("_lag1"):
+            cell[1], cell[2] = r["median"]
+    return {k: (statistics.fmean(v[0]), v[1], v[2]) for k, v in out.items()}
+
+
+def _chain_order(name: str) -> int:
+    """H, F1, F2, ..., T; a pair (`H-F1`) by its first robot."""
+    first = name.split("-")[0]
+    return 0 if first == "H" else 99 if first == "T" else int(first[1:])
+
+
+@source
+def sysid_ks(folder: str) -> Table:
+    """A `sysid` fit's before/after table: per feature and robot the medians (real Val, the
+    scenario before, the fit) and the KS distance to the real Train and Val files, before ->
+    after; the summed score last."""
+    fit = load(f"{folder}/fit.json")
+    tables = {(when, split): _ks_rows(fit["rows"][when][split])  # type: ignore[index]
+              for when in ("before", "after") for split in ("train", "val")}
+    rows = [["feature", "robot", "real Val", "before", "after", "KS Train", "KS Val"]]
+    keys = sorted(tables["before", "val"], key=lambda k: (list(SYSID_FEATURES).index(k[0]),
+                                                          _chain_order(k[1])))
+    for family, robot in keys:
+        _, before, real = tables["before", "val"][family, robot]
+        after = tables["after", "val"][family, robot][1]
+        ks = [f"{tables['before', s][family, robot][0]:.2f} → "
+              f"{tables['after', s][family, robot][0]:.2f}" for s in ("train", "val")]
+        rows.append([SYSID_FEATURES[family], robot, f"{real:.2f}", f"{before:.2f}",
+                     f"{after:.2f}", *ks])
+    rows.append(["summed KS", "", "", "", "",
+                 *[f"{fit[s]['before']:.2f} → {fit[s]['after']:.2f}"  # type: ignore[index]
+                   for s in ("train", "val")]])
+    return rows
+
+
 @source
 def soak(folder: str) -> Table:
     """A soak's summary: runs, simulated time and every fault count."""

@@ -31,7 +31,7 @@ LAYOUT: dict[str, dict[str, str]] = {
               "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
               "avoid_gain": "avoid_gain"},
     "rates": {"command_hz": "command_hz", "log_hz": "log_hz"},
-    "noise": {"marker_jitter": "marker_jitter"},
+    "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale"},
 }
 NESTED = {"camera": "camera", "physics": "physics", "look": "look"}   # table -> dataclass field
 SHARED = {"imaging": "noise"}   # a dataclass field whose keys share a table with flat fields
@@ -87,6 +87,8 @@ class ScenarioConfig:
     avoid_gain: float = 0.15        # repulsion speed at contact (m/s)
     marker_jitter: float = 0.0      # tracker position noise per frame, beyond what the
     #                                 imaging chain makes (sigma, m): see `CameraChain`
+    head_jitter_scale: float = 1.0  # the Head's marker jitter as a share of the others' (the
+    #                                 real 3-robot Head's is lower: docs, decisions/sysid)
     walls: Walls | None = Walls()   # None: an open floor
     look: Look = Look()             # colours and lighting
     obstacles: tuple[Obstacle, ...] = ()    # static boxes and cylinders on the floor
@@ -150,7 +152,8 @@ class ScenarioConfig:
             raise UserError(f"{self.name}: physics.timestep must be a positive finite number "
                             f"of seconds, got {dt!r}", "physics")
         for key, v in {"wall_margin": self.wall_margin, "avoid_gain": self.avoid_gain,
-                       "marker_jitter": self.marker_jitter}.items():
+                       "marker_jitter": self.marker_jitter,
+                       "head_jitter_scale": self.head_jitter_scale}.items():
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise UserError(f"{self.name}: {named(key)} must be a non-negative finite "
                                 f"number, got {v!r}", key)

@@ -18,12 +18,13 @@ window around each (`regions`): the window holds the marker wherever the robot c
 since, and `imaging.regions` makes its pixels exactly as the whole frame's chain would. After a
 miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 
-The scenario's `marker_jitter` adds white Gaussian noise to every tracked position, drawn per
-frame from the imaging stream (only when it is above zero, so a scenario without it keeps its
-outputs bit for bit). It stands for what our rendered markers lack and the real ThymioLoc
-tracker shows (about 0.25 cm of jitter around a smooth track, a Head speed whose lag-1
-autocorrelation is negative): paper markers that flex and rock with the body, uneven light,
-a detector on real edges. The windows are placed from the positions before it.
+The scenario's `marker_jitter` adds white Gaussian noise to every tracked position (the Head's
+scaled by `head_jitter_scale`), drawn per frame from the imaging stream (only when it is above
+zero, so a scenario without it keeps its outputs bit for bit). It stands for what our rendered
+markers lack and the real ThymioLoc tracker shows (about 0.25 cm of jitter around a smooth
+track, a Head speed whose lag-1 autocorrelation is negative): paper markers that flex and rock
+with the body, uneven light, a detector on real edges. The windows are placed from the
+positions before it.
 """
 
 from __future__ import annotations
@@ -123,8 +124,7 @@ class CameraChain:
             self.dropped += 1
             self._detected[:] = False
             return
-        sigma = sim.cfg.marker_jitter
-        jitter = self.rng.normal(0.0, sigma, (len(self._latest), 2)) if sigma > 0 else None
+        jitter = self._jitter(sim)
         if self._waiting is None and self.lazy:
             spare = self._spare
             mujoco.mj_copyData(spare, sim.model, sim.data)
@@ -135,6 +135,16 @@ class CameraChain:
             self.sync()
         self._waiting = None
         self._apply(det, sim.time, sim.poses, jitter)
+
+    def _jitter(self, sim: ChainSim) -> np.ndarray | None:
+        """This frame's marker jitter (n, 2), the Head's (row 0) scaled by its own share; None
+        without jitter (no draw, so such a scenario's stream is unchanged)."""
+        sigma = sim.cfg.marker_jitter
+        if not sigma > 0:
+            return None
+        jitter = self.rng.normal(0.0, sigma, (len(self._latest), 2))
+        jitter[0] *= sim.cfg.head_jitter_scale       # x 1.0 leaves every bit as it was
+        return jitter
 
     def sync(self) -> None:
         """Process the waiting frame, if any (every read of the tracker does this first)."""

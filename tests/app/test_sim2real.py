@@ -97,6 +97,32 @@ def test_experiment_sim2real_quick(tmp_path, monkeypatch):
     assert (out / "results.json").read_bytes() == before
 
 
+def test_arms_train_only_what_they_need(tmp_path):
+    """`--arm sim` trains the sim models alone (no ratio without the real arm); `--arm real`
+    collects no lab data; an unknown arm is one line, exit 2."""
+    stand_in = tmp_path / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "3",
+              "--episode-minutes", "1.5", "--seed", "78", "--split", "80/20/0",
+              "--out", str(stand_in))
+    assert res.returncode == 0, res.stderr
+    for arms, trained in ((["sim"], 2), (["real"], 4), (["real", "sim"], 2)):
+        out = tmp_path / "_".join(arms)
+        args = [a for arm in arms for a in ("--arm", arm)]
+        res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), *args,
+                  "--out", str(out))
+        assert res.returncode == 0, res.stderr
+        results = json.loads((out / "results.json").read_text())
+        assert set(results["arms"]) == set(arms)
+        assert ("sim_over_real" in results) == (len(arms) == 2)
+        assert (out / "data" / "sim").exists() == ("sim" in arms)
+        manifest = json.loads((out / "manifest.json").read_text())
+        assert manifest["models_trained"] == (trained if len(arms) == 1 else 6)
+    res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--arm", "tail",
+              "--out", str(tmp_path / "bad"))
+    assert_clean_error(res, "--arm")
+    assert not (tmp_path / "bad").exists()
+
+
 def test_sim2real_refuses_a_folder_without_real_files(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()

@@ -163,9 +163,10 @@ def test_the_noise_table_sets_the_imaging_noise_beside_the_marker_jitter(tmp_pat
     from macrostate_mj.vision.imaging import NoiseConfig
 
     path = _write(tmp_path, 'extends = "lab"\nname = "noisy"\n[noise]\nmarker_jitter = 0.001\n'
-                            'sensor_sigma = 5.0\ndrop_prob = 0.01\njpeg_quality = [60, 80]\n')
+                            'head_jitter_scale = 0.7\nsensor_sigma = 5.0\ndrop_prob = 0.01\n'
+                            'jpeg_quality = [60, 80]\n')
     cfg = load_scenario(path)
-    assert cfg.marker_jitter == 0.001
+    assert cfg.marker_jitter == 0.001 and cfg.head_jitter_scale == 0.7
     assert cfg.imaging == NoiseConfig(sensor_sigma=5.0, drop_prob=0.01, jpeg_quality=(60, 80))
     assert load_scenario("lab").imaging == NoiseConfig()            # built-ins: the defaults
     assert load_scenario(_write(tmp_path, to_toml(cfg), "back.toml")) == cfg
@@ -175,6 +176,8 @@ def test_the_noise_table_sets_the_imaging_noise_beside_the_marker_jitter(tmp_pat
     for text, words in [("drop_prob = 2.0", ["noise.drop_prob", "probability"]),
                         ("sensor_sigma = -1.0", ["noise.sensor_sigma", "non-negative"]),
                         ("jpeg_quality = [90, 80]", ["noise.jpeg_quality", "range"]),
+                        ("head_jitter_scale = -0.5", ["noise.head_jitter_scale",
+                                                      "non-negative"]),
                         ("sensor_noise = 1.0", ["noise.sensor_noise", "sensor_sigma",
                                                 "marker_jitter"])]:
         bad = _write(tmp_path, f'extends = "lab"\n[noise]\n{text}\n', "bad.toml")

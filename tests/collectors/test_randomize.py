@@ -28,10 +28,11 @@ def test_draws_are_seeded_within_their_ranges_and_land_where_they_belong():
             assert low <= min(values) and max(values) <= high and np.std(values) > 0
         assert r.draw(np.random.default_rng(5)) == r.draw(np.random.default_rng(5))
     f = {"k_f": 1.1, "sensor_sigma": 2.0, "wheel_friction": 0.5, "motor_torque": 1.25,
-         "marker_jitter": 1.3}
+         "marker_jitter": 1.3, "head_jitter_scale": 0.7}
     cfg = get_scenario("lab")
     assert randomized_scenario(cfg, f).k_f == pytest.approx(1.1 * cfg.k_f)
     assert randomized_scenario(cfg, f).marker_jitter == pytest.approx(1.3 * cfg.marker_jitter)
+    assert randomized_scenario(cfg, f).head_jitter_scale == pytest.approx(0.7)
     assert randomized_noise(NoiseConfig(), f).sensor_sigma == pytest.approx(6.0)
     world = build_world(cfg, 3)
     grip = world.model.geom("H/wheel_left").friction[0]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from clitools import cli
 
-from collectors.sysid import FITTED, HIGH, LOW, SysidConfig, candidates, score
+from collectors.sysid import FITTED, SysidConfig, box, candidates, score
 
 
 def test_score_sums_per_robot_rows_and_averages_each_lag_family():
@@ -23,11 +23,12 @@ def test_candidates_start_from_the_scenario_and_stay_in_the_box():
     cfg = SysidConfig(first=8, refine=4)
     first = candidates(cfg)
     assert first.shape == (8, len(FITTED)) and np.array_equal(first[0], np.zeros(len(FITTED)))
-    assert np.all((first >= np.log(LOW)) & (first <= np.log(HIGH)))
+    lo, hi = box()
+    assert np.all((first >= lo) & (first <= hi)) and np.all(lo < 0) and np.all(hi > 0)
     assert np.array_equal(first, candidates(cfg))                       # seeded
     centre = first[3]
     second = candidates(cfg, centre)
-    half = cfg.shrink * (np.log(HIGH) - np.log(LOW)) / 2
+    half = cfg.shrink * (hi - lo) / 2
     assert second.shape == (4, len(FITTED)) and np.all(np.abs(second - centre) <= half + 1e-12)
 
 

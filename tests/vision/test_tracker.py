@@ -68,6 +68,38 @@ def test_marker_jitter_adds_its_noise_to_every_tracked_position():
     assert np.median(head_deg) == pytest.approx(np.median(base_deg), abs=0.5)
 
 
+def tracked_run(seconds: float, seed: int, **overrides) -> np.ndarray:
+    """Every frame's tracked poses (frames, n, 3) of a 3-robot lab run with these overrides."""
+    world = build_world(get_scenario("lab").with_overrides(**overrides), 3)
+    sim = ChainSim(world)
+    sim.reset(np.random.default_rng(seed))
+    chain = CameraChain(sim, NoiseConfig(drop_prob=0.0))
+    chain.start(np.random.default_rng([seed, 1]))
+    seen = []
+
+    def take(s: ChainSim) -> None:
+        chain.capture(s)
+        seen.append(chain.latest.copy())
+
+    try:
+        sim.run(seconds, [Every(0.25, take)])
+    finally:
+        chain.close()
+    return np.array(seen)
+
+
+def test_the_heads_jitter_scales_alone():
+    """`head_jitter_scale` scales the Head's marker jitter and nothing else: the other robots'
+    tracks are bit for bit those of scale 1, and the Head's jitter is the scale's share of it."""
+    one, half, none = (tracked_run(6.0, 3, marker_jitter=0.005, head_jitter_scale=k)
+                       for k in (1.0, 0.5, 0.0))
+    assert np.array_equal(one[:, 1:], half[:, 1:]) and np.array_equal(one[:, 1:], none[:, 1:])
+    jitter = one[:, 0, :2] - none[:, 0, :2]
+    assert np.sqrt(np.mean(jitter**2)) == pytest.approx(0.005, rel=0.3)
+    assert np.allclose(half[:, 0, :2] - none[:, 0, :2], 0.5 * jitter, atol=1e-12)
+    assert np.array_equal(one, tracked_run(6.0, 3, marker_jitter=0.005))
+
+
 def frame_and_tracker(start: np.ndarray):
     world = build_world(get_scenario("lab"), len(start))
     sim = ChainSim(world)

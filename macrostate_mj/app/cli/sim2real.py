@@ -20,6 +20,7 @@ from macrostate_mj.app.cli.params import (
     Seed,
     Switch,
 )
+from macrostate_mj.app.experiments.sim2real import ARMS
 
 
 @experiment_app.command("sim2real")
@@ -41,6 +42,8 @@ def experiment_sim2real(
     workers: int = Count(1, "Local worker processes (collection and trainings).",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
+    arm: list[str] = Choice(None, "Train only this arm (repeatable; default all): `--arm sim` "
+                            "asks only how far a lab collection carries.", ARMS, "--arm"),
     mix_weight: float = Positive(0.5, "The mixed arm: the lab data's share of the loss, in "
                                  "(0, 1).", "--mix-weight", max=1.0),
     out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
@@ -55,7 +58,8 @@ def experiment_sim2real(
     from macrostate_mj.core.errors import UserError
 
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
-                     randomize=randomize, seed=seed, mix_weight=mix_weight)
+                     randomize=randomize, seed=seed, mix_weight=mix_weight,
+                     arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if sim_minutes is not None:
         if sim is not None:
             raise UserError("--sim-minutes sizes the lab collection this command makes; drop "

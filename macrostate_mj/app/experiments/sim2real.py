@@ -5,12 +5,14 @@ Real data: a folder of ThymioLoc 3-robot files, `Train.csv` then `Val.csv`, pool
 and cut into `folds` contiguous blocks (instances overlap in time, so a random split would leak).
 Model i (seed `seed + i`) is tested on block i mod `folds`, never used by any model of that
 seed; of the other blocks, the last `val_share` selects the real-trained checkpoints and the rest
-is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Three arms per seed:
+is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Four arms per seed
+(`arms` picks some: `sim` alone asks only how far a lab collection carries):
 - sim: trained and selected on a lab collection only (`collect --scenario lab --robots 3
   --split 80/20/0 [--randomize PROFILE]`, a `collect` run in `data/sim`, or `--sim DIR` with
   Train.csv and Val.csv);
 - real: trained on a fraction of the pool, selected on the real validation block;
-- finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`).
+- finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`);
+- mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`).
 Every model is the LSTM of `train retlo --model lstm`, a cached task
 (`cache/sim2real-model/<key>/`: its report, and a sim model's checkpoint) keyed by its training
 settings and the bytes of its data (the lab CSVs, the real blocks, a fine-tuned model's sim
@@ -59,6 +61,7 @@ class Config:
                        / "3Robots")
     sim: Path | None = None    # a lab collection's folder, instead of collecting one
     randomize: str | None = None   # the lab collection's domain randomization
+    arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
 
 
 PROFILES = {
@@ -97,6 +100,10 @@ def validate(config: Config) -> np.ndarray:
     from collectors.randomize import Randomization
 
     pooled = read_real(config.real)
+    unknown = [a for a in config.arms if a not in ARMS]
+    if unknown or not config.arms:
+        raise UserError(f"--arm {', '.join(unknown) or '(none)'}: choose among "
+                        f"{', '.join(ARMS)}")
     if config.folds > len(pooled):
         raise UserError(f"--real {config.real} holds {len(pooled)} instances, fewer than "
                         f"{config.folds} folds")
@@ -191,37 +198,34 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     with progress.stage("data"):
         pooled = validate(config)
-        sim = _sim_data(config, out / "data" / "sim", progress.workers, progress.ray)
-    first: list[tuple[dict, ModelTask]] = []
-    blocks = []
-    total = config.seeds * (1 + (len(ARMS) - 1) * len(config.fractions))
+        sim = None if config.arms == ("real",) else \
+            _sim_data(config, out / "data" / "sim", progress.workers, progress.ray)
+    later = [a for a in ARMS[1:] if a in config.arms]
+    sim_models = "sim" in config.arms or "finetune" in config.arms
+    total = config.seeds * (sim_models + len(later) * len(config.fractions))
+    blocks, first = [], []
     for i in range(config.seeds):
         s = config.seed + i
         pool, val, test = cv_blocks(len(pooled), config.folds, i % config.folds,
                                     config.val_share)
         blocks.append((s, pooled[pool], pooled[val], pooled[test]))
-        first.append(({"arm": "sim", "fraction": 0.0, "count": 0, "seed": s},
-                      ModelTask("sim", s, config.epochs, sim / "Train.csv", sim / "Val.csv",
-                                pooled[test])))
+        if sim_models:
+            first.append(({"arm": "sim", "fraction": 0.0, "count": 0, "seed": s},
+                          ModelTask("sim", s, config.epochs, sim / "Train.csv",
+                                    sim / "Val.csv", pooled[test])))
     with progress.stage("models"):
         done = _train(first, progress, total)
         second: list[tuple[dict, ModelTask]] = []
-        for (s, pool, val, test), (_, sim_task) in zip(blocks, first, strict=True):
-            checkpoint = done[id(sim_task)].folder / "model.pt"
+        for i, (s, pool, val, test) in enumerate(blocks):
+            checkpoint = done[id(first[i][1])].folder / "model.pt" if sim_models else None
             for f in config.fractions:
                 count = max(1, int(np.ceil(f * len(pool))))
-                for arm, epochs, lr, init in (
-                        ("real", config.epochs, None, None),
-                        ("finetune", config.finetune_epochs, config.finetune_lr, checkpoint)):
-                    second.append(({"arm": arm, "fraction": f, "count": count, "seed": s},
-                                   ModelTask(arm, s, epochs, pool[:count], val, test, lr, init)))
-                second.append(({"arm": "mixed", "fraction": f, "count": count, "seed": s},
-                               ModelTask("mixed", s, config.epochs, pool[:count], val, test,
-                                         mix=sim / "Train.csv",
-                                         mix_weight=config.mix_weight)))
+                second += [({"arm": arm, "fraction": f, "count": count, "seed": s},
+                            _arm_task(arm, config, s, pool[:count], val, test, checkpoint, sim))
+                           for arm in later]
         done |= _train(second, progress, total, len(first))
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
-               for meta, task in [*first, *second]]
+               for meta, task in [*first, *second] if meta["arm"] in config.arms]
     results = summarize(reports, config, len(pooled))
     write_json_atomic(out / "results.json", results)
     plot_curve(results, out / "sim2real.png")
@@ -229,6 +233,19 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     progress.record(models=len(reports), sim_data=str(sim),
                     models_trained=len({t.key() for _, t in [*first, *second]} - hits))
     return summary_lines(results)
+
+
+def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.ndarray,
+              test: np.ndarray, checkpoint: Path | None, sim: Path | None) -> ModelTask:
+    """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`, or
+    mixed with the lab Train.csv in `sim`."""
+    if arm == "real":
+        return ModelTask(arm, seed, config.epochs, train, val, test)
+    if arm == "finetune":
+        return ModelTask(arm, seed, config.finetune_epochs, train, val, test,
+                         config.finetune_lr, checkpoint)
+    return ModelTask(arm, seed, config.epochs, train, val, test, mix=sim / "Train.csv",
+                     mix_weight=config.mix_weight)
 
 
 def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
@@ -245,10 +262,11 @@ def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
 
 
 def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
-    """Head and mean error (cm) per arm and fraction over seeds; the sim-only / real-only
-    ratio; and, per fraction, the real-only data the fine-tuned model's error is worth."""
+    """Head and mean error (cm) per arm and fraction over seeds; with the real arm, the
+    sim-only / real-only ratio and, per fraction, the real-only data the fine-tuned model's error
+    is worth."""
     out: dict = {"profile": asdict(config), "real_instances": n_real, "arms": {}}
-    for arm in ARMS:
+    for arm in (a for a in ARMS if a in config.arms):
         fracs = (0.0,) if arm == "sim" else config.fractions
         out["arms"][arm] = {f"{f:g}": {
             "head_cm": mean_std([r["head_cm"] for r in reports
@@ -257,13 +275,16 @@ def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
                                if r["arm"] == arm and r["fraction"] == f]),
             "count": max([r["count"] for r in reports if r["arm"] == arm and r["fraction"] == f])}
             for f in fracs}
-    real = out["arms"]["real"]
+    real = out["arms"].get("real")
+    if real is None:
+        return out
     full = real[f"{max(config.fractions):g}"]["head_cm"]["mean"]
-    out["sim_over_real"] = out["arms"]["sim"]["0"]["head_cm"]["mean"] / full
+    if "sim" in out["arms"]:
+        out["sim_over_real"] = out["arms"]["sim"]["0"]["head_cm"]["mean"] / full
     out["equivalent_real_fraction"] = {
         f: equivalent_fraction(v["head_cm"]["mean"], config.fractions,
                                [real[f"{g:g}"]["head_cm"]["mean"] for g in config.fractions])
-        for f, v in out["arms"]["finetune"].items()}
+        for f, v in out["arms"].get("finetune", {}).items()}
     return out
 
 
@@ -292,8 +313,9 @@ def summary_lines(results: dict) -> list[str]:
             share = "" if arm == "sim" else f" at {float(f) * 100:.0f} % real"
             lines.append(f"{arm:<9}{share:<14} Head {h['mean']:.2f} ± {h['std']:.2f} cm "
                          f"({h['n']} seeds)")
-    lines.append(f"sim only / real only (100 %): {results['sim_over_real']:.2f}x")
-    for f, g in results["equivalent_real_fraction"].items():
+    if "sim_over_real" in results:
+        lines.append(f"sim only / real only (100 %): {results['sim_over_real']:.2f}x")
+    for f, g in results.get("equivalent_real_fraction", {}).items():
         worth = ("outside the measured range" if g is None
                  else f"worth {g * 100:.0f} % real-only")
         lines.append(f"fine-tuned on {float(f) * 100:.0f} % real: {worth}")
