@@ -41,7 +41,8 @@ WIDE = {"k_f": (0.8, 1.2), "k_t": (0.8, 1.2), "k_omega": (0.8, 1.2),
         "wheel_friction": (0.7, 1.3), "motor_torque": (0.7, 1.3),
         "sensor_sigma": (0.5, 2.0), "blur_px": (0.5, 2.0), "psf_sigma_px": (0.5, 2.0)}
 
-PROFILES: dict[str, dict[str, tuple[float, float]]] = {
+# A profile maps a parameter to its (low, high) factors or to one fixed factor.
+PROFILES: dict[str, dict[str, tuple[float, float] | float]] = {
     "wide": WIDE,
     # `wide`, with the Head's and chain's speed caps, the Tail gain and the wait rule's slack
     # reaching up to where the first `sysid` fit went (faster, tighter, more patient): the
@@ -49,6 +50,16 @@ PROFILES: dict[str, dict[str, tuple[float, float]]] = {
     "wider": {**WIDE, "k_f": (0.8, 1.3), "k_t": (0.8, 1.6), "head_speed": (0.8, 1.6),
               "chain_speed": (0.8, 1.5), "wait_slack": (0.7, 1.5)},
 }
+# The `lab` refit (`sysid`, results/sysid_refit): stiff rear robots capped near the Head's speed,
+# a quieter Head marker. Not the lab's defaults, since with these gains a parked rear robot turns
+# on the spot at the smallest pull (docs: decisions/sysid); `refit` fixes the factors,
+# `refit-wider` draws `wider`'s ranges around them (each range times the fitted factor).
+REFIT = {"k_f": 4.8917, "k_t": 1.8631, "k_omega": 1.0835, "head_speed": 0.9504,
+         "chain_speed": 0.4807, "wait_slack": 1.4125, "marker_jitter": 1.0066,
+         "head_jitter_scale": 0.7382}
+PROFILES["refit"] = dict(REFIT)
+PROFILES["refit-wider"] = {**REFIT, **{k: (lo * REFIT.get(k, 1.0), hi * REFIT.get(k, 1.0))
+                                       for k, (lo, hi) in PROFILES["wider"].items()}}
 
 
 @dataclass(frozen=True)

@@ -305,6 +305,27 @@ def s2r(folder: str) -> Table:
 
 
 @source
+def s2r_sim(real: str, *folders: str) -> Table:
+    """Sim-only runs (`experiment sim2real --arm sim`) on different lab data: each one's
+    real-fold Head error, its ratio to `real`'s real-only arm on all of the pool (the same
+    folds and seeds), and on how many folds it beats the first run."""
+    data = load(f"{real}/results.json")
+    full = data["arms"]["real"]["1"]["head_cm"]["mean"]  # type: ignore[index]
+    rows = [["lab data (`--randomize`)", "sim only, Head (cm)", "÷ real only (100 %)",
+             "folds better than the first"]]
+    cells = [load(f"{folder}/results.json")["arms"]["sim"]["0"] for folder in folders]  # type: ignore[index]
+    first = cells[0]["head_cm_by_seed"]
+    for folder, cell in zip(folders, cells, strict=True):
+        profile = load(f"{folder}/results.json")["profile"]["randomize"]  # type: ignore[index]
+        ms, by_seed = cell["head_cm"], cell["head_cm_by_seed"]
+        better = sum(by_seed[s] < first[s] for s in first)
+        rows.append([nodes.literal(text=Path(profile).name if profile else "none"),
+                     f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
+                     "" if cell is cells[0] else f"{better} / {len(first)}"])
+    return rows
+
+
+@source
 def retlo_sim(folder: str) -> Table:
     """Fig 2.2: per case, the chained MLPs' mean and max error (cm) and the 2X heuristic's."""
     cases = load(f"{folder}/results.json")["cases"]  # type: ignore[index]

@@ -53,3 +53,14 @@ def test_a_tiny_fit_end_to_end(tmp_path):
     res = cli(*args, "--robots", "5", "--out", str(tmp_path / "bad"))
     assert res.returncode == 2 and "robots" in res.stderr and res.stderr.count("\n") == 1
     assert not (tmp_path / "bad").exists()
+
+
+def test_the_refit_profile_is_the_committed_fit():
+    """`--randomize refit` holds the factors `results/sysid_refit` fitted, not a copy that
+    drifts from them."""
+    from pathlib import Path
+
+    from collectors.randomize import REFIT
+
+    fitted = Path(__file__).resolve().parents[2] / "results" / "sysid_refit" / "fitted.json"
+    assert REFIT == json.loads(fitted.read_text())

@@ -262,7 +262,8 @@ def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
 
 
 def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
-    """Head and mean error (cm) per arm and fraction over seeds; with the real arm, the
+    """Head and mean error (cm) per arm and fraction over seeds (and the Head's per seed, for
+    paired comparisons between runs on the same folds); with the real arm, the
     sim-only / real-only ratio and, per fraction, the real-only data the fine-tuned model's error
     is worth."""
     out: dict = {"profile": asdict(config), "real_instances": n_real, "arms": {}}
@@ -273,7 +274,9 @@ def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
                                if r["arm"] == arm and r["fraction"] == f]),
             "mean_cm": mean_std([r["mean_cm"] for r in reports
                                if r["arm"] == arm and r["fraction"] == f]),
-            "count": max([r["count"] for r in reports if r["arm"] == arm and r["fraction"] == f])}
+            "count": max([r["count"] for r in reports if r["arm"] == arm and r["fraction"] == f]),
+            "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in reports
+                                if r["arm"] == arm and r["fraction"] == f}}
             for f in fracs}
     real = out["arms"].get("real")
     if real is None:
