@@ -311,7 +311,7 @@ def s2r_sim(real: str, *folders: str) -> Table:
     folds and seeds), and on how many folds it beats the first run."""
     data = load(f"{real}/results.json")
     full = data["arms"]["real"]["1"]["head_cm"]["mean"]  # type: ignore[index]
-    rows = [["lab data (`--randomize`)", "sim only, Head (cm)", "÷ real only (100 %)",
+    rows = [["lab data (--randomize)", "sim only, Head (cm)", "÷ real only (100 %)",
              "folds better than the first"]]
     cells = [load(f"{folder}/results.json")["arms"]["sim"]["0"] for folder in folders]  # type: ignore[index]
     first = cells[0]["head_cm_by_seed"]
@@ -492,6 +492,9 @@ SYSID_FEATURES = {"spacing_cm": "spacing (cm)", "speed_cm_s": "speed (cm/s)",
                   "turn_acf": "turn autocorr. (lag 1; KS over lags 1-10)"}
 
 
+SIGNED = {"turn_deg_s", "heading_change_deg", "accel_cm_s2"}   # medians near 0 say nothing
+
+
 def _ks_rows(rows: list[dict]) -> dict[tuple[str, str], tuple[float, float, float]]:
     """(feature, robot) -> (KS, sim median, real median), each autocorrelation's lags as the
     fit scores them (KS averaged over lags, medians of lag 1); pooled rows left out."""
@@ -529,8 +532,9 @@ def sysid_ks(folder: str) -> Table:
         after = tables["after", "val"][family, robot][1]
         ks = [f"{tables['before', s][family, robot][0]:.2f} → "
               f"{tables['after', s][family, robot][0]:.2f}" for s in ("train", "val")]
-        rows.append([SYSID_FEATURES[family], robot, f"{real:.2f}", f"{before:.2f}",
-                     f"{after:.2f}", *ks])
+        medians = ["", "", ""] if family in SIGNED else \
+            [f"{real:.2f}", f"{before:.2f}", f"{after:.2f}"]
+        rows.append([SYSID_FEATURES[family], robot, *medians, *ks])
     rows.append(["summed KS", "", "", "", "",
                  *[f"{fit[s]['before']:.2f} → {fit[s]['after']:.2f}"  # type: ignore[index]
                    for s in ("train", "val")]])
