@@ -68,12 +68,15 @@ def test_marker_jitter_adds_its_noise_to_every_tracked_position():
     assert np.median(head_deg) == pytest.approx(np.median(base_deg), abs=0.5)
 
 
-def tracked_run(seconds: float, seed: int, **overrides) -> np.ndarray:
-    """Every frame's tracked poses (frames, n, 3) of a 3-robot lab run with these overrides."""
-    world = build_world(get_scenario("lab").with_overrides(**overrides), 3)
+def filmed(seconds: float, seed: int, scenario: str = "lab", robots: int = 3,
+           noise: NoiseConfig | None = None, windows: bool = True, **overrides
+           ) -> tuple[np.ndarray, CameraChain]:
+    """Every frame's tracked poses (frames, n, 3) of a run with these scenario overrides, and
+    the (closed) camera chain that filmed it."""
+    world = build_world(get_scenario(scenario).with_overrides(**overrides), robots)
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(seed))
-    chain = CameraChain(sim, NoiseConfig(drop_prob=0.0))
+    chain = CameraChain(sim, noise, windows=windows)
     chain.start(np.random.default_rng([seed, 1]))
     seen = []
 
@@ -82,22 +85,23 @@ def tracked_run(seconds: float, seed: int, **overrides) -> np.ndarray:
         seen.append(chain.latest.copy())
 
     try:
-        sim.run(seconds, [Every(0.25, take)])
+        sim.run(seconds, [Every(chain.period, take)])
     finally:
         chain.close()
-    return np.array(seen)
+    return np.array(seen), chain
 
 
 def test_the_heads_jitter_scales_alone():
     """`head_jitter_scale` scales the Head's marker jitter and nothing else: the other robots'
     tracks are bit for bit those of scale 1, and the Head's jitter is the scale's share of it."""
-    one, half, none = (tracked_run(6.0, 3, marker_jitter=0.005, head_jitter_scale=k)
+    quiet = NoiseConfig(drop_prob=0.0)
+    one, half, none = (filmed(6.0, 3, noise=quiet, marker_jitter=0.005, head_jitter_scale=k)[0]
                        for k in (1.0, 0.5, 0.0))
     assert np.array_equal(one[:, 1:], half[:, 1:]) and np.array_equal(one[:, 1:], none[:, 1:])
     jitter = one[:, 0, :2] - none[:, 0, :2]
     assert np.sqrt(np.mean(jitter**2)) == pytest.approx(0.005, rel=0.3)
     assert np.allclose(half[:, 0, :2] - none[:, 0, :2], 0.5 * jitter, atol=1e-12)
-    assert np.array_equal(one, tracked_run(6.0, 3, marker_jitter=0.005))
+    assert np.array_equal(one, filmed(6.0, 3, noise=quiet, marker_jitter=0.005)[0])
 
 
 def frame_and_tracker(start: np.ndarray):
@@ -206,22 +210,8 @@ def test_windows_around_the_robots_track_exactly_as_the_whole_frame(scenario, ro
     """The windowed path (imaging and tracking only around each robot's last detection) gives
     the same poses, bit for bit, as processing every whole frame; and it is the path taken."""
     def run(windows: bool) -> tuple[np.ndarray, int, int]:
-        world = build_world(get_scenario(scenario), robots)
-        sim = ChainSim(world)
-        sim.reset(np.random.default_rng(seed))
-        chain = CameraChain(sim, windows=windows)
-        chain.start(np.random.default_rng([seed, 1]))
-        poses = []
-
-        def film(s: ChainSim) -> None:
-            chain.capture(s)
-            poses.append(chain.latest.copy())
-
-        try:
-            sim.run(15.0, [Every(chain.period, film)])
-        finally:
-            chain.close()
-        return np.array(poses), chain.windowed, chain.frames
+        poses, chain = filmed(15.0, seed, scenario, robots, windows=windows)
+        return poses, chain.windowed, chain.frames
 
     (whole, none, _), (windowed, used, frames) = run(False), run(True)
     assert none == 0 and used >= 0.9 * frames
