@@ -313,15 +313,15 @@ def s2r_sim(real: str, *folders: str) -> Table:
     full = data["arms"]["real"]["1"]["head_cm"]["mean"]  # type: ignore[index]
     rows = [["lab data (--randomize)", "sim only, Head (cm)", "÷ real only (100 %)",
              "folds better than the first"]]
-    cells = [load(f"{folder}/results.json")["arms"]["sim"]["0"] for folder in folders]  # type: ignore[index]
-    first = cells[0]["head_cm_by_seed"]
-    for folder, cell in zip(folders, cells, strict=True):
-        profile = load(f"{folder}/results.json")["profile"]["randomize"]  # type: ignore[index]
+    runs = [load(f"{folder}/results.json") for folder in folders]
+    first = runs[0]["arms"]["sim"]["0"]["head_cm_by_seed"]  # type: ignore[index]
+    for i, run in enumerate(runs):
+        profile, cell = run["profile"]["randomize"], run["arms"]["sim"]["0"]  # type: ignore[index]
         ms, by_seed = cell["head_cm"], cell["head_cm_by_seed"]
         better = sum(by_seed[s] < first[s] for s in first)
         rows.append([nodes.literal(text=Path(profile).name if profile else "none"),
                      f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
-                     "" if cell is cells[0] else f"{better} / {len(first)}"])
+                     f"{better} / {len(first)}" if i else ""])
     return rows
 
 

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.core.cache import task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -64,9 +65,9 @@ def require_sb3() -> Any:
 
 
 def folder_for(root: Path, spec: PPOSpec, checkpoint: str | None) -> Path:
-    # a checkpoint by its bytes; a name (the 2X heuristic) by itself
-    inputs = [] if checkpoint is None else [checkpoint] if Path(checkpoint).is_file() else \
-        [checkpoint.encode()]
+    # a checkpoint by its bytes; the 2X heuristic by its name
+    inputs = [] if checkpoint is None else [HEURISTIC.encode()] if checkpoint == HEURISTIC \
+        else [checkpoint]
     # version 2: the estimator is given the first ℓ log steps (env.localize), scored after
     return root / task_key("learned-tail-ppo", 2, asdict(spec), inputs)[:16]
 

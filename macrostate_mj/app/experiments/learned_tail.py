@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.app.experiments import Progress, mean_std, show
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -98,8 +99,6 @@ def missing(cfg: Config) -> str | None:
 
 def check_checkpoint(cfg: Config) -> None:
     """Refuse a bad estimator checkpoint before training (one line)."""
-    from macrostate_mj.app.envs import HEURISTIC
-
     if cfg.checkpoint not in (None, HEURISTIC):
         from estimators.retlo.train import load_checkpoint
 
@@ -113,7 +112,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
     learning_curve.png; summary lines."""
     from macrostate_mj.app import tail_eval, tail_rl
-    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT, HEURISTIC
+    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
     from viz.learned_tail_figures import plot_learning_curve
 
     check_checkpoint(cfg)
@@ -185,7 +184,6 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
     """Every Tail on every evaluation seed; seed 0's episode of each also as a video with the
     estimates drawn (`videos/<policy>_seed0.mp4`)."""
     from macrostate_mj.app import tail_eval
-    from macrostate_mj.app.envs import HEURISTIC
     from viz.learned_tail_figures import write_episode_video
 
     def tail_for(policy: str, seed: int) -> Callable[[Any], tail_eval.Tail]:

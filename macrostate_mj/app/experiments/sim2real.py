@@ -268,16 +268,14 @@ def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
     is worth."""
     out: dict = {"profile": asdict(config), "real_instances": n_real, "arms": {}}
     for arm in (a for a in ARMS if a in config.arms):
-        fracs = (0.0,) if arm == "sim" else config.fractions
-        out["arms"][arm] = {f"{f:g}": {
-            "head_cm": mean_std([r["head_cm"] for r in reports
-                               if r["arm"] == arm and r["fraction"] == f]),
-            "mean_cm": mean_std([r["mean_cm"] for r in reports
-                               if r["arm"] == arm and r["fraction"] == f]),
-            "count": max([r["count"] for r in reports if r["arm"] == arm and r["fraction"] == f]),
-            "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in reports
-                                if r["arm"] == arm and r["fraction"] == f}}
-            for f in fracs}
+        out["arms"][arm] = {}
+        for f in (0.0,) if arm == "sim" else config.fractions:
+            cell = [r for r in reports if r["arm"] == arm and r["fraction"] == f]
+            out["arms"][arm][f"{f:g}"] = {
+                "head_cm": mean_std([r["head_cm"] for r in cell]),
+                "mean_cm": mean_std([r["mean_cm"] for r in cell]),
+                "count": max(r["count"] for r in cell),
+                "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in cell}}
     real = out["arms"].get("real")
     if real is None:
         return out
