@@ -115,7 +115,8 @@ class Randomization:
 def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
     cfg = replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
     if "wait_slack" in factors and isinstance(cfg.followers, WaitForBehind):
-        cfg = replace(cfg, followers=WaitForBehind(cfg.followers.slack * factors["wait_slack"]))
+        cfg = replace(cfg, followers=replace(cfg.followers,
+                                             slack=cfg.followers.slack * factors["wait_slack"]))
     return cfg
 
 

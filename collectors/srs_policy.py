@@ -121,7 +121,8 @@ class SRSPolicy:
         cfg = sim.cfg
         ticks = int(round(cfg.command_hz / cfg.log_hz))
         tails = drive_tail(tail[-1], fol[-1, :2], offsets, cfg.spacing, sim.k_t, cfg.k_omega,
-                           cfg.chain_speed, cfg.allow_reverse, 1 / cfg.command_hz, ticks)
+                           cfg.chain_speed, cfg.allow_reverse, 1 / cfg.command_hz, ticks,
+                           rule=cfg.followers)
         k = len(offsets)
         fols = np.broadcast_to(np.concatenate([fol[1:], fol_next[None]]), (k, WINDOW, 3))
         heads = np.broadcast_to(np.concatenate([head[1:], head_next[None]]), (k, WINDOW, 3))

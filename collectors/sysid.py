@@ -27,8 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
+from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.io import write_json_atomic, write_text_atomic
+from macrostate_mj.core.run import config_hash
 from macrostate_mj.formats import motion_stats
 from macrostate_mj.formats.instances import INSTANCE_STEPS
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
@@ -48,7 +50,7 @@ SCORE_VERSION = 1          # bump when the motion features or the score change
 
 @dataclass(frozen=True)
 class SysidConfig:
-    scenario: str = "lab"
+    scenario: ScenarioRef = "lab"    # a built-in's name, a scenario file, or its config
     robots: int = 3
     minutes: float = 30.0      # simulated driving per candidate
     seed: int = 1
@@ -57,6 +59,14 @@ class SysidConfig:
     shrink: float = 0.25       # stage 2's box, as a share of stage 1's
     episode_minutes: float = 5.0
     workers: int = 1
+
+
+def identity(cfg: SysidConfig) -> dict:
+    """What a fit is made from: its settings, the scenario by name and by content (a cache
+    keyed by the name alone would keep scoring a lab file that has since changed)."""
+    scenario = get_scenario(cfg.scenario)
+    return {**{k: v for k, v in asdict(cfg).items() if k not in ("workers", "scenario")},
+            "scenario": scenario.name, "scenario_hash": config_hash(scenario)}
 
 
 def score(rows: list[dict]) -> float:
@@ -102,9 +112,8 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
     """Collect with these fixed factors (a collection of its own, resumable, in a folder named
     by what it is made from) and score it against the real features (a cached task keyed by
     the collection's identity and the real file's content)."""
-    identity = {"factors": factors, "config": {k: v for k, v in asdict(cfg).items()
-                                               if k != "workers"}}
-    folder = out / "candidates" / task_key("sysid-collect", 1, identity)[:16]
+    made_of = {"factors": factors, "config": identity(cfg)}
+    folder = out / "candidates" / task_key("sysid-collect", 1, made_of)[:16]
     cache = TaskCache(out / "cache")
 
     def compute() -> dict[str, bytes]:
@@ -120,7 +129,7 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
         return {"score.json": json.dumps({"factors": factors, "score": score(rows),
                                           "folder": str(folder)}).encode()}
 
-    key = task_key("sysid-score", SCORE_VERSION, identity, [train_csv])
+    key = task_key("sysid-score", SCORE_VERSION, made_of, [train_csv])
     return json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
 
 
@@ -152,7 +161,7 @@ def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
     run(candidates(cfg, np.log([best["factors"][k] for k in FITTED])))
     best = min(tried, key=lambda c: c["score"])
     before = tried[0]
-    report = {"config": asdict(cfg), "fitted": best["factors"], "candidates": tried,
+    report = {"config": identity(cfg), "fitted": best["factors"], "candidates": tried,
               "train": {"before": before["score"], "after": best["score"]}, "val": {},
               "rows": {}}
     for name, cand in (("before", before), ("after", best)):

@@ -542,6 +542,27 @@ def sysid_ks(folder: str) -> Table:
 
 
 @source
+def sysid_fits(*folders: str) -> Table:
+    """`sysid` fits of one lab under different rules: what each one's scenario file
+    (`scenario.toml` beside its fit; none: the lab itself) changes, the summed KS on Train and
+    Val before -> after, and the fitted rear-robot factors."""
+    rows = [["rule (the scenario's change)", "summed KS Train", "summed KS Val", "k_f ×",
+             "k_t ×", "chain cap ×"]]
+    for folder in folders:
+        fit = load(f"{folder}/fit.json")
+        file = RESULTS / folder / "scenario.toml"
+        table = tomllib.loads(file.read_text()) if file.is_file() else {}
+        changes = [f"{section}.{key} = {json.dumps(value)}" for section, keys in table.items()
+                   if isinstance(keys, dict) for key, value in keys.items() if key != "kind"]
+        label = nodes.literal(text=", ".join(changes)) if changes else "none (the lab)"
+        ks = [f"{fit[s]['before']:.2f} → {fit[s]['after']:.2f}"  # type: ignore[index]
+              for s in ("train", "val")]
+        fitted = fit["fitted"]  # type: ignore[index]
+        rows.append([label, *ks, *(f"{fitted[k]:.2f}" for k in ("k_f", "k_t", "chain_speed"))])
+    return rows
+
+
+@source
 def soak(folder: str) -> Table:
     """A soak's summary: runs, simulated time and every fault count."""
     summary = load(f"{folder}/soak.json")["summary"]  # type: ignore[index]

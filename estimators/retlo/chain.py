@@ -40,6 +40,46 @@ class Module(Protocol):
     def estimate(self, x: Features) -> FrameEstimate: ...
 
 
+@dataclass(frozen=True)
+class SplitChain:
+    """Module 0 by one model and modules k >= 1 by another. Module 0's Follower is measured,
+    every later module's is the module below's estimate: a model trained with chained
+    Followers (`TrainConfig.chained`) is robust to that estimate's error but pays for it where
+    the Follower is exact (docs: reproduction/chapter2), so the first module
+    runs a model trained without them. Alone (a 3-robot chain) it is its first module."""
+
+    first: Module
+    rest: Module
+
+    def __post_init__(self) -> None:
+        if (self.first.history, self.first.rotate) != (self.rest.history, self.rest.rotate):
+            raise UserError("the first module's model and the later modules' differ in history "
+                            "length or frame; train both with the same --history")
+
+    @property
+    def history(self) -> int:
+        return self.first.history
+
+    @property
+    def rotate(self) -> bool:
+        return self.first.rotate
+
+    @property
+    def uncertain(self) -> bool:
+        """Whether both models' estimates carry a covariance."""
+        return bool(getattr(self.first, "uncertain", False)
+                    and getattr(self.rest, "uncertain", False))
+
+    def at(self, k: int) -> Module:
+        return self.first if k == 0 else self.rest
+
+    def features(self, win: Window) -> Features:
+        return self.first.features(win)
+
+    def estimate(self, x: Features) -> FrameEstimate:
+        return self.first.estimate(x)
+
+
 @dataclass
 class Tracks:
     """What the Tail holds of its chain, Tail first, for B runs of S steps and N robots.
@@ -145,6 +185,8 @@ def module_step(module: Module, tracks: Tracks, k: int, t: int) -> tuple[Feature
     """Module k at step t, the one chain step: read its window, estimate, write every estimate
     into `tracks` except at known steps. Returns the module's inputs and window (for training
     on the model's own feedback)."""
+    if isinstance(module, SplitChain):
+        module = module.at(k)
     win = window(tracks, k, t, module.history, module.rotate)
     x = module.features(win)
     est = decode(module.estimate(x), win.origin, win.alpha)

@@ -35,12 +35,16 @@ def pull(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
     return pulls(np.asarray(p, float)[None], np.asarray(q, float)[None], d)[0]
 
 
-def pulls(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
+def pulls(p: np.ndarray, q: np.ndarray, d: float, hold: float = 0.0) -> np.ndarray:
     """`pull` of each row (m, 2) of p toward its row of q; each row bit for bit `pull`'s (the
-    norms one by one, as `np.linalg.norm` takes them; the rest elementwise)."""
+    norms one by one, as `np.linalg.norm` takes them; the rest elementwise). A row less than
+    `hold` (m) nearer than d is not pushed away: it stays put."""
     diff = np.asarray(q, float) - np.asarray(p, float)
     dist = np.array([_norm(row) for row in diff])
-    return (dist - d)[:, None] * diff
+    gap = dist - d
+    if hold > 0.0:
+        gap = np.where((gap < 0.0) & (gap > -hold), 0.0, gap)
+    return gap[:, None] * diff
 
 
 def follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
@@ -64,11 +68,14 @@ def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.
 
 
 class FollowerRule(Protocol):
-    """How Followers turn their two neighbours into reference velocities: rows (m, 2) of
-    positions, the robots ahead and the robots behind."""
+    """How the rear robots turn their neighbours into reference velocities: Followers from
+    rows (m, 2) of positions, the robots ahead and the robots behind; the Tail from its own
+    position and its one neighbour's."""
 
     def velocities(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
                    k_f: float) -> np.ndarray: ...
+
+    def tail(self, p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -79,20 +86,31 @@ class TwoNeighbours:
                    k_f: float) -> np.ndarray:
         return k_f * (pulls(p, ahead, d) + pulls(p, behind, d))
 
+    def tail(self, p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray:
+        return tail_velocity(p, ahead, d, k_t)
+
 
 @dataclass(frozen=True)
 class WaitForBehind:
     """Lab rule (seed §2.6.2.1): follow the robot ahead, wait while the one behind lags more
-    than d + slack (m)."""
+    than d + slack (m). A rear robot less than `hold` (m) nearer than d to the robot ahead
+    stops rather than moves away from it: one that may not reverse would otherwise turn on the
+    spot to back off, and with stiff gains a millimetre too close sets a parked chain spinning
+    (`hold` = d: it never backs off)."""
 
     slack: float
+    hold: float = 0.0
 
     def velocities(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
                    k_f: float) -> np.ndarray:
         lag = np.array([_norm(row) for row in behind - p]) > d + self.slack
-        out = k_f * pulls(p, ahead, d)
+        out = k_f * pulls(p, ahead, d, self.hold)
         out[lag] = 0.0
         return out
+
+    def tail(self, p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray:
+        p, ahead = np.asarray(p, float), np.asarray(ahead, float)
+        return k_t * pulls(p[None], ahead[None], d, self.hold)[0]
 
 
 def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: float, k_f: float,
@@ -109,7 +127,7 @@ def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: f
         out[0] = head_velocity(p[0], head_target, head_gain)
     if n > 2:
         out[1:n - 1] = followers.velocities(p[1:n - 1], p[:n - 2], p[2:], d, k_f)
-    out[n - 1] = tail_velocity(p[n - 1], p[n - 2], d, k_t)
+    out[n - 1] = followers.tail(p[n - 1], p[n - 2], d, k_t)
     return out
 
 
@@ -226,10 +244,10 @@ def draw_tail_offsets(rng: np.random.Generator, sigma: float, shape: tuple[int, 
 
 def drive_tail(tail: np.ndarray, fol_xy: np.ndarray, offsets: np.ndarray, d: float, k_t: float,
                k_omega: float, v_max: float, allow_reverse: bool, period: float, ticks: int,
-               substeps: int = 5) -> np.ndarray:
+               substeps: int = 5, rule: FollowerRule = TwoNeighbours()) -> np.ndarray:
     """Where the Tail (x, y, θ) is after `ticks` command ticks of `period` s toward each
     destination offset (K, 2) (the SRS perturbation), its neighbour held at `fol_xy`: the
-    Tail rule plus `k_t |F - T| w` as `ChainSim.command` applies it, tracked through
+    Tail rule (`rule.tail`) plus `k_t |F - T| w` as `ChainSim.command` applies it, tracked through
     `unicycle_from_holonomic`, (v, ω) held over a tick and integrated in `substeps`."""
     out = np.empty((len(offsets), 3))
     fol_xy = np.asarray(fol_xy, float)
@@ -238,7 +256,7 @@ def drive_tail(tail: np.ndarray, fol_xy: np.ndarray, offsets: np.ndarray, d: flo
         x, y, th = (float(v) for v in tail)
         for _ in range(ticks):
             p = np.array([x, y])
-            u = tail_velocity(p, fol_xy, d, k_t) + k_t * np.linalg.norm(fol_xy - p) * w
+            u = rule.tail(p, fol_xy, d, k_t) + k_t * np.linalg.norm(fol_xy - p) * w
             v, omega = unicycle_from_holonomic(u, th, k_omega, v_max, allow_reverse)
             for _ in range(substeps):
                 x, y = x + v * np.cos(th) * h, y + v * np.sin(th) * h

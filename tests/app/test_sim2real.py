@@ -93,7 +93,12 @@ def test_experiment_sim2real_quick(tmp_path, monkeypatch):
     monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
     with pytest.raises(Stop):
         execute("sim2real", config, out, overwrite=True)
-    assert [r.randomize for r in collected] == ["wide", None]
+    other = tmp_path / "other_lab.toml"        # another lab's file: collected in that lab
+    other.write_text('extends = "lab"\nname = "other_lab"\n[chain]\nspacing = 0.25\n')
+    with pytest.raises(Stop):
+        execute("sim2real", replace(config, scenario=other), out, overwrite=True)
+    assert [r.randomize for r in collected] == ["wide", None, None]
+    assert collected[-1].scenario == other
     assert (out / "results.json").read_bytes() == before
 
 
@@ -137,4 +142,8 @@ def test_sim_minutes_with_a_given_sim_folder_is_refused(tmp_path):
     res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), "--sim",
               str(tmp_path), "--sim-minutes", "5", "--out", str(tmp_path / "out"))
     assert_clean_error(res, "--sim-minutes")
+    assert not (tmp_path / "out").exists()
+    res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), "--sim",
+              str(tmp_path), "--scenario", "webots", "--out", str(tmp_path / "out"))
+    assert_clean_error(res, "--scenario")
     assert not (tmp_path / "out").exists()

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from macrostate_mj.chain.motion import (
+    WaitForBehind,
     avoidance_velocities,
     body_twist,
     chain_velocities,
@@ -41,6 +42,22 @@ def test_waiting_follower_stops_while_the_robot_behind_lags():
     p, ahead = np.zeros(2), np.array([0.5, 0.0])
     assert np.any(waiting_follower_velocity(p, ahead, np.array([-0.3, 0]), 0.3, 5, 0.05) != 0)
     assert np.all(waiting_follower_velocity(p, ahead, np.array([-0.5, 0]), 0.3, 5, 0.05) == 0)
+
+
+def test_holding_rear_robots_stop_rather_than_back_away_from_the_robot_ahead():
+    """Too close to the robot ahead (within `hold` of d), the lab's rule with `hold` stops a
+    Follower and the Tail, where without it both are pushed backwards; farther than d both
+    pull; nearer than d - hold both are pushed back again."""
+    near = np.array([[0.0, 0], [-0.29, 0], [-0.58, 0]])
+    far = np.array([[0.0, 0], [-0.35, 0], [-0.7, 0]])
+    held, plain = WaitForBehind(0.05, hold=0.3), WaitForBehind(0.05)
+    assert np.all(chain_velocities(near, None, 0.3, 40, 20, followers=held) == 0)
+    assert np.all(chain_velocities(near, None, 0.3, 40, 20, followers=plain)[1:, 0] < 0)
+    assert np.array_equal(chain_velocities(far, None, 0.3, 40, 20, followers=held),
+                          chain_velocities(far, None, 0.3, 40, 20, followers=plain))
+    banded = WaitForBehind(0.05, hold=0.005)
+    assert np.all(chain_velocities(near * 1.02, None, 0.3, 40, 20, followers=banded) == 0)
+    assert np.all(chain_velocities(near, None, 0.3, 40, 20, followers=banded)[1:, 0] < 0)
 
 
 def test_chain_velocities_order_head_first():

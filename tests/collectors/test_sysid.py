@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from clitools import cli
 
-from collectors.sysid import FITTED, SysidConfig, box, candidates, score
+from collectors.sysid import FITTED, SysidConfig, box, candidates, identity, score
 
 
 def test_score_sums_per_robot_rows_and_averages_each_lag_family():
@@ -30,6 +30,18 @@ def test_candidates_start_from_the_scenario_and_stay_in_the_box():
     second = candidates(cfg, centre)
     half = cfg.shrink * (hi - lo) / 2
     assert second.shape == (4, len(FITTED)) and np.all(np.abs(second - centre) <= half + 1e-12)
+
+
+def test_a_fit_is_keyed_by_the_scenario_s_content_not_its_name(tmp_path):
+    """A lab file edited between two fits must not reuse the first fit's cached scores."""
+    lab = tmp_path / "mylab.toml"
+    lab.write_text('extends = "lab"\nname = "mylab"\n')
+    before = identity(SysidConfig(scenario=lab))
+    lab.write_text('extends = "lab"\nname = "mylab"\n[followers]\nkind = "wait_for_behind"\n'
+                   "slack = 0.05\nhold = 0.01\n")
+    after = identity(SysidConfig(scenario=lab))
+    assert before["scenario"] == after["scenario"] == "mylab"
+    assert before["scenario_hash"] != after["scenario_hash"]
 
 
 def test_a_tiny_fit_end_to_end(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 import torch
 from clitools import cli_inprocess as _cli
 
-from estimators.retlo.chain import predict_chain, tracks_from_world, window
+from estimators.retlo.chain import SplitChain, predict_chain, tracks_from_world, window
 from estimators.retlo.files import pixels_to_world, read_world, world_to_pixels
 from estimators.retlo.frames import FrameEstimate, history_features
 from estimators.retlo.heuristic import Heuristic2X
@@ -236,6 +236,50 @@ def test_experiment_cross_validates_over_train_and_val(tmp_path, capsys):
                         str(val_csv), "--folds", "3", "--holdout", "0.2", "--out",
                         str(tmp_path / "both"))
     assert code == 2 and "--folds and --holdout" in err and not (tmp_path / "both").exists()
+
+
+class _Counting(Heuristic2X):
+    """The 2X heuristic, counting the estimates it makes (the windows it is given)."""
+
+    def __init__(self, history: int = 10):
+        self.history, self.calls = history, 0
+
+    def estimate(self, x):
+        self.calls += len(x[0])
+        return super().estimate(x)
+
+
+def test_a_split_chain_runs_its_first_model_at_module_0_only():
+    """`SplitChain(first, rest)`: module 0 (the measured Follower) by `first`, every later
+    module by `rest`; alone on 3 robots it is `first`; models of unlike history are refused."""
+    world = synthetic_chains(4, 5, 3)
+    first, rest = _Counting(), _Counting()
+    split = predict_chain(SplitChain(first, rest), world)
+    assert np.array_equal(split, predict_chain(Heuristic2X(), world), equal_nan=True)
+    steps = world.shape[1] - first.history - 1          # module k runs steps - k of them
+    assert first.calls == 4 * steps and rest.calls == 4 * ((steps - 1) + (steps - 2))
+    first.calls = rest.calls = 0
+    predict_chain(SplitChain(first, rest), synthetic_chains(4, 3, 3))
+    assert first.calls > 0 and rest.calls == 0
+    with pytest.raises(UserError, match="history"):
+        SplitChain(_Counting(10), _Counting(5))
+
+
+def test_experiment_split_trains_both_and_refuses_it_unchained(tmp_path, capsys):
+    train_csv = write_csv(tmp_path / "train.csv", world_to_pixels(synthetic_chains(24, 3, 1), 3.0))
+    val_csv = write_csv(tmp_path / "val.csv", world_to_pixels(synthetic_chains(6, 3, 2), 3.0))
+    five = write_csv(tmp_path / "five.csv", world_to_pixels(synthetic_chains(4, 5, 3), 3.0))
+    args = ["experiment", "retlo", "--train", str(train_csv), "--val", str(val_csv), "--test",
+            str(five), "--holdout", "0.25", "--seeds", "1", "--epochs", "1", "--split"]
+    code, _, err = _cli(capsys, *args, "--out", str(tmp_path / "split"))
+    assert code == 0, err
+    models = sorted(p.name for p in (tmp_path / "split" / "models").iterdir())
+    assert models == ["fc_seed0.pt", "first_fc_seed0.pt", "first_lstm_seed0.pt",
+                      "lstm_seed0.pt"]
+    manifest = json.loads((tmp_path / "split" / "manifest.json").read_text())
+    assert manifest["config"]["split"] is True
+    code, _, err = _cli(capsys, *args, "--no-chained", "--out", str(tmp_path / "bad"))
+    assert code == 2 and "--split" in err and not (tmp_path / "bad").exists()
 
 
 def _data(tmp_path):

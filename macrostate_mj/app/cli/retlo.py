@@ -291,6 +291,10 @@ def experiment_retlo(
     cos_sin: bool = Switch(False, "Angles as cos/sin pairs (chapter 3's predictor).",
                            "--cos-sin/--radians"),
     uncertainty: str = Uncertainty,
+    chained: bool = Chained,
+    split: bool = Switch(False, "Train each model twice, with and without chained Followers, "
+                         "and run the unchained one as the first module (whose Follower is "
+                         "measured), the chained one after it (docs)."),
     px_per_cm: float = PxPerCm,
     workers: int = Count(1, "Local worker processes (one training each).", max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run the trainings on Ray: local, auto or "
@@ -313,6 +317,7 @@ def experiment_retlo(
              "folds": 0 if folds is None and holdout else folds}
     config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
                      px_per_cm=px_per_cm, group=group, head=head_named(uncertainty),
+                     chained=chained, split=split,
                      model=ModelConfig(history=history, bidirectional=not unidirectional,
                                        cos_sin=cos_sin),
                      **{k: v for k, v in given.items() if v is not None})

@@ -17,6 +17,7 @@ from macrostate_mj.app.cli.params import (
     InputDir,
     OutputDir,
     Positive,
+    Scenario,
     Seed,
     Switch,
 )
@@ -26,6 +27,7 @@ from macrostate_mj.app.experiments.sim2real import ARMS
 @experiment_app.command("sim2real")
 def experiment_sim2real(
     real: Path = InputDir(..., "Folder of the real ThymioLoc 3-robot Train.csv and Val.csv."),
+    scenario: str = Scenario,
     sim: Path = InputDir(None, "A lab collection folder (Train.csv, Val.csv) to use instead of "
                          "collecting one (`collect --scenario lab --robots 3 --split 80/20/0`)."),
     randomize: str = typer.Option(None, "--randomize", help="A domain-randomization profile or "
@@ -55,11 +57,15 @@ def experiment_sim2real(
     data saved."""
     from macrostate_mj.app.experiments import profile as chosen
     from macrostate_mj.app.experiments.sim2real import validate
+    from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.core.errors import UserError
 
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
+                     scenario=scenario,
                      randomize=randomize, seed=seed, mix_weight=mix_weight,
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
+    if sim is not None and scenario != get_scenario("lab"):
+        raise UserError("--scenario names the lab this command collects in; drop it or --sim")
     if sim_minutes is not None:
         if sim is not None:
             raise UserError("--sim-minutes sizes the lab collection this command makes; drop "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 
 import typer
@@ -14,6 +13,7 @@ from macrostate_mj.app.cli.params import (
     InputFile,
     OutputDir,
     Positive,
+    Scenario,
     Seed,
     Switch,
 )
@@ -24,6 +24,7 @@ def sysid(
     train: Path = InputFile(..., "The real ThymioLoc file the fit minimises the KS sum on.",
                             suffixes=(".csv",)),
     val: Path = InputFile(..., "The real file the fit is checked on.", suffixes=(".csv",)),
+    scenario: str = Scenario,
     robots: int = Count(3, "Team size (the real files' own).", min=2, max=12),
     minutes: float = Positive(30.0, "Simulated driving per candidate.", max=10_000.0),
     first: int = Count(16, "Stage-1 candidates over the whole box (the unfitted lab is one).",
@@ -35,17 +36,17 @@ def sysid(
     overwrite: bool = Switch(False, "Replace fit.json and fitted.json (cached candidates are "
                              "kept; delete the folder to start over)."),
 ) -> None:
-    """System identification of `lab`: gains, speed caps and the wait rule's slack that make
-    the motion distributions match the real Train file (checked on Val)."""
-    from collectors.sysid import SysidConfig, fit
+    """System identification of a scenario (`lab` unless named): gains, speed caps, the wait
+    rule's slack and the tracker's noise that make the motion distributions match the real
+    Train file (checked on Val)."""
+    from collectors.sysid import SysidConfig, fit, identity
     from macrostate_mj.core.progress import LoggedProgress
     from macrostate_mj.core.run import Run
 
-    cfg = SysidConfig(robots=robots, minutes=minutes, seed=seed, first=first, refine=refine,
-                      workers=workers)
-    identity = {**{k: v for k, v in asdict(cfg).items() if k != "workers"},
-                "train": str(train), "val": str(val)}
-    with Run(out, "sysid", identity, seed, ["fit.json", "fitted.json"], overwrite) as run, \
+    cfg = SysidConfig(scenario=scenario, robots=robots, minutes=minutes, seed=seed, first=first,
+                      refine=refine, workers=workers)
+    made_of = {**identity(cfg), "train": str(train), "val": str(val)}
+    with Run(out, "sysid", made_of, seed, ["fit.json", "fitted.json"], overwrite) as run, \
             LoggedProgress(transient=True) as bar:
         task = bar.add_task("sysid", total=first + refine)
         with run.stage("fit"):

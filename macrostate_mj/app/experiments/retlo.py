@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from estimators.retlo.api import evaluate, fit, predict, report
-from estimators.retlo.chain import predict_chain
+from estimators.retlo.chain import Module, SplitChain, predict_chain
 from estimators.retlo.curves import inside_bias, largest_error_share
 from estimators.retlo.files import read_world, world_to_pixels
 from estimators.retlo.heads import POINT, Head
@@ -43,6 +43,7 @@ HEURISTIC = "heuristic2x"
 CV_TEST = "cross-validated train + val"
 CV_VAL_SHARE = 0.15     # of each fold's training blocks, the last share selects
 LEARNED = ("fc", "lstm")
+FIRST = "first_"        # with --split, the first module's model: models/first_<kind>_seed<i>.pt
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,8 @@ class Config:
     group: int = 1         # seeds of one kind trained together (`estimators.retlo.ensemble`)
     folds: int = 5         # cross-validate over train + val in this many blocks (0: none)
     head: Head = POINT     # GAUSSIAN: every learned model predicts a 2-D Gaussian per robot
+    chained: bool = True   # also train on chained Followers (`TrainConfig.chained`)
+    split: bool = False    # module 0 by a model trained without them (`chain.SplitChain`)
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
@@ -75,6 +78,9 @@ class Config:
             raise UserError("--folds and --holdout both choose the 3-robot test; pass one")
         if self.head.uncertain and self.group > 1:
             raise UserError("--group trains point models only; drop it with --uncertainty")
+        if self.split and not self.chained:
+            raise UserError("--split pairs an unchained first module with chained later ones; "
+                            "drop --no-chained")
         if not self.test and self.holdout == 0.0 and not self.folds:
             raise UserError("no test set; pass --test CSV, --holdout FRACTION or --folds K")
 
@@ -104,11 +110,14 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     tests = shared + ([folds[0].test] if cfg.folds else [])
     big = max(tests, key=lambda t: t["world"].shape[2])
     curves: dict[str, list[dict]] = {kind: [] for kind in LEARNED}
+    # per seed and kind the model, then (with --split) its first module's: trained unchained
     tasks = [TrainTask(fold.trains, fold.val, TrainConfig(epochs=cfg.epochs, seed=seed,
+                                                          chained=chained,
                                                           model=replace(cfg.model, kind=kind)), px,
                        cfg.head)
              for seed, fold in zip(range(cfg.seed, cfg.seed + cfg.seeds), folds, strict=True)
-             for kind in LEARNED]
+             for kind in LEARNED
+             for chained in ((cfg.chained, False) if cfg.split else (cfg.chained,))]
     folders: dict[int, Path] = {}
     with progress.stage("train"):
         for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray,
@@ -116,12 +125,15 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
             folders[tasks.index(outcome.task)] = outcome.folder
             progress.report("train", len(folders), len(tasks))
     train_s: dict[str, list[float]] = {kind: [] for kind in LEARNED}
-    for i, task in enumerate(tasks):            # in task order: the same file for any workers
-        kind, seed = task.cfg.model.kind, task.cfg.seed
-        train_s[kind].append(json.loads((folders[i] / "timing.json").read_text())["seconds"])
-        shutil.copyfile(folders[i] / "model.pt", models_dir / f"{kind}_seed{seed}.pt")
-        net, _ = load_checkpoint(folders[i] / "model.pt")
-        module = TorchPredictor(net)
+    per_model = 2 if cfg.split else 1
+    for i in range(0, len(tasks), per_model):   # in task order: the same file for any workers
+        kind, seed = tasks[i].cfg.model.kind, tasks[i].cfg.seed
+        train_s[kind].append(sum(json.loads((folders[j] / "timing.json").read_text())["seconds"]
+                                 for j in range(i, i + per_model)))
+        name = f"{kind}_seed{seed}.pt"
+        for j, prefix in zip(range(i, i + per_model), ("", FIRST), strict=False):
+            shutil.copyfile(folders[j] / "model.pt", models_dir / f"{prefix}{name}")
+        module = _load(models_dir, name, cfg.split)
         own = folds[seed - cfg.seed].test
         for t in shared + ([own] if own else []):   # one prediction per test set: its report,
             est, cov = predict(module, t["world"], gaussian=cfg.head.uncertain)  # and Fig 2.9's
@@ -144,13 +156,20 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     with progress.stage("draw"):
         plot_overall(results, out / "fig2_7.png")
         plot_stepwise(results, big["name"], out / "fig2_8.png")
-        lstm, _ = load_checkpoint(models_dir / f"lstm_seed{cfg.seed}.pt")
         shown = big["world"][:cfg.video_instances]
-        est = predict_chain(TorchPredictor(lstm), shown)
+        est = predict_chain(_load(models_dir, f"lstm_seed{cfg.seed}.pt", cfg.split), shown)
         write_lab_video(out / "fig2_9.mp4", world_to_pixels(shown, px),
                         world_to_pixels(est, px), px)
     progress.record(video_test=big["name"])
     return _summary(results, train_s)
+
+
+def _load(models_dir: Path, name: str, split: bool) -> Module:
+    """A trained model as the chain runs it; with --split, paired with its first module's."""
+    main = TorchPredictor(load_checkpoint(models_dir / name)[0])
+    if not split:
+        return main
+    return SplitChain(TorchPredictor(load_checkpoint(models_dir / f"{FIRST}{name}")[0]), main)
 
 
 class TrainTask:

@@ -7,7 +7,7 @@ Model i (seed `seed + i`) is tested on block i mod `folds`, never used by any mo
 seed; of the other blocks, the last `val_share` selects the real-trained checkpoints and the rest
 is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Four arms per seed
 (`arms` picks some: `sim` alone asks only how far a lab collection carries):
-- sim: trained and selected on a lab collection only (`collect --scenario lab --robots 3
+- sim: trained and selected on a lab collection only (`collect --scenario SCENARIO --robots 3
   --split 80/20/0 [--randomize PROFILE]`, a `collect` run in `data/sim`, or `--sim DIR` with
   Train.csv and Val.csv);
 - real: trained on a fraction of the pool, selected on the real validation block;
@@ -32,6 +32,7 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std
+from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import Outcome, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -59,6 +60,7 @@ class Config:
     seed: int = 0              # model i trains with seed + i
     real: Path = field(default_factory=lambda: reference_data() / "ReTLo" / "Datasets"
                        / "3Robots")
+    scenario: ScenarioRef = "lab"   # the lab the collection is made in
     sim: Path | None = None    # a lab collection's folder, instead of collecting one
     randomize: str | None = None   # the lab collection's domain randomization
     arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
@@ -125,7 +127,7 @@ def _sim_data(config: Config, out: Path, workers: int, ray: str | None) -> Path:
     `collect` run: resumed, and replaced when another config made it, its episodes kept)."""
     if config.sim is not None:
         return config.sim
-    req = CollectRequest("lab", 3, config.sim_minutes, config.sim_seed, out, "passive",
+    req = CollectRequest(config.scenario, 3, config.sim_minutes, config.sim_seed, out, "passive",
                          workers=workers, ray=ray, split="80/20/0", overwrite=True,
                          episode_minutes=config.episode_minutes, randomize=config.randomize)
     if not finished(req):
