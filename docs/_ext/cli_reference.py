@@ -113,6 +113,8 @@ MEANINGS = {
     "planner.presets": "the Head's (v, ω) schedule of the preset planner",
     "followers.kind": "follower rule: two_neighbours or wait_for_behind",
     "followers.slack": "wait while the robot behind lags more than d + slack, m",
+    "followers.hold": "stop, not back off, while less than this nearer than d to the robot "
+                      "ahead, m (0: back off; d: never)",
 }
 
 

@@ -380,6 +380,33 @@ def retlo_models(folder: str) -> Table:
 
 
 @source
+def retlo_trainings(*folders: str) -> Table:
+    """`experiment retlo` runs that differ in how they train for longer chains: per run its
+    training (from the manifest), then each learned model's mean error (cm) on every test,
+    mean ± std over seeds; the per-fold figures of the cross-validated test in the last
+    column, and on how many folds each run beats the first."""
+    from macrostate_mj.app.experiments.retlo import CV_TEST, LEARNED
+
+    runs = [(load(f"{f}/results.json"), load(f"{f}/manifest.json")["config"])  # type: ignore
+            for f in folders]
+    tests = [t["name"] for t in runs[0][0]["tests"]]  # type: ignore[index]
+    rows = [["training", "model", *tests, "per fold (cross-validated)",
+             "folds better than the first"]]
+    for i, (data, config) in enumerate(runs):
+        label = "split" if config.get("split") else \
+            "chained" if config.get("chained", True) else "not chained"
+        for model in LEARNED:
+            cells = [_stat(data["results"][t][model]["mean_error_cm"], ".2f") for t in tests]
+            per = data["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
+            first = runs[0][0]["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
+            better = sum(a < b for a, b in zip(per, first, strict=True))
+            rows.append([nodes.literal(text=label), model, *cells,
+                         " ".join(f"{v:.2f}" for v in per),
+                         f"{better} / {len(per)}" if i and per else ""])
+    return rows
+
+
+@source
 def retlo_calibration(folder: str) -> Table:
     """Gaussian ReTLo models of `experiment retlo --uncertainty gaussian`: per test set, model
     and robot (and pooled), the share of true positions inside the 50 % and 90 % regions and

@@ -165,6 +165,20 @@ def test_train_and_evaluate_commands_on_any_chain_length(tmp_path, capsys):
         assert report["csv_robot"] == {"F2": "F2", "F3": "F1", "H": "H"}
         assert report["n_instances"] == 6 and report["mean_error_cm"] > 0
         assert len(report["per_step_cm"]) == 16
+    # --first-model: module 0 by another model (a split chain); one of another history: exit 2
+    args = ["evaluate", "retlo", "--model", str(model), "--data", str(five)]
+    code, out, err = _cli(capsys, *args, "--first-model", "heuristic2x", "--out",
+                          str(tmp_path / "split.json"))
+    assert code == 0, err
+    assert json.loads((tmp_path / "split.json").read_text())["model"] == "fc after heuristic2x"
+    short = tmp_path / "short.pt"
+    code, _, err = _cli(capsys, "train", "retlo", "--model", "fc", "--train", str(train_csv),
+                        "--val", str(val_csv), "--out", str(short), "--epochs", "1",
+                        "--history", "5")
+    assert code == 0, err
+    code, _, err = _cli(capsys, *args, "--first-model", str(short), "--out",
+                        str(tmp_path / "bad.json"))
+    assert code == 2 and "history" in err and not (tmp_path / "bad.json").exists()
 
 
 def test_experiment_writes_figures_video_and_results_identically(tmp_path, capsys):

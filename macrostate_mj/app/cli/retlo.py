@@ -196,6 +196,10 @@ def evaluate_retlo(
     model: list[str] = typer.Option(..., help="A checkpoint (.pt) from `train retlo`, or "
                                     "heuristic2x; repeat it with Gaussian checkpoints (seeds) "
                                     "to evaluate them as one deep ensemble."),
+    first_model: str = typer.Option(None, "--first-model", help="A checkpoint to run as the "
+                                    "first module, whose Follower is measured (one trained "
+                                    "with --no-chained), --model after it (docs: "
+                                    "decisions/chained-training)."),
     data: Path = InputFile(..., "ThymioLoc CSV of any chain length >= 3.", CSV),
     out: Path = OutputFile(..., "Report to write.", (".json",)),
     calibration: bool = Switch(None, "Report calibration (coverage of the 50 % and 90 % "
@@ -215,7 +219,13 @@ def evaluate_retlo(
     from macrostate_mj.app.retlo_eval import evaluate_request, outputs_checked
 
     outputs_checked(out, video, rerun, overwrite)
-    report = evaluate_request(_load_predictor(model), data, out, px_per_cm, calibration,
+    predictor = _load_predictor(model)
+    if first_model is not None:
+        from estimators.retlo.chain import SplitChain
+
+        first, name = _load_one(first_model)
+        predictor = (SplitChain(first, predictor[0]), f"{predictor[1]} after {name}")
+    report = evaluate_request(predictor, data, out, px_per_cm, calibration,
                               particles, seed, video, rerun)
     robots = ", ".join(f"{r} {v:.2f}" if r == report["csv_robot"][r] else
                        f"{r} (CSV {report['csv_robot'][r]}) {v:.2f}"
