@@ -119,6 +119,14 @@ def meanstd(path: str, keypath: str, fmt: str = ".3f", unit: str = "") -> Q:
 
 
 @source
+def above(path: str, keypath: str, base: str, base_keypath: str, fmt: str = ".1f") -> Q:
+    """How much (%) one `{mean, std}` figure's mean lies above another's (negative: below)."""
+    a, b = (float(dig(load(f), k)["mean"])  # type: ignore[index]
+            for f, k in ((path, keypath), (base, base_keypath)))
+    return Q(100 * (a / b - 1), None, fmt, "%")
+
+
+@source
 def count(path: str, keypath: str) -> Q:
     """How many entries a list or object holds."""
     return Q(len(dig(load(path), keypath)), None, "d")  # type: ignore[arg-type]

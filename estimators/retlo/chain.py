@@ -23,6 +23,7 @@ from typing import Protocol
 import numpy as np
 
 from estimators.retlo.frames import FrameEstimate, Window, decode, window_of
+from estimators.retlo.gaussian import GAUSSIAN_REGIONS, Regions
 from macrostate_mj.core.errors import UserError
 
 Features = tuple[np.ndarray, ...]
@@ -69,6 +70,12 @@ class SplitChain:
         """Whether both models' estimates carry a covariance."""
         return bool(getattr(self.first, "uncertain", False)
                     and getattr(self.rest, "uncertain", False))
+
+    @property
+    def regions(self) -> Regions:
+        """The first model's region radii: fitted, like every model's, on 3-robot chains, where
+        the first module is the only one."""
+        return getattr(self.first, "regions", GAUSSIAN_REGIONS)
 
     def at(self, k: int) -> Module:
         return self.first if k == 0 else self.rest

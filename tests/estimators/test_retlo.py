@@ -277,6 +277,9 @@ def test_a_split_chain_runs_its_first_model_at_module_0_only():
     assert first.calls > 0 and rest.calls == 0
     with pytest.raises(UserError, match="history"):
         SplitChain(_Counting(10), _Counting(5))
+    fitted = _Counting()
+    fitted.regions = "the first model's radii"          # calibration reads the first's regions
+    assert SplitChain(fitted, _Counting()).regions == "the first model's radii"
 
 
 def test_experiment_split_trains_both_and_refuses_it_unchained(tmp_path, capsys):
