@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.core.errors import UserError
 
 if TYPE_CHECKING:
     from macrostate_mj.chain.scene import Obstacle
@@ -100,6 +101,12 @@ class WaitForBehind:
 
     slack: float
     hold: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("slack", "hold"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise UserError(f"followers.{name} must be a distance >= 0 m, got {value}")
 
     def velocities(self, p: np.ndarray, ahead: np.ndarray, behind: np.ndarray, d: float,
                    k_f: float) -> np.ndarray:

@@ -55,6 +55,9 @@ def test_holding_rear_robots_stop_rather_than_back_away_from_the_robot_ahead():
     assert np.all(chain_velocities(near, None, 0.3, 40, 20, followers=plain)[1:, 0] < 0)
     assert np.array_equal(chain_velocities(far, None, 0.3, 40, 20, followers=held),
                           chain_velocities(far, None, 0.3, 40, 20, followers=plain))
+    for bad in ({"slack": -0.05}, {"slack": 0.05, "hold": -0.01}, {"slack": float("nan")}):
+        with pytest.raises(ValueError, match="followers"):
+            WaitForBehind(**bad)
     banded = WaitForBehind(0.05, hold=0.005)
     assert np.all(chain_velocities(near * 1.02, None, 0.3, 40, 20, followers=banded) == 0)
     assert np.all(chain_velocities(near, None, 0.3, 40, 20, followers=banded)[1:, 0] < 0)

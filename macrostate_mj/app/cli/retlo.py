@@ -16,6 +16,7 @@ from macrostate_mj.app.cli.params import (
     Count,
     Fraction,
     InputFile,
+    InputFileOr,
     InputFiles,
     OutputDir,
     OutputFile,
@@ -196,10 +197,10 @@ def evaluate_retlo(
     model: list[str] = typer.Option(..., help="A checkpoint (.pt) from `train retlo`, or "
                                     "heuristic2x; repeat it with Gaussian checkpoints (seeds) "
                                     "to evaluate them as one deep ensemble."),
-    first_model: str = typer.Option(None, "--first-model", help="A checkpoint to run as the "
-                                    "first module, whose Follower is measured (one trained "
-                                    "with --no-chained), --model after it (docs: "
-                                    "decisions/chained-training)."),
+    first_model: str = InputFileOr(None, "A checkpoint to run as the first module, whose "
+                                   "Follower is measured (one trained with --no-chained), "
+                                   "--model after it (docs: decisions/chained-training).",
+                                   (HEURISTIC,), (".pt",)),
     data: Path = InputFile(..., "ThymioLoc CSV of any chain length >= 3.", CSV),
     out: Path = OutputFile(..., "Report to write.", (".json",)),
     calibration: bool = Switch(None, "Report calibration (coverage of the 50 % and 90 % "
