@@ -46,8 +46,8 @@ class SplitChain:
     """Module 0 by one model and modules k >= 1 by another. Module 0's Follower is measured,
     every later module's is the module below's estimate: a model trained with chained
     Followers (`TrainConfig.chained`) is robust to that estimate's error but pays for it where
-    the Follower is exact (docs: reproduction/chapter2), so the first module
-    runs a model trained without them. Alone (a 3-robot chain) it is its first module."""
+    the Follower is exact (docs: decisions/chained-training), so the first module runs a model
+    trained without them. Alone (a 3-robot chain) it is its first module."""
 
     first: Module
     rest: Module

@@ -27,8 +27,8 @@ def sysid(
     scenario: str = Scenario,
     robots: int = Count(3, "Team size (the real files' own).", min=2, max=12),
     minutes: float = Positive(30.0, "Simulated driving per candidate.", max=10_000.0),
-    first: int = Count(16, "Stage-1 candidates over the whole box (the unfitted lab is one).",
-                       min=2),
+    first: int = Count(16, "Stage-1 candidates over the whole box (the scenario as written is "
+                       "one).", min=2),
     refine: int = Count(8, "Stage-2 candidates around stage 1's best.", min=1),
     seed: int = Seed(1, "Collection seed of every candidate, and of the Sobol points."),
     workers: int = Count(1, "Local worker processes per collection.", max=MAX_WORKERS),
