@@ -147,3 +147,20 @@ def test_sim_minutes_with_a_given_sim_folder_is_refused(tmp_path):
               str(tmp_path), "--scenario", "webots", "--out", str(tmp_path / "out"))
     assert_clean_error(res, "--scenario")
     assert not (tmp_path / "out").exists()
+
+
+def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():
+    """`--no-chained` trains every arm's model without chained Followers (they are scored on
+    3-robot folds, where only the first module runs); the default keys stay those of the
+    models already cached."""
+    chains = np.zeros((4, 16, 3, 3))
+    for chained in (True, False):
+        config = replace(PROFILES["quick"], chained=chained)
+        tasks = [sim2real._arm_task(arm, config, 0, chains, chains, chains, None, None)
+                 for arm in ("real", "finetune")]
+        assert all(t.train_config().chained is chained for t in tasks)
+    plain = sim2real.ModelTask("real", 0, 2, chains, chains, chains)
+    assert plain.key() == sim2real.ModelTask("real", 0, 2, chains, chains, chains,
+                                             chained=True).key()
+    assert plain.key() != sim2real.ModelTask("real", 0, 2, chains, chains, chains,
+                                             chained=False).key()

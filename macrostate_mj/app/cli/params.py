@@ -276,3 +276,6 @@ def Switch(default: bool, help: str, flag: str | None = None, **kw: Any) -> Any:
 
 
 Scenario = _scenario()
+Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
+                 "error, as modules k >= 1 of a longer chain see them (docs: "
+                 "decisions/chained-training).", "--chained/--no-chained")

@@ -12,6 +12,7 @@ from macrostate_mj.app.cli.app import app, calibrate_app, evaluate_app, experime
 from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
     MAX_WORKERS,
+    Chained,
     Choice,
     Count,
     Fraction,
@@ -32,9 +33,6 @@ if TYPE_CHECKING:
 
 PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
 PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
-Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
-                 "error, as modules k >= 1 of a longer chain see them (docs).",
-                 "--chained/--no-chained")
 Uncertainty = Choice("none", "none: a point estimate per robot; gaussian: a 2-D Gaussian per "
                      "robot (mean and covariance), trained on its negative log-likelihood, "
                      "whose calibration the reports then carry; gaussian-faithful: the same, "

@@ -12,6 +12,7 @@ from macrostate_mj.app.cli.experiments import launch
 from macrostate_mj.app.cli.params import (
     MAX_SECONDS,
     MAX_WORKERS,
+    Chained,
     Choice,
     Count,
     InputDir,
@@ -46,6 +47,7 @@ def experiment_sim2real(
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
     arm: list[str] = Choice(None, "Train only this arm (repeatable; default all): `--arm sim` "
                             "asks only how far a lab collection carries.", ARMS, "--arm"),
+    chained: bool = Chained,
     mix_weight: float = Positive(0.5, "The mixed arm: the lab data's share of the loss, in "
                                  "(0, 1).", "--mix-weight", max=1.0),
     out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
@@ -62,7 +64,7 @@ def experiment_sim2real(
 
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
                      scenario=scenario,
-                     randomize=randomize, seed=seed, mix_weight=mix_weight,
+                     randomize=randomize, seed=seed, mix_weight=mix_weight, chained=chained,
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if sim is not None and scenario != get_scenario("lab"):
         raise UserError("--scenario names the lab this command collects in; drop it or --sim")

@@ -64,6 +64,7 @@ class Config:
     sim: Path | None = None    # a lab collection's folder, instead of collecting one
     randomize: str | None = None   # the lab collection's domain randomization
     arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
+    chained: bool = True       # train on chained Followers too (`TrainConfig.chained`)
 
 
 PROFILES = {
@@ -149,8 +150,8 @@ class ModelTask:
 
     def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
                  test: np.ndarray, lr: float | None = None, init: Path | None = None,
-                 mix: Data | None = None, mix_weight: float = 0.5):
-        self.arm, self.seed, self.epochs, self.lr = arm, seed, epochs, lr
+                 mix: Data | None = None, mix_weight: float = 0.5, chained: bool = True):
+        self.arm, self.seed, self.epochs, self.lr, self.chained = arm, seed, epochs, lr, chained
         self.train, self.val, self.test, self.init = train, val, test, init
         self.mix, self.mix_weight = mix, mix_weight
         self._key: str | None = None
@@ -159,7 +160,8 @@ class ModelTask:
         from estimators.retlo.models import ModelConfig
         from estimators.retlo.train import TrainConfig
 
-        cfg = TrainConfig(epochs=self.epochs, seed=self.seed, model=ModelConfig(kind="lstm"))
+        cfg = TrainConfig(epochs=self.epochs, seed=self.seed, chained=self.chained,
+                          model=ModelConfig(kind="lstm"))
         return cfg if self.lr is None else replace(cfg, lr=self.lr)
 
     def key(self) -> str:
@@ -214,7 +216,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         if sim_models:
             first.append(({"arm": "sim", "fraction": 0.0, "count": 0, "seed": s},
                           ModelTask("sim", s, config.epochs, sim / "Train.csv",
-                                    sim / "Val.csv", pooled[test])))
+                                    sim / "Val.csv", pooled[test], chained=config.chained)))
     with progress.stage("models"):
         done = _train(first, progress, total)
         second: list[tuple[dict, ModelTask]] = []
@@ -242,12 +244,12 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
     """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`, or
     mixed with the lab Train.csv in `sim`."""
     if arm == "real":
-        return ModelTask(arm, seed, config.epochs, train, val, test)
+        return ModelTask(arm, seed, config.epochs, train, val, test, chained=config.chained)
     if arm == "finetune":
         return ModelTask(arm, seed, config.finetune_epochs, train, val, test,
-                         config.finetune_lr, checkpoint)
+                         config.finetune_lr, checkpoint, chained=config.chained)
     return ModelTask(arm, seed, config.epochs, train, val, test, mix=sim / "Train.csv",
-                     mix_weight=config.mix_weight)
+                     mix_weight=config.mix_weight, chained=config.chained)
 
 
 def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
