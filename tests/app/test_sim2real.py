@@ -147,6 +147,11 @@ def test_sim_minutes_with_a_given_sim_folder_is_refused(tmp_path):
               str(tmp_path), "--scenario", "webots", "--out", str(tmp_path / "out"))
     assert_clean_error(res, "--scenario")
     assert not (tmp_path / "out").exists()
+    for bad in ("1.5", "0"):
+        res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), "--fraction", bad,
+                  "--out", str(tmp_path / "out"))
+        assert_clean_error(res, "--fraction")
+        assert not (tmp_path / "out").exists()
 
 
 def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():

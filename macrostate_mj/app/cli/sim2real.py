@@ -48,6 +48,9 @@ def experiment_sim2real(
     arm: list[str] = Choice(None, "Train only this arm (repeatable; default all): `--arm sim` "
                             "asks only how far a lab collection carries.", ARMS, "--arm"),
     chained: bool = Chained,
+    fraction: list[float] = Positive(None, "Train the real-data arms on this share of the real "
+                                     "pool (repeatable; default: the profile's, 0.1, 0.25, 0.5 "
+                                     "and 1 for full).", "--fraction", max=1.0),
     mix_weight: float = Positive(0.5, "The mixed arm: the lab data's share of the loss, in "
                                  "(0, 1).", "--mix-weight", max=1.0),
     out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
@@ -68,6 +71,8 @@ def experiment_sim2real(
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if sim is not None and scenario != get_scenario("lab"):
         raise UserError("--scenario names the lab this command collects in; drop it or --sim")
+    if fraction:
+        config = replace(config, fractions=tuple(sorted(set(fraction))))
     if sim_minutes is not None:
         if sim is not None:
             raise UserError("--sim-minutes sizes the lab collection this command makes; drop "
