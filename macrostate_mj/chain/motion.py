@@ -31,9 +31,10 @@ def _norm(v: np.ndarray) -> float:
     return math.sqrt(v.dot(v))
 
 
-def pull(p: np.ndarray, q: np.ndarray, d: float) -> np.ndarray:
-    """(|p - q| - d)(q - p): toward q when farther than d, away when nearer."""
-    return pulls(np.asarray(p, float)[None], np.asarray(q, float)[None], d)[0]
+def pull(p: np.ndarray, q: np.ndarray, d: float, hold: float = 0.0) -> np.ndarray:
+    """(|p - q| - d)(q - p): toward q when farther than d, away when nearer (but not within
+    `hold` of d: see `pulls`)."""
+    return pulls(np.asarray(p, float)[None], np.asarray(q, float)[None], d, hold)[0]
 
 
 def pulls(p: np.ndarray, q: np.ndarray, d: float, hold: float = 0.0) -> np.ndarray:
@@ -63,9 +64,10 @@ def waiting_follower_velocity(p: np.ndarray, ahead: np.ndarray, behind: np.ndarr
         *(np.asarray(a, float)[None] for a in (p, ahead, behind)), d, k_f)[0]
 
 
-def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray:
+def tail_velocity(p: np.ndarray, ahead: np.ndarray, d: float, k_t: float,
+                  hold: float = 0.0) -> np.ndarray:
     """Tail rule: keep distance d to its single neighbour with gain k_t."""
-    return k_t * pull(p, ahead, d)
+    return k_t * pull(p, ahead, d, hold)
 
 
 class FollowerRule(Protocol):
@@ -116,8 +118,7 @@ class WaitForBehind:
         return out
 
     def tail(self, p: np.ndarray, ahead: np.ndarray, d: float, k_t: float) -> np.ndarray:
-        p, ahead = np.asarray(p, float), np.asarray(ahead, float)
-        return k_t * pulls(p[None], ahead[None], d, self.hold)[0]
+        return tail_velocity(p, ahead, d, k_t, self.hold)
 
 
 def chain_velocities(positions: np.ndarray, head_target: np.ndarray | None, d: float, k_f: float,

@@ -218,13 +218,13 @@ def evaluate_retlo(
     from macrostate_mj.app.retlo_eval import evaluate_request, outputs_checked
 
     outputs_checked(out, video, rerun, overwrite)
-    predictor = _load_predictor(model)
+    module, name = _load_predictor(model)
     if first_model is not None:
         from estimators.retlo.chain import SplitChain
 
-        first, name = _load_one(first_model)
-        predictor = (SplitChain(first, predictor[0]), f"{predictor[1]} after {name}")
-    report = evaluate_request(predictor, data, out, px_per_cm, calibration,
+        first, first_name = _load_one(first_model)
+        module, name = SplitChain(first, module), f"{name} after {first_name}"
+    report = evaluate_request((module, name), data, out, px_per_cm, calibration,
                               particles, seed, video, rerun)
     robots = ", ".join(f"{r} {v:.2f}" if r == report["csv_robot"][r] else
                        f"{r} (CSV {report['csv_robot'][r]}) {v:.2f}"

@@ -62,15 +62,12 @@ def experiment_sim2real(
     data saved."""
     from macrostate_mj.app.experiments import profile as chosen
     from macrostate_mj.app.experiments.sim2real import validate
-    from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.core.errors import UserError
 
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
                      scenario=scenario,
                      randomize=randomize, seed=seed, mix_weight=mix_weight, chained=chained,
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
-    if sim is not None and scenario != get_scenario("lab"):
-        raise UserError("--scenario names the lab this command collects in; drop it or --sim")
     if fraction:
         config = replace(config, fractions=tuple(sorted(set(fraction))))
     if sim_minutes is not None:

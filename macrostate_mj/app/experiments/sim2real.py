@@ -32,7 +32,7 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std
-from macrostate_mj.chain.scenarios import ScenarioRef
+from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -102,6 +102,8 @@ def validate(config: Config) -> np.ndarray:
     """Refuse bad inputs in one line before anything is written; the pooled real instances."""
     from collectors.randomize import Randomization
 
+    if config.sim is not None and get_scenario(config.scenario) != get_scenario("lab"):
+        raise UserError("--scenario names the lab this command collects in; drop it or --sim")
     pooled = read_real(config.real)
     unknown = [a for a in config.arms if a not in ARMS]
     if unknown or not config.arms:
@@ -115,6 +117,7 @@ def validate(config: Config) -> np.ndarray:
         if config.randomize is not None:
             raise UserError("--randomize applies to the lab collection this command makes; "
                             "drop it or --sim")
+
     if config.randomize is not None:
         Randomization.parse(config.randomize)
     if not 0.0 < config.mix_weight < 1.0:
