@@ -265,6 +265,21 @@ def oc_runs(folder: str) -> Table:
     return rows
 
 
+@source
+def oc_pairs(base: str, other: str) -> Table:
+    """Two one-class folders on their common runs (m, split, seed): per method the AUC of
+    each run in both, and the mean difference (other - base)."""
+    a, b = (load(f"{f}/results.json")["runs"] for f in (base, other))  # type: ignore[index]
+    shared = [r for r in a if r in b]  # type: ignore[operator]
+    methods = [m for m in a[shared[0]] if m in b[shared[0]] and m != "iogen_vs_dsvdd"]
+    rows = [["method", *[f"{r}: {base} / {other}" for r in shared], "mean difference"]]
+    for m in methods:
+        pairs = [(a[r][m]["auc_all"], b[r][m]["auc_all"]) for r in shared]
+        rows.append([m, *[f"{x:.3f} / {y:.3f}" for x, y in pairs],
+                     f"{sum(y - x for x, y in pairs) / len(pairs):+.3f}"])
+    return rows
+
+
 def _share_ci(h: dict) -> str:
     return "" if h["share"] is None else (
         f"{100 * h['share']:.1f} ({100 * h['lo']:.1f} to {100 * h['hi']:.1f})")
@@ -403,6 +418,8 @@ def retlo_trainings(*folders: str) -> Table:
     for i, (data, config) in enumerate(runs):
         label = "split" if config.get("split") else \
             "chained" if config.get("chained", True) else "not chained"
+        if config.get("precision", "fp32") != "fp32":
+            label += f", {config['precision']}"
         for model in LEARNED:
             cells = [_stat(data["results"][t][model]["mean_error_cm"], ".2f") for t in tests]
             per = data["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])

@@ -282,7 +282,9 @@ def _epoch(net: StackedNet, opt: torch.optim.Optimizer, data: dict[str, torch.Te
             flip = torch.from_numpy(np.stack([rng.random(idx.shape[1]) < 0.5 for rng in rngs]))
             batch = {key: torch.where(flip.view(k, -1, *[1] * (v.dim() - 2)), v * signs[key], v)
                      for key, v in batch.items()}
-        loss = _loss(*net(batch["obs"], batch["hist"]), batch, net, cfg.angle_weight)
+        with cfg.autocast():
+            pos, ang = net(batch["obs"], batch["hist"])
+        loss = _loss(pos.float(), ang.float(), batch, net, cfg.angle_weight)
         opt.zero_grad()
         loss.sum().backward()
         opt.step()

@@ -9,6 +9,7 @@ are in the networks' own units (`models.net_features`), float32.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import io
 import os
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from estimators.precision import precision_named
 from estimators.retlo import CM_PER_M
 from estimators.retlo.chain import (
     Features,
@@ -57,6 +59,14 @@ class TrainConfig:
     mirror: bool = True  # reflect a random half of every batch (see `mirror_signs`)
     model: ModelConfig = field(default_factory=ModelConfig)
     frozen: tuple[str, ...] = ()   # parameter-name prefixes kept fixed (fine-tuning: ENCODER)
+    precision: str = "fp32"   # the training forward passes' arithmetic (`estimators.precision`)
+
+    def __post_init__(self) -> None:
+        precision_named(self.precision)
+
+    def autocast(self) -> contextlib.AbstractContextManager:
+        """Where a training forward pass runs; its outputs are cast to float32 for the loss."""
+        return precision_named(self.precision).context()
 
 
 ENCODER = ("f_obs.", "f_hist.")    # what a fine-tuning may freeze: the observation and history
@@ -119,10 +129,12 @@ def errors(pos: torch.Tensor, ang: torch.Tensor, batch: dict[str, torch.Tensor],
                      - torch.pi).abs()
 
 
-def _loss(net: RetloNet, batch: dict[str, torch.Tensor], angle_weight: float) -> torch.Tensor:
+def _loss(net: RetloNet, batch: dict[str, torch.Tensor], cfg: TrainConfig) -> torch.Tensor:
     """Euclidean position error (in spacing units) + angle MAE, as §2.6.2.3 prescribes; with
     per-sample weights `batch["w"]` (mixed data), their weighted mean."""
-    pos, ang = net(batch["obs"], batch["hist"])
+    with cfg.autocast():
+        pos, ang = net(batch["obs"], batch["hist"])
+    pos, ang, angle_weight = pos.float(), ang.float(), cfg.angle_weight
     pos_err, ang_err = errors(pos, ang, batch, net.pos_scale, net.cfg.cos_sin, net.head)
     if "w" in batch:
         w = batch["w"]
@@ -200,7 +212,7 @@ def _train_epoch(net: RetloNet, opt: torch.optim.Optimizer, data: dict[str, torc
             flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
             batch = {k: torch.where(flip.view(-1, *[1] * (v.dim() - 1)), v * signs[k], v)
                      if k in signs else v for k, v in batch.items()}
-        loss = _loss(net, batch, cfg.angle_weight)
+        loss = _loss(net, batch, cfg)
         opt.zero_grad()
         loss.backward()
         opt.step()

@@ -188,3 +188,15 @@ def test_tracker_and_collect_suites_share_the_schema():
     assert {"collect_stage_imaging_in_windows_ms_per_frame",
             "collect_stage_tracking_in_windows_ms_per_frame"} <= names
     assert all(0 < f["ratio"] for f in figs if f["ratio"] is not None)
+
+
+def test_iogen_suite_times_bf16_against_float32_in_the_same_run():
+    from macrostate_mj.app.bench import FIELDS
+    from macrostate_mj.app.bench.iogen import bench_iogen
+
+    figs = {f["name"]: f for f in bench_iogen(n_train=48, threads=1)}
+    assert all(set(FIELDS) <= set(f) for f in figs.values()), figs
+    fp32, bf16 = (figs["iogen_one_split_minutes_estimate"],
+                  figs["iogen_bf16_one_split_minutes_estimate"])
+    assert bf16["limit"] == round(fp32["value"], 4) and bf16["value"] > 0
+    assert bf16["ratio"] == round(bf16["limit"] / bf16["value"], 4)

@@ -2,10 +2,13 @@
 
 from dataclasses import is_dataclass, replace
 
+import pytest
 from clitools import cli
 
-from macrostate_mj.app.experiments import registry
+from macrostate_mj.app.experiments import at_precision, registry
+from macrostate_mj.app.experiments.all import Config
 from macrostate_mj.core.cache import TaskCache
+from macrostate_mj.core.errors import UserError
 
 
 def test_every_experiment_has_the_one_shape():
@@ -85,3 +88,15 @@ def test_experiment_all_runs_keeps_and_skips_into_one_index(tmp_path, monkeypatc
         "status"] == "kept"
     bad = cli("experiment", "all", "--only", "nope", "--out", str(tmp_path / "x"))
     assert bad.returncode == 2 and "nope" in bad.stderr and not (tmp_path / "x").exists()
+
+
+def test_experiment_all_sets_the_precision_of_every_training_that_has_one():
+    """`experiment all --precision bf16` reaches oc's nested recipe and the ReTLo trainings;
+    an experiment without a precision keeps its config; a bad name is refused up front."""
+    full = {name: module.PROFILES["full"] for name, module in registry().items()}
+    bf16 = {name: at_precision(cfg, "bf16") for name, cfg in full.items()}
+    assert bf16["oc"].config.precision == "bf16" and full["oc"].config.precision == "fp32"
+    assert {bf16[n].precision for n in ("retlo", "srs", "sim2real")} == {"bf16"}
+    assert bf16["caging"] is full["caging"] and bf16["retlo"].model == full["retlo"].model
+    with pytest.raises(UserError, match="unknown precision"):
+        Config(precision="fp8")

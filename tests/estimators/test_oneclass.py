@@ -86,6 +86,22 @@ def test_same_seed_same_model(fitted):
     assert np.array_equal(again.score("dsvdd", probe), model.score("dsvdd", probe))
 
 
+def test_bf16_training_repeats_keeps_float32_weights_and_differs_from_fp32(fitted):
+    model, x = fitted
+    bf16 = replace(TINY, precision="bf16")
+    one, two = fit(x, ("dsvdd", "iogen"), bf16), fit(x, ("dsvdd", "iogen"), bf16)
+    probe = _flows(5, 1.0, 9)
+    for meth in ("dsvdd", "iogen"):
+        assert np.array_equal(one.score(meth, probe), two.score(meth, probe)), meth
+    assert not np.array_equal(one.score("dsvdd", probe), model.score("dsvdd", probe))
+    assert all(p.dtype == torch.float32 for p in one.dsvdd.parameters())
+    assert one.score("iogen", probe).dtype == np.float32      # scored in float32 all the same
+    with pytest.raises(UserError, match="unknown precision 'fp16'; choose fp32 or bf16"):
+        replace(TINY, precision="fp16")
+    with pytest.raises(UserError, match="precision has an option of its own"):
+        TINY.overridden(["precision=bf16"])           # it has its option: --precision
+
+
 def test_ocsvm_matches_sklearn(fitted):
     from sklearn.svm import OneClassSVM
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -121,6 +122,22 @@ def test_training_lowers_validation_error(kind):
     assert trained == pytest.approx(info["best_val_cm"])
     assert trained < 0.5 * untrained
     assert info["curve"][-1]["train_loss"] < info["curve"][0]["train_loss"]
+
+
+def test_bf16_training_repeats_keeps_float32_weights_and_learns():
+    val = synthetic_chains(12, 3, seed=2)
+    cfg = TrainConfig(epochs=4, seed=0, batch=64, lr=3e-3, precision="bf16",
+                      model=ModelConfig(kind="lstm", **TINY))
+    runs = [train([synthetic_chains(40, 3, seed=1)], val, c, progress=False)
+            for c in (cfg, cfg, replace(cfg, precision="fp32"))]
+    (one, info), (two, _), (fp32, _) = runs
+    assert all(p.dtype == torch.float32 for p in one.parameters())
+    state, again, full = one.state_dict(), two.state_dict(), fp32.state_dict()
+    assert all(torch.equal(state[k], again[k]) for k in state)
+    assert not all(torch.equal(state[k], full[k]) for k in state)
+    assert info["curve"][-1]["train_loss"] < info["curve"][0]["train_loss"]
+    with pytest.raises(UserError, match="unknown precision 'half'"):
+        TrainConfig(precision="half")
 
 
 def test_checkpoint_round_trip_is_exact_and_versioned(tmp_path):

@@ -42,7 +42,7 @@ def _bare_batch_seconds(cfg, n_hist_features: int, repeats: int = 30) -> float:
     for i in range(repeats + 5):
         if i == 5:
             start = time.perf_counter()
-        loss = _loss(net, batch, cfg.angle_weight)
+        loss = _loss(net, batch, cfg)
         opt.zero_grad()
         loss.backward()
         opt.step()

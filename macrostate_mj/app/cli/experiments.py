@@ -8,7 +8,7 @@ from typing import Any
 import typer
 
 from macrostate_mj.app.cli.app import experiment_app
-from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Switch
+from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Precision, Switch
 from macrostate_mj.app.experiments.all import MEMBERS
 
 
@@ -44,6 +44,7 @@ def experiment_all(
     workers: int = Count(1, "Local worker processes for every experiment's tasks.",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
+    precision: str = Precision(),
     out: Path = OutputDir(..., "Output folder: one sub-folder per experiment, and index.json."),
     overwrite: bool = Switch(False, "Run again after a finished `experiment all` (experiments "
                              "that finished with the same config are kept; delete a "
@@ -54,4 +55,4 @@ def experiment_all(
     Experiments whose real data is absent are skipped and said so."""
     from macrostate_mj.app.experiments.all import Config
 
-    launch("all", Config(profile, tuple(only or ())), out, overwrite, workers, ray)
+    launch("all", Config(profile, tuple(only or ()), precision), out, overwrite, workers, ray)

@@ -19,6 +19,7 @@ from macrostate_mj.app.cli.params import (
     OutputDir,
     OutputFile,
     Positive,
+    Precision,
     Seed,
     Switch,
 )
@@ -125,6 +126,7 @@ def oc_train(
     threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
                          "threads).", max=MAX_WORKERS),
     device: str = Device(),
+    precision: str = Precision(),
     overwrite: bool = Switch(False, "Replace an earlier model."),
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
@@ -133,8 +135,8 @@ def oc_train(
     from macrostate_mj.core.run import Run
     from macrostate_mj.formats.hsants import open_dataset
 
-    cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device).scaled(
-        epoch_scale).overridden(settings)
+    cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device,
+                          precision=precision).scaled(epoch_scale).overridden(settings)
     config = {"oc": cfg, "methods": list(methods), "data": data, "split": split,
               "recipe": recipe}
     with Run(out, "oc train", config, seed, ["weights.pt", "model.json"], overwrite) as run:
@@ -236,6 +238,7 @@ def experiment_oc(
                               "(a dev set; ids of the full colony, so bins hold)."),
     threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
     device: str = Device(),
+    precision: str = Precision(),
     workers: int = Count(1, "Local worker processes: one (m, split, seed) run each.",
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run the runs on Ray: local, auto or ADDRESS."),
@@ -264,7 +267,8 @@ def experiment_oc(
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
     quick = quick or profile == "quick"
-    cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device).scaled(
+    cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device,
+                          precision=precision).scaled(
         epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
     launch("oc", Config(data, split_list, m_list, cfg, 200 if quick else None,
                         unstable=unstable, seeds=seeds, probe=probe_test), out, overwrite,

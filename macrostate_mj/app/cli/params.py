@@ -127,6 +127,15 @@ def Device() -> Any:  # noqa: N802
                         callback=_checked(check, "choice"))
 
 
+def Precision() -> Any:  # noqa: N802
+    """`--precision`: the training forward passes' arithmetic (`estimators.precision`)."""
+    from estimators.precision import PRECISIONS
+
+    return Choice("fp32", "Training arithmetic: fp32, or bf16 (mixed precision: faster on a "
+                  "CPU with AVX512-BF16 or a GPU, slower elsewhere; every committed figure is "
+                  "fp32; what bf16 changes: docs, how-to/resume-and-scale).", tuple(PRECISIONS))
+
+
 def _resolve_scenario() -> Callable[[Any], Any]:
     """A callback resolving a built-in scenario's name or a scenario file, once: the command
     and every worker it starts get the typed config (a bad file fails while parsing, naming

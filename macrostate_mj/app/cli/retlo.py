@@ -22,6 +22,7 @@ from macrostate_mj.app.cli.params import (
     OutputDir,
     OutputFile,
     Positive,
+    Precision,
     Seed,
     Switch,
 )
@@ -130,6 +131,7 @@ def train_retlo(
                                  "is the rest.", "--mix-weight", max=1.0),
     uncertainty: str = Uncertainty,
     px_per_cm: float = PxPerCm,
+    precision: str = Precision(),
     overwrite: bool = Switch(False, "Replace an existing checkpoint."),
 ) -> None:
     """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint.
@@ -147,7 +149,7 @@ def train_retlo(
     if freeze_encoder and init is None:
         raise UserError("--freeze-encoder fine-tunes a model: pass --init MODEL.pt too")
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained, lr=lr,
-                      frozen=ENCODER if freeze_encoder else (),
+                      frozen=ENCODER if freeze_encoder else (), precision=precision,
                       model=ModelConfig(kind=model, bidirectional=not unidirectional,
                                         cos_sin=cos_sin, rotate=not compass_frame,
                                         history=history))
@@ -305,6 +307,7 @@ def experiment_retlo(
                          "and run the unchained one as the first module (whose Follower is "
                          "measured), the chained one after it (docs)."),
     px_per_cm: float = PxPerCm,
+    precision: str = Precision(),
     workers: int = Count(1, "Local worker processes (one training each).", max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run the trainings on Ray: local, auto or "
                             "ADDRESS."),
@@ -326,7 +329,7 @@ def experiment_retlo(
              "folds": 0 if folds is None and holdout else folds}
     config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
                      px_per_cm=px_per_cm, group=group, head=head_named(uncertainty),
-                     chained=chained, split=split,
+                     chained=chained, split=split, precision=precision,
                      model=ModelConfig(history=history, bidirectional=not unidirectional,
                                        cos_sin=cos_sin),
                      **{k: v for k, v in given.items() if v is not None})

@@ -18,6 +18,7 @@ from macrostate_mj.app.cli.params import (
     InputDir,
     OutputDir,
     Positive,
+    Precision,
     Scenario,
     Seed,
     Switch,
@@ -53,6 +54,7 @@ def experiment_sim2real(
                                      "and 1 for full).", "--fraction", max=1.0),
     mix_weight: float = Positive(0.5, "The mixed arm: the lab data's share of the loss, in "
                                  "(0, 1).", "--mix-weight", max=1.0),
+    precision: str = Precision(),
     out: Path = OutputDir(..., "Output folder (data and models are cached in it)."),
     overwrite: bool = Switch(False, "Replace the figure and results of a finished run (cached "
                              "models and lab data are kept; delete the folder to start over)."),
@@ -67,6 +69,7 @@ def experiment_sim2real(
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
                      scenario=scenario,
                      randomize=randomize, seed=seed, mix_weight=mix_weight, chained=chained,
+                     precision=precision,
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if fraction:
         config = replace(config, fractions=tuple(sorted(set(fraction))))

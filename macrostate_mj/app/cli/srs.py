@@ -9,7 +9,15 @@ import typer
 
 from macrostate_mj.app.cli.app import experiment_app
 from macrostate_mj.app.cli.experiments import launch
-from macrostate_mj.app.cli.params import MAX_WORKERS, Choice, Count, OutputDir, Seed, Switch
+from macrostate_mj.app.cli.params import (
+    MAX_WORKERS,
+    Choice,
+    Count,
+    OutputDir,
+    Precision,
+    Seed,
+    Switch,
+)
 
 PROFILE_NAMES = ("full", "fig3.5b", "quick")
 
@@ -28,6 +36,7 @@ def experiment_srs(
     group: int = Count(1, "Models of one shape trained together, this many at a time (for a "
                        "GPU; on a CPU chapter 3's LSTM gains ~1.1x: `bench --only ensemble`).",
                        max=64),
+    precision: str = Precision(),
     out: Path = OutputDir(..., "Output folder (datasets and models are cached in it)."),
     overwrite: bool = Switch(False, "Replace the figures and results of a finished run (cached "
                              "datasets and models are kept; delete the folder to start "
@@ -37,5 +46,6 @@ def experiment_srs(
     5 robots) and Fig 3.7 (distance histograms); resumes after an interruption."""
     from macrostate_mj.app.experiments import profile as chosen
 
-    config = replace(chosen("srs", "quick" if quick else profile), seed=seed, group=group)
+    config = replace(chosen("srs", "quick" if quick else profile), seed=seed, group=group,
+                     precision=precision)
     launch("srs", config, out, overwrite, workers, ray)

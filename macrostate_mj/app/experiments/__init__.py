@@ -20,7 +20,7 @@ import contextlib
 import importlib
 import pkgutil
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -83,6 +83,20 @@ def profile(name: str, chosen: str) -> Any:
         raise UserError(f"experiment {name} has no profile {chosen!r}; choose from "
                         f"{', '.join(profiles)}")
     return profiles[chosen]
+
+
+def at_precision(config: Any, name: str) -> Any:
+    """`config` with every `precision` field in it, nested configs included, set to `name`
+    (`estimators.precision`); a config with none (nothing it trains can change it) as it is."""
+    changes = {}
+    for f in fields(config):
+        value = getattr(config, f.name)
+        if f.name == "precision":
+            changes[f.name] = name
+        elif is_dataclass(value) and not isinstance(value, type):
+            if (nested := at_precision(value, name)) is not value:
+                changes[f.name] = nested
+    return replace(config, **changes) if changes else config
 
 
 def execute(name: str, config: Any, out: Path, overwrite: bool = False, workers: int = 1,

@@ -15,7 +15,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from macrostate_mj.app.experiments import Progress, execute, names, registry
+from estimators.precision import precision_named
+from macrostate_mj.app.experiments import Progress, at_precision, execute, names, registry
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.run import MANIFEST, config_hash, run_finished
@@ -35,8 +36,10 @@ class Config:
 
     profile: str = "full"
     only: tuple[str, ...] = ()       # empty: every experiment
+    precision: str = "fp32"          # every training's arithmetic, where it can be chosen
 
     def __post_init__(self) -> None:
+        precision_named(self.precision)
         unknown = sorted(set(self.only) - set(_members()))
         if unknown:
             raise UserError(f"only names {', '.join(unknown)}, not an experiment; choose from "
@@ -53,7 +56,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     failed = []
     for n, (name, module) in enumerate(chosen.items()):
         progress.report("experiments", n, len(chosen))
-        sub = module.PROFILES[config.profile]
+        sub = at_precision(module.PROFILES[config.profile], config.precision)
         folder = out / name
         entry: dict = {"folder": name, "config_hash": config_hash(sub)}
         absent = getattr(module, "missing", lambda _: None)(sub)

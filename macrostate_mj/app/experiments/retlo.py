@@ -66,6 +66,7 @@ class Config:
     head: Head = POINT     # GAUSSIAN: every learned model predicts a 2-D Gaussian per robot
     chained: bool = True   # also train on chained Followers (`TrainConfig.chained`)
     split: bool = False    # module 0 by a model trained without them (`chain.SplitChain`)
+    precision: str = "fp32"   # the trainings' arithmetic (`estimators.precision`)
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
@@ -113,7 +114,8 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     # per seed and kind the model, then (with --split) its first module's: trained unchained
     tasks = [TrainTask(fold.trains, fold.val, TrainConfig(epochs=cfg.epochs, seed=seed,
                                                           chained=chained,
-                                                          model=replace(cfg.model, kind=kind)), px,
+                                                          model=replace(cfg.model, kind=kind),
+                                                          precision=cfg.precision), px,
                        cfg.head)
              for seed, fold in zip(range(cfg.seed, cfg.seed + cfg.seeds), folds, strict=True)
              for kind in LEARNED

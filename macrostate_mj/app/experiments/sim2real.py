@@ -65,6 +65,7 @@ class Config:
     randomize: str | None = None   # the lab collection's domain randomization
     arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
     chained: bool = True       # train on chained Followers too (`TrainConfig.chained`)
+    precision: str = "fp32"    # the trainings' arithmetic (`estimators.precision`)
 
 
 PROFILES = {
@@ -153,8 +154,10 @@ class ModelTask:
 
     def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
                  test: np.ndarray, lr: float | None = None, init: Path | None = None,
-                 mix: Data | None = None, mix_weight: float = 0.5, chained: bool = True):
+                 mix: Data | None = None, mix_weight: float = 0.5, chained: bool = True,
+                 precision: str = "fp32"):
         self.arm, self.seed, self.epochs, self.lr, self.chained = arm, seed, epochs, lr, chained
+        self.precision = precision
         self.train, self.val, self.test, self.init = train, val, test, init
         self.mix, self.mix_weight = mix, mix_weight
         self._key: str | None = None
@@ -164,7 +167,7 @@ class ModelTask:
         from estimators.retlo.train import TrainConfig
 
         cfg = TrainConfig(epochs=self.epochs, seed=self.seed, chained=self.chained,
-                          model=ModelConfig(kind="lstm"))
+                          model=ModelConfig(kind="lstm"), precision=self.precision)
         return cfg if self.lr is None else replace(cfg, lr=self.lr)
 
     def key(self) -> str:
@@ -219,7 +222,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         if sim_models:
             first.append(({"arm": "sim", "fraction": 0.0, "count": 0, "seed": s},
                           ModelTask("sim", s, config.epochs, sim / "Train.csv",
-                                    sim / "Val.csv", pooled[test], chained=config.chained)))
+                                    sim / "Val.csv", pooled[test], chained=config.chained,
+                                    precision=config.precision)))
     with progress.stage("models"):
         done = _train(first, progress, total)
         second: list[tuple[dict, ModelTask]] = []
@@ -246,13 +250,14 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
               test: np.ndarray, checkpoint: Path | None, sim: Path | None) -> ModelTask:
     """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`, or
     mixed with the lab Train.csv in `sim`."""
+    how = {"chained": config.chained, "precision": config.precision}
     if arm == "real":
-        return ModelTask(arm, seed, config.epochs, train, val, test, chained=config.chained)
+        return ModelTask(arm, seed, config.epochs, train, val, test, **how)
     if arm == "finetune":
         return ModelTask(arm, seed, config.finetune_epochs, train, val, test,
-                         config.finetune_lr, checkpoint, chained=config.chained)
+                         config.finetune_lr, checkpoint, **how)
     return ModelTask(arm, seed, config.epochs, train, val, test, mix=sim / "Train.csv",
-                     mix_weight=config.mix_weight, chained=config.chained)
+                     mix_weight=config.mix_weight, **how)
 
 
 def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,

@@ -58,6 +58,7 @@ class Config:
     epochs: int = 60
     episode_minutes: float = 5.0
     seed: int = 0          # dataset j of every configuration is collected with seed*1000 + j
+    precision: str = "fp32"   # the models' training arithmetic (`estimators.precision`)
     group: int = 1         # models trained together (`estimators.retlo.ensemble`): for a GPU;
     #                        on a CPU chapter 3's LSTM gains ~1.1x (`bench --only ensemble`)
 
@@ -149,9 +150,10 @@ class ModelTask:
     stage: ClassVar[str] = "srs-model"
     version: ClassVar[int] = 1
 
-    def __init__(self, train: np.ndarray, val: Path, test: Path, epochs: int, seed: int):
+    def __init__(self, train: np.ndarray, val: Path, test: Path, epochs: int, seed: int,
+                 precision: str = "fp32"):
         self.train, self.val, self.test = train, val, test
-        self.epochs, self.seed = epochs, seed
+        self.epochs, self.seed, self.precision = epochs, seed, precision
         self._key: str | None = None
 
     def train_config(self) -> Any:
@@ -159,7 +161,8 @@ class ModelTask:
         from estimators.retlo.train import TrainConfig
 
         model = ModelConfig(history=10, bidirectional=False, cos_sin=True)
-        return TrainConfig(epochs=self.epochs, seed=self.seed, model=model)
+        return TrainConfig(epochs=self.epochs, seed=self.seed, model=model,
+                           precision=self.precision)
 
     def key(self) -> str:
         if self._key is None:
@@ -232,7 +235,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                 ds.ensure(config, progress.workers, progress.ray)
         worlds = [read_world(ds.csv) for ds in sets]
         mine = [(b, ModelTask(w[:int(round(b * config.train))], val.csv, test.csv,
-                              config.epochs, m))
+                              config.epochs, m, config.precision))
                 for b in _budgets(config, name) for w in worlds for m in range(config.models)]
         reports: dict[int, dict] = {}         # id(task) -> its report
         with progress.stage("models"):
