@@ -81,8 +81,8 @@ class OCConfig:
     ocsvm_nu: float = 0.1
     threads: int = 1
     device: str = "cpu"  # "cuda" where a GPU exists; random draws stay on the CPU generator
-    # the training forward passes' arithmetic (`estimators.precision`): "bf16" about halves a
-    # run on a CPU with AVX512-BF16; every committed figure is "fp32" (docs: its measured cost)
+    # the training forward passes' arithmetic (`estimators.precision`): "bf16" is faster on a
+    # CPU with AVX512-BF16 (`bench --only iogen`); every committed figure is "fp32"
     precision: str = "fp32"
 
     @classmethod
