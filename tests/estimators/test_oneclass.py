@@ -470,3 +470,12 @@ def test_a_probe_watches_every_epoch_and_never_chooses(fitted):
         kept = roc_auc(watched.score(meth, xs), watched.score(meth, xu))
         assert picks[meth]["kept_auc"] == pytest.approx(kept)
         assert picks[meth]["best_auc"] >= picks[meth]["kept_auc"]
+
+
+@pytest.mark.parametrize(("cores", "workers", "threads"),
+                         [(2, 1, 2), (2, 2, 1), (3, 2, 1), (16, 4, 2), (1, 8, 1)])
+def test_experiment_oc_shares_the_cores_among_its_workers(monkeypatch, cores, workers, threads):
+    from macrostate_mj.app.cli import oc
+
+    monkeypatch.setattr(oc.os, "cpu_count", lambda: cores)
+    assert oc._default_threads(workers) == threads

@@ -40,8 +40,10 @@ def _crop(text: str | None) -> tuple[int, int, int, int] | None:
     return x, y, w, h
 
 
-def _default_threads() -> int:
-    return min(2, os.cpu_count() or 1)
+def _default_threads(workers: int = 1) -> int:
+    """torch threads per process: the cores shared among the workers, at most 2 (small
+    convolutions gain little from more)."""
+    return max(1, min(2, (os.cpu_count() or 1) // workers))
 
 
 @app.command("flow")
@@ -236,7 +238,9 @@ def experiment_oc(
                                        "recipe (e.g. cls_epochs=40); repeatable."),
     unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
                               "(a dev set; ids of the full colony, so bins hold)."),
-    threads: int = Count(_default_threads(), "torch CPU threads.", max=MAX_WORKERS),
+    threads: int = Count(None, "torch CPU threads per run (default: the cores over the "
+                         "workers, at most 2, so that workers do not fight over cores; results "
+                         "repeat for equal threads).", max=MAX_WORKERS, show_default=False),
     device: str = Device(),
     precision: str = Precision(),
     workers: int = Count(1, "Local worker processes: one (m, split, seed) run each.",
@@ -267,6 +271,8 @@ def experiment_oc(
         if not 1 <= m <= d.subframes:
             raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
     quick = quick or profile == "quick"
+    if threads is None:
+        threads = _default_threads(workers)
     cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device,
                           precision=precision).scaled(
         epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
