@@ -615,6 +615,21 @@ def sysid_fits(*folders: str) -> Table:
 
 
 @source
+def all_index(folder: str) -> Table:
+    """An `experiment all` folder's index: per experiment its status, wall time and stage
+    timings (from its manifest)."""
+    index = load(f"{folder}/index.json")
+    rows = [["experiment", "profile", "status", "wall (min)", "stages (min)"]]
+    for name, entry in index["experiments"].items():  # type: ignore[index]
+        file = RESULTS / folder / name / "manifest.json"
+        stages = json.loads(file.read_text()).get("timings_s", {}) if file.is_file() else {}
+        rows.append([name, index["profile"], entry["status"],  # type: ignore[index]
+                     f"{entry['wall_s'] / 60:.1f}",
+                     ", ".join(f"{k} {v / 60:.1f}" for k, v in stages.items() if k != "total")])
+    return rows
+
+
+@source
 def soak(folder: str) -> Table:
     """A soak's summary: runs, simulated time and every fault count."""
     summary = load(f"{folder}/soak.json")["summary"]  # type: ignore[index]
