@@ -312,7 +312,7 @@ def experiment_retlo(
     ray: str = typer.Option(None, "--ray", help="Run the trainings on Ray: local, auto or "
                             "ADDRESS."),
     group: int = Count(1, "Seeds of one model trained together, this many at a time (FC: "
-                       "~2-3x faster on a CPU; `bench --only ensemble`).", max=64),
+                       "faster on a CPU, the LSTM little: `bench --only ensemble`).", max=64),
     out: Path = OutputDir(..., "Output folder (trained models are cached in it)."),
     overwrite: bool = Switch(False, "Replace existing outputs (cached models are kept)."),
 ) -> None:

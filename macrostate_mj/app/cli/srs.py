@@ -34,7 +34,7 @@ def experiment_srs(
                          max=MAX_WORKERS),
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
     group: int = Count(1, "Models of one shape trained together, this many at a time (for a "
-                       "GPU; on a CPU chapter 3's LSTM gains ~1.1x: `bench --only ensemble`).",
+                       "GPU; on a CPU chapter 3's LSTM gains little: `bench --only ensemble`).",
                        max=64),
     precision: str = Precision(),
     out: Path = OutputDir(..., "Output folder (datasets and models are cached in it)."),

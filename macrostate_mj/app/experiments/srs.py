@@ -60,7 +60,7 @@ class Config:
     seed: int = 0          # dataset j of every configuration is collected with seed*1000 + j
     precision: str = "fp32"   # the models' training arithmetic (`estimators.precision`)
     group: int = 1         # models trained together (`estimators.retlo.ensemble`): for a GPU;
-    #                        on a CPU chapter 3's LSTM gains ~1.1x (`bench --only ensemble`)
+    #                        on a CPU chapter 3's LSTM gains little (`bench --only ensemble`)
 
 
 PROFILES = {
