@@ -25,6 +25,7 @@ Tick = Callable[[str, float], None]  # (stage, completed fraction) -> None, for 
 Scorer = Callable[[torch.Tensor], torch.Tensor]   # inputs -> novelty scores, this epoch's weights
 Watch = Callable[[Scorer], None]   # called after every epoch (research probes, `model.Probe`)
 Parts = dict[str, Any]   # what a stage's loop carries: modules and optimizers (state_dict owners)
+GAN_TICK = 10            # the GAN stage reports progress every this many steps
 
 
 class Snapshots(Protocol):
@@ -310,7 +311,7 @@ def train_generator(ae: DCAE, dsvdd: Encoder, c: torch.Tensor, x: torch.Tensor, 
         for key, val in (("d_loss", d_loss), ("g_adv", adv), ("g_feat", feat)):
             log[key].append(float(val.detach()))
         snaps.save(step + 1, parts, {"log": log})
-        if (step + 1) % 10 == 0 or step + 1 == cfg.gan_steps:
+        if (step + 1) % GAN_TICK == 0 or step + 1 == cfg.gan_steps:
             tick(kind.upper(), (step + 1) / cfg.gan_steps)
     return g.eval(), log
 
