@@ -178,9 +178,8 @@ def _feedback(predictor: StackedPredictor, jobs: list[Job], rngs: list[np.random
         est = predict_chain(predictor, stacked,
                             lambda m, t, x, win: _append(parts, x, truth, m, t, win))
         for key, steps in parts.items():
-            per = np.stack(steps).reshape(len(steps), k, -1, *steps[0].shape[1:])
-            for i in range(k):
-                out[i].setdefault(key, []).append(per[:, i].reshape(-1, *per.shape[3:]))
+            for i, rows in enumerate(_split(np.concatenate(steps), k, len(worlds[0]))):
+                out[i].setdefault(key, []).append(rows)
         return est.reshape(k, -1, *est.shape[1:])
 
     for j in range(len(jobs[0].train)):
@@ -190,6 +189,26 @@ def _feedback(predictor: StackedPredictor, jobs: list[Job], rngs: list[np.random
             closed_loop([as_chained(w, e, rng) for w, e, rng in zip(worlds, est, rngs,
                                                                     strict=True)])
     return [{key: np.concatenate(v).astype(np.float32) for key, v in o.items()} for o in out]
+
+
+def _split(rows: np.ndarray, k: int, runs: int) -> list[np.ndarray]:
+    """Samples recorded step by step on K models' runs side by side (each step's rows: model
+    0's `runs`, then model 1's, ...) back per model, each in its own step order."""
+    per = rows.reshape(-1, k, runs, *rows.shape[1:])
+    return [per[:, i].reshape(-1, *rows.shape[1:]) for i in range(k)]
+
+
+def _bases(jobs: list[Job]) -> list[dict[str, np.ndarray]]:
+    """`train.make_samples` of every job's chains, featurised once for all K: each training
+    file of the K jobs side by side, then split back per model (the same rows, bit for bit,
+    in the same order as featurising each alone: `tests/estimators/test_ensemble.py`)."""
+    k, model = len(jobs), jobs[0].cfg.model
+    files = [(make_samples([np.concatenate([job.train[j] for job in jobs])], model),
+              len(jobs[0].train[j])) for j in range(len(jobs[0].train))]
+    per_file = [{key: _split(rows, k, runs) for key, rows in samples.items()}
+                for samples, runs in files]
+    return [{key: np.concatenate([f[key][i] for f in per_file]) for key in per_file[0]}
+            for i in range(k)]
 
 
 def _loss(pos: torch.Tensor, ang: torch.Tensor, batch: dict[str, torch.Tensor],
@@ -218,11 +237,11 @@ def train_many(jobs: list[Job]) -> list[tuple[RetloNet, dict]]:
         torch.manual_seed(job.cfg.seed)
         rngs.append(np.random.default_rng(job.cfg.seed))
         nets.append(RetloNet(cfg.model, CM_PER_M * mean_spacing(job.train)))
-    bases = [make_samples(job.train, cfg.model) for job in jobs]
+    bases = _bases(jobs)
     net = StackedNet(nets)
     predictor = StackedPredictor(net)
     signs = {k: torch.from_numpy(v).float() for k, v in mirror_signs(cfg.model).items()}
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr, foreach=True)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
     k = len(jobs)
     best: list[tuple[float, int, dict | None]] = [(float("inf"), -1, None)] * k
@@ -273,11 +292,13 @@ def _epoch(net: StackedNet, opt: torch.optim.Optimizer, data: dict[str, torch.Te
     k, n = data["obs"].shape[:2]
     orders = torch.from_numpy(np.stack([rng.permutation(n) for rng in rngs]))
     totals = np.zeros(k)
-    rows = torch.arange(k)[:, None]
+    flat = {key: v.reshape(k * n, *v.shape[2:]) for key, v in data.items()}
+    orders += torch.arange(k)[:, None] * n          # model i's rows, in the flattened data
     done = 0
     for i in range(0, n, cfg.batch):
         idx = orders[:, i:i + cfg.batch]                       # (K, b)
-        batch = {key: v[rows, idx] for key, v in data.items()}
+        batch = {key: v.index_select(0, idx.reshape(-1)).view(*idx.shape, *v.shape[1:])
+                 for key, v in flat.items()}
         if cfg.mirror:
             flip = torch.from_numpy(np.stack([rng.random(idx.shape[1]) < 0.5 for rng in rngs]))
             batch = {key: torch.where(flip.view(k, -1, *[1] * (v.dim() - 2)), v * signs[key], v)

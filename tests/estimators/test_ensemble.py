@@ -58,6 +58,25 @@ def test_models_trained_together_match_their_twins_trained_alone(name):
         assert abs(err - twin_err) <= 0.01 * twin_err
 
 
+@pytest.mark.parametrize("name", ["lstm ch3", "fc"])
+def test_samples_featurised_once_for_all_models_are_each_models_own(name):
+    """Every model's teacher-forced samples, from one pass over the K jobs' chains side by
+    side: the rows `make_samples` gives each job alone, bit for bit, over two files."""
+    from estimators.retlo.ensemble import _bases
+    from estimators.retlo.train import make_samples
+
+    model = MODELS[name]
+    val = synthetic_chains(4, 3, 99, n_steps=18)
+    jobs = [Job([synthetic_chains(5, 3, 10 + i, n_steps=18),
+                 synthetic_chains(3, 3, 20 + i, n_steps=14)], val,
+                TrainConfig(seed=i, model=model)) for i in range(3)]
+    for job, together in zip(jobs, _bases(jobs), strict=True):
+        alone = make_samples(job.train, model)
+        assert together.keys() == alone.keys()
+        for key in alone:
+            assert together[key].tobytes() == alone[key].tobytes(), key
+
+
 def test_only_models_of_one_shape_train_together():
     a, b = _jobs(MODELS["fc"], 2)
     assert stackable([a, b]) is None
