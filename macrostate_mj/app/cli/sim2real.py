@@ -34,7 +34,8 @@ def experiment_sim2real(
                          "collecting one (`collect --scenario lab --robots 3 --split 80/20/0`)."),
     randomize: str = typer.Option(None, "--randomize", help="A domain-randomization profile or "
                                   "JSON of factors for the lab collection (e.g. sysid's "
-                                  "fitted.json)."),
+                                  "fitted.json); none by default (`experiment all` runs "
+                                  "wider, as the docs' figure)."),
     sim_minutes: float = Positive(None, "Minutes of lab data to collect (default: the "
                                   "profile's, 100 for full).", "--sim-minutes",
                                   max=MAX_SECONDS / 60),
