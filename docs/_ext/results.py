@@ -280,6 +280,48 @@ def oc_pairs(base: str, other: str) -> Table:
     return rows
 
 
+def _srs_models(folder: str) -> dict[tuple[str, int, int, int], float]:
+    """A chapter-3 folder's per-model reports (`models/<config>_b<budget>_d<j>_m<i>.json`):
+    the error of all predictions (cm), by (configuration, budget %, dataset, model seed)."""
+    out = {}
+    for file in sorted((RESULTS / folder / "models").glob("*.json")):
+        match = re.fullmatch(r"(.+)_b(\d+)_d(\d+)_m(\d+)", file.stem)
+        if match:
+            out[(match[1], int(match[2]), int(match[3]), int(match[4]))] = float(
+                load(f"{folder}/models/{file.name}")["mean_error_cm"])  # type: ignore[index]
+    return out
+
+
+@source
+def srs_pairs(base: str, other: str, spread: str = "") -> Table:
+    """Two chapter-3 folders on their common models (same configuration, budget, dataset and
+    model seed): per configuration and budget the error of all predictions (cm) of the paired
+    models in each, and their mean difference (other - base); then every distinct pair's
+    difference beside the model seed-to-seed differences (seeds 1, 2 - seed 0) of `spread`'s
+    (default: base's) models of those configurations and budgets."""
+    a, b = _srs_models(base), _srs_models(other)
+    shared = [key for key in b if key in a]
+    cells = sorted({key[:2] for key in shared})
+    rows = [["configuration", "budget %", base, other, "mean difference"]]
+    for config, budget in cells:
+        keys = [k for k in shared if k[:2] == (config, budget)]
+        rows.append([config, str(budget), _ms([a[k] for k in keys], ".2f"),
+                     _ms([b[k] for k in keys], ".2f"),
+                     f"{statistics.fmean(b[k] - a[k] for k in keys):+.2f}"])
+    s = _srs_models(spread or base)
+    # a model shared by two cells (Rand-Only's data begins SRS's) is one training: once here
+    pairs = list(dict.fromkeys((a[k], b[k]) for k in shared))
+    seeds = list(dict.fromkeys((v, s[(*k[:3], m)]) for k, v in s.items()
+                               if k[3] == 0 and k[:2] in cells for m in (1, 2)
+                               if (*k[:3], m) in s))
+    for label, diffs in ((f"every distinct pair ({len(pairs)})", [y - x for x, y in pairs]),
+                         (f"{spread or base}: seed to seed ({len(seeds)})",
+                          [y - x for x, y in seeds])):
+        rows.append([label, "", "", "", f"{statistics.fmean(diffs):+.2f} ± "
+                     f"{statistics.stdev(diffs):.2f}"])
+    return rows
+
+
 def _share_ci(h: dict) -> str:
     return "" if h["share"] is None else (
         f"{100 * h['share']:.1f} ({100 * h['lo']:.1f} to {100 * h['hi']:.1f})")
