@@ -64,7 +64,8 @@ def missing(exp: Config) -> str | None:
     if not exp.data.is_dir():
         return f"the ant flow dataset {exp.data}"
     if exp.unstable is not None and not exp.unstable.is_dir():
-        return f"the unstable samples {exp.unstable}"
+        return (f"the unstable samples {exp.unstable} (`experiment oc --data DIR` scores "
+                "DIR/Unstable instead)")
     return None
 
 
