@@ -165,5 +165,7 @@ def test_a_collection_made_with_other_scenario_values_is_not_finished(reference,
 
 
 def _episodes(out):
-    """The finished episodes' logs in a collection's task cache."""
-    return sorted((out / "cache" / "collect-episode").glob("*/episode.parquet"))
+    """The finished episodes' logs in a collection's task cache (not one still being written:
+    `TaskCache.put` writes into a hidden `.part` folder, which pathlib's glob also matches)."""
+    return sorted(p for p in (out / "cache" / "collect-episode").glob("*/episode.parquet")
+                  if not p.parent.name.startswith("."))
