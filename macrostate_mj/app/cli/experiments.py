@@ -37,8 +37,9 @@ def launch(name: str, config: Any, out: Path, overwrite: bool, workers: int = 1,
 
 @experiment_app.command("all")
 def experiment_all(
-    profile: str = Choice("full", "full: the dissertation's sizes; quick: a smoke run of "
-                          "every figure.", ("full", "quick")),
+    profile: str = Choice("full", "full: the dissertation's sizes, each experiment as the "
+                          "docs' committed figures were made; quick: a smoke run of every "
+                          "figure.", ("full", "quick")),
     only: list[str] = Choice(None, "Run only this experiment (repeatable); default all.",
                              MEMBERS, "--only"),
     workers: int = Count(1, "Local worker processes for every experiment's tasks.",
