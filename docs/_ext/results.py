@@ -370,6 +370,23 @@ def s2r(folder: str) -> Table:
 
 
 @source
+def s2r_pairs(base: str, other: str) -> Table:
+    """Two sim-to-real runs of the same arms, folds and seeds: per arm and share of the real
+    pool the Head error (cm) of each, mean ± std over seeds, and the difference of the means
+    (other - base)."""
+    a, b = (load(f"{f}/results.json")["arms"] for f in (base, other))  # type: ignore[index]
+    rows = [["arm", "% real", base, other, "difference"]]
+    for arm, by_fraction in a.items():  # type: ignore[union-attr]
+        for f in sorted(by_fraction, key=float):
+            theirs = b.get(arm, {}).get(f)  # type: ignore[union-attr]
+            if theirs:
+                x, y = by_fraction[f]["head_cm"], theirs["head_cm"]
+                rows.append([arm, f"{float(f) * 100:.0f}", _stat(x, ".2f"), _stat(y, ".2f"),
+                             f"{y['mean'] - x['mean']:+.2f}"])
+    return rows
+
+
+@source
 def s2r_sim(real: str, *folders: str) -> Table:
     """Sim-only runs (`experiment sim2real --arm sim`) on different lab data: each one's
     real-fold Head error, its ratio to `real`'s real-only arm on all of the pool (the same
