@@ -135,16 +135,19 @@ def test_the_full_profile_is_the_config_of_the_committed_results_it_reproduces(n
     folder, apart = REPRODUCES[name]
     committed = json.loads((RESULTS / folder / "manifest.json").read_text())["config"]
     committed = committed.get("profile", committed)      # srs_full's older manifest
+    committed = {k: v for k, v in committed.items() if k not in apart}
     ours = jsonable(registry()[name].PROFILES["full"])
-    for key in set(committed) - set(apart):
-        _agree(ours[key], committed[key], f"{name}: {key}")
+    assert committed, f"{folder}'s manifest records no settings"
+    assert _differences(ours, committed, name) == []
 
 
-def _agree(ours, committed, where: str) -> None:
-    """Every setting the committed config records has our value (nested configs too)."""
-    if isinstance(committed, dict):
-        for key, value in committed.items():
-            assert key in ours, f"{where}.{key}"
-            _agree(ours[key], value, f"{where}.{key}")
-    else:
-        assert _plain(ours) == _plain(committed), where
+def _differences(ours, committed, where: str) -> list[str]:
+    """Where a setting the committed config records (nested configs too) differs from ours."""
+    if not isinstance(committed, dict):
+        return [] if _plain(ours) == _plain(committed) else [
+            f"{where}: ours {ours!r}, committed {committed!r}"]
+    if not isinstance(ours, dict):
+        return [f"{where}: ours {ours!r}, committed a config"]
+    return [d for key, value in committed.items()
+            for d in (_differences(ours[key], value, f"{where}.{key}") if key in ours
+                      else [f"{where}.{key}: not in ours"])]
