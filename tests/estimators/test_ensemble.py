@@ -93,10 +93,29 @@ def test_the_ensemble_bench_reports_a_speedup_per_k_in_the_common_schema():
     from macrostate_mj.app.bench.ensemble import bench_ensemble
 
     figs = bench_ensemble(ks=(1, 2))
-    assert [(f["config"]["model"], f["config"]["k"]) for f in figs] == [
+    speedups = [f for f in figs if f["name"] == "speedup"]
+    assert [(f["config"]["model"], f["config"]["k"]) for f in speedups] == [
         ("lstm", 1), ("lstm", 2), ("fc", 1), ("fc", 2)]
-    for f in figs:
-        assert set(FIELDS) <= set(f) and f["name"] == "speedup"
+    arithmetic = [f for f in figs if f["name"] == "arithmetic"]
+    assert [f["config"]["model"] for f in arithmetic] == ["lstm", "fc"]
+    assert len(figs) == len(speedups) + len(arithmetic)
+    for f in arithmetic:            # a rate against one thread's matrix product: value / limit
+        assert set(FIELDS) <= set(f) and f["value"] > 0 and f["limit"] > 0
+        assert f["ratio"] == pytest.approx(f["value"] / f["limit"], abs=1e-3)
+    for f in speedups:
+        assert set(FIELDS) <= set(f)
         alone, together = f["config"]["alone_s"], f["config"]["together_s"]   # to 1 ms
         assert (alone - 6e-4) / (together + 6e-4) <= f["value"] <= (
             (alone + 6e-4) / (together - 6e-4))
+
+
+def test_a_training_step_counts_the_lstm_products_torch_does_not_see():
+    """FLOPs by hand for batch 64: chapter 3's net has f_obs 4->80, fuse (80 + 160)->160,
+    heads 160->2 and 160->6 (cos/sin), forward 2 x 64 x 40,000; backward twice that less the
+    input gradient of f_obs (2 x 64 x 4 x 80), which nothing needs; the LSTM (9 inputs, 160
+    wide, 10 steps) 3 x its forward 2 x 64 x 10 x 640 x 169. FC: 4->80->160, heads 2 and 3."""
+    from macrostate_mj.app.bench.ensemble import step_flops
+
+    linear = 3 * 2 * 64 * 40_000 - 2 * 64 * 4 * 80
+    assert step_flops("lstm", 64) == linear + 3 * 2 * 64 * 10 * 640 * 169
+    assert step_flops("fc", 64) == 3 * 2 * 64 * 13_920 - 2 * 64 * 4 * 80

@@ -4,26 +4,39 @@ against the same K trained one after another, in the same run, for K = 1, 3, 9, 
 Both ways train the very same jobs (synthetic 3-robot chains, one dataset and seed per model,
 chapter 3's settings but for the epochs), so the ratio is the batching's alone. Two networks:
 chapter 3's LSTM (unidirectional, cos/sin) and the FC baseline.
+
+Why the two gain so differently is a figure too, `arithmetic`: each network's training step
+(forward and backward of one batch) in GFLOP/s against one thread's float32 matrix product in
+the same run. Batching removes per-call overhead, not arithmetic, so a step already near the
+matrix product's rate (the LSTM) has little left to gain; one far below it (FC) has much.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from typing import Any
 
 from macrostate_mj.app.bench import figure
 
 KS = (1, 3, 9, 27)
 INSTANCES, VAL, EPOCHS = 24, 8, 2
+MATMUL = 1024          # the reference: one (MATMUL x MATMUL) float32 product, one thread
+
+
+def _model(kind: str) -> Any:
+    from estimators.retlo.models import ModelConfig
+
+    return (ModelConfig(history=10, bidirectional=False, cos_sin=True) if kind == "lstm"
+            else ModelConfig(kind="fc"))
 
 
 def _jobs(k: int, kind: str) -> list:
     from estimators.retlo.ensemble import Job
-    from estimators.retlo.models import ModelConfig
     from estimators.retlo.synthetic import synthetic_chains
     from estimators.retlo.train import TrainConfig
 
-    model = (ModelConfig(history=10, bidirectional=False, cos_sin=True) if kind == "lstm"
-             else ModelConfig(kind="fc"))
+    model = _model(kind)
     val = synthetic_chains(VAL, 3, 10_000)
     return [Job([synthetic_chains(INSTANCES, 3, i)], val,
                 TrainConfig(epochs=EPOCHS, patience=EPOCHS, seed=i, model=model))
@@ -52,4 +65,81 @@ def bench_ensemble(ks: tuple[int, ...] = KS) -> list[dict]:
                       "alone_s": round(alone, 3), "together_s": round(together, 3)}
             out.append(figure("speedup", alone / together, "x vs one after another",
                               config=config))
-    return out
+    return out + bench_arithmetic()
+
+
+def _seconds(fn: Callable[[], object], seconds: float = 0.5) -> float:
+    """Median seconds of one call of `fn` over calls filling about `seconds` (after one)."""
+    import numpy as np
+
+    fn()
+    times: list[float] = []
+    while sum(times) < seconds or len(times) < 5:
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def step_flops(kind: str, batch: int) -> float:
+    """Floating-point operations of one training step (forward and backward) of the network:
+    its linear layers as torch's counter counts them, its LSTM (which that counter does not
+    see) as 3 x its forward's 2 x batch x steps x 4m x (inputs + m) per direction."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    from estimators.retlo.models import RetloNet
+
+    cfg = _model(kind)
+    net = RetloNet(cfg, 1.0)
+    obs, hist = _inputs(net, batch)
+    with FlopCounterMode(display=False) as counter:
+        pos, ang = net(obs, hist)
+        (pos.sum() + ang.sum()).backward()
+    flops = float(counter.get_total_flops())
+    lstm = getattr(net, "f_hist", None)
+    if lstm is not None:
+        per_step = 2 * 4 * lstm.hidden_size * (lstm.input_size + lstm.hidden_size)
+        flops += 3 * batch * cfg.history * per_step * (2 if lstm.bidirectional else 1)
+    return flops
+
+
+def _inputs(net: Any, batch: int) -> tuple:
+    import torch
+
+    g = torch.Generator().manual_seed(0)
+    lstm = getattr(net, "f_hist", None)
+    width = lstm.input_size if lstm is not None else 9
+    return (torch.randn(batch, 4, generator=g),
+            torch.randn(batch, net.cfg.history, width, generator=g))
+
+
+def bench_arithmetic(batch: int = 64) -> list[dict]:
+    """Per network: its training step's GFLOP/s against one thread's float32 matrix product
+    (`MATMUL` square) in the same run; ratio near 1: bound by arithmetic, which batching
+    cannot remove."""
+    import torch
+
+    from estimators.retlo.models import RetloNet
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)                  # as every training runs (`TrainConfig.threads`)
+    try:
+        a, b = torch.randn(MATMUL, MATMUL), torch.randn(MATMUL, MATMUL)
+        limit = 2 * MATMUL ** 3 / _seconds(lambda: a @ b) / 1e9
+        out = []
+        for kind in ("lstm", "fc"):
+            net = RetloNet(_model(kind), 1.0)
+            obs, hist = _inputs(net, batch)
+
+            def step(net: Any = net, obs: Any = obs, hist: Any = hist) -> None:
+                net.zero_grad()
+                pos, ang = net(obs, hist)
+                (pos.sum() + ang.sum()).backward()
+
+            rate = step_flops(kind, batch) / _seconds(step) / 1e9
+            out.append(figure("arithmetic", rate, "GFLOP/s", limit,
+                              config={"model": kind, "batch": batch},
+                              limit_name=f"one thread's float32 {MATMUL}x{MATMUL} matrix product"))
+        return out
+    finally:
+        torch.set_num_threads(old)
