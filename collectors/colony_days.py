@@ -30,6 +30,7 @@ import numpy as np
 
 from macrostate_mj.colony.sim import Colony, ColonyConfig, aggression, day_name, parse_days
 from macrostate_mj.core import draw
+from macrostate_mj.core.checks import check_seed
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.run import Run
 
@@ -70,8 +71,7 @@ def validate(req: ColonyRequest) -> list[int]:
     if not 32 <= req.size <= 1024 or req.size % 8:
         raise UserError(f"--size {req.size} must be a multiple of 8 in 32..1024 px (video codecs "
                         "want multiples of 8; the offscreen buffer is 1024)")
-    if req.seed < 0:
-        raise UserError(f"--seed {req.seed} is negative; use a seed >= 0")
+    check_seed(req.seed)
     if not (math.isfinite(req.every) and req.every > 0 and math.isfinite(req.gap) and req.gap > 0):
         raise UserError(f"--every ({req.every}) and --gap ({req.gap}) must be positive seconds")
     if req.m < 1:

@@ -27,6 +27,7 @@ from collectors.randomize import Randomization
 from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
+from macrostate_mj.core.checks import check_positive, check_seed
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import atomic_path
 from macrostate_mj.core.parallel import runner_for
@@ -88,6 +89,8 @@ def parse_split(text: str | None) -> tuple[float, float, float] | None:
 def plan(req: CollectRequest) -> list[EpisodeSpec]:
     """Validate the request and cut the driving time into equal episodes."""
     cfg = scenario_for(req.scenario, req.head_speed)
+    check_positive(req.minutes, "minutes")
+    check_seed(req.seed)
     validate_chain(cfg, req.robots, req.minutes)
     if req.workers < 1:
         raise UserError(f"--workers must be at least 1, got {req.workers}")

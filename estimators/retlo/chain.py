@@ -225,14 +225,31 @@ def run_chain(module: Module, tracks: Tracks, record: Record | None = None) -> T
 
 
 def check_chain(shape: tuple[int, ...], history: int, what: str = "data") -> None:
-    """Refuse chains the module cannot run on: fewer than 3 robots, or no step after the history."""
-    _, n_steps, n_robots, _ = shape
+    """Refuse chains the module cannot run on: not (B, S, N, 3), none, fewer than 3 robots, or
+    no step after the history."""
+    if len(shape) != 4 or shape[-1] != 3:
+        raise UserError(f"{what} has shape {tuple(shape)}; chains are (instances, steps, robots, "
+                        "3) poses (x, y, theta)")
+    n_chains, n_steps, n_robots, _ = shape
+    if n_chains == 0:
+        raise UserError(f"{what} holds no chains; pass at least one instance")
     if n_robots < 3:
         raise UserError(f"{what} has {n_robots} robots; ReTLo needs chains of at least 3 "
                         "(Head, Follower, Tail)")
     if n_steps < history + 2:
         raise UserError(f"{what} has {n_steps} steps; the model needs at least {history + 2} "
                         f"({history} of history, then a step and the next observation)")
+
+
+def check_training_chains(world: np.ndarray, history: int, what: str) -> None:
+    """`check_chain`, and every pose finite: a NaN in training or validation chains would
+    train and select on NaN losses without a word."""
+    check_chain(world.shape, history, what)
+    bad = ~np.isfinite(world)
+    if bad.any():
+        raise UserError(f"{what} holds {int(bad.sum())} NaN or infinite pose values (in "
+                        f"{int(bad.any(axis=(1, 2, 3)).sum())} instances); drop or fill those "
+                        "instances before training")
 
 
 def predict_chain(module: Module, world: np.ndarray, record: Record | None = None

@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from estimators.retlo import CM_PER_M
-from estimators.retlo.chain import Features, check_chain, predict_chain
+from estimators.retlo.chain import Features, check_training_chains, predict_chain
 from estimators.retlo.frames import FrameEstimate, Window
 from estimators.retlo.models import RetloNet, decode_angles, net_features
 from estimators.retlo.report import chain_report
@@ -229,8 +229,8 @@ def train_many(jobs: list[Job]) -> list[tuple[RetloNet, dict]]:
     cfg = jobs[0].cfg
     for job in jobs:
         for i, w in enumerate(job.train):
-            check_chain(w.shape, cfg.model.history, what=f"training file {i + 1}")
-        check_chain(job.val.shape, cfg.model.history, what="validation file")
+            check_training_chains(w, cfg.model.history, what=f"training file {i + 1}")
+        check_training_chains(job.val, cfg.model.history, what="validation file")
     torch.set_num_threads(cfg.threads)
     nets, rngs = [], []
     for job in jobs:                     # each built exactly as `train` builds it alone

@@ -25,7 +25,7 @@ from estimators.precision import precision_named
 from estimators.retlo import CM_PER_M
 from estimators.retlo.chain import (
     Features,
-    check_chain,
+    check_training_chains,
     predict_chain,
     tracks_from_world,
     window,
@@ -36,6 +36,7 @@ from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.models import ModelConfig, RetloNet, TorchPredictor, net_features
 from estimators.retlo.propagate import predict_chain_gaussian, require_uncertain
 from estimators.retlo.report import chain_positions, evaluate_chain
+from macrostate_mj.core.checks import check_count, check_positive, check_seed
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
 
@@ -63,6 +64,11 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         precision_named(self.precision)
+        for name in ("epochs", "patience", "batch", "threads"):
+            check_count(getattr(self, name), name)
+        check_seed(self.seed)
+        check_positive(self.lr, "lr")
+        check_positive(self.angle_weight, "angle_weight", zero=True)
 
     def autocast(self) -> contextlib.AbstractContextManager:
         """Where a training forward pass runs; its outputs are cast to float32 for the loss."""
@@ -240,8 +246,8 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
     far, with `info["interrupted"]` set (before it, the interrupt propagates).
     """
     for i, w in enumerate(train_worlds):
-        check_chain(w.shape, cfg.model.history, what=f"training file {i + 1}")
-    check_chain(val_world.shape, cfg.model.history, what="validation file")
+        check_training_chains(w, cfg.model.history, what=f"training file {i + 1}")
+    check_training_chains(val_world, cfg.model.history, what="validation file")
     if init is not None and init.cfg != cfg.model:
         raise UserError(f"the initial model is a {_describe(init.cfg)}, not the "
                         f"{_describe(cfg.model)} asked for; pass the model's own settings")
@@ -402,7 +408,7 @@ def save_recalibrated(path: str | os.PathLike, net: RetloNet, ckpt: dict, val_wo
     atomically to `path`; the weights are untouched. `source` (what the chains were) goes
     into the training record's "calibrated_on". Returns that record."""
     require_uncertain(TorchPredictor(net), "calibrate")
-    check_chain(val_world.shape, net.cfg.history, what="calibration file")
+    check_training_chains(val_world, net.cfg.history, what="calibration file")
     net.cov_scale, net.regions = recalibrate(net, val_world, seed)
     record = {**source, "seed": seed, "cov_scale": net.cov_scale,
               "region_radius2": net.regions.summary()}

@@ -35,7 +35,8 @@ from macrostate_mj.chain.motion import (
     wheel_commands,
 )
 from macrostate_mj.chain.planners import Planner
-from macrostate_mj.chain.world import World, place_chain
+from macrostate_mj.chain.world import World, check_start, place_chain
+from macrostate_mj.core.checks import check_seed
 from macrostate_mj.core.errors import UserError
 
 
@@ -185,15 +186,21 @@ class ChainSim:
         self._saved = np.empty(mujoco.mj_stateSize(self.model, self._state_spec))
 
     # -- lifecycle ---------------------------------------------------------------------------
-    def reset(self, rng: np.random.Generator, start: np.ndarray | None = None) -> None:
-        """Full reset: a fresh state (warm start included), start poses drawn from `rng`."""
+    def reset(self, rng: np.random.Generator | int, start: np.ndarray | None = None) -> None:
+        """Full reset: a fresh state (warm start included), start poses drawn from `rng` (a
+        Generator, or a seed for one) unless given."""
+        if not isinstance(rng, np.random.Generator):
+            check_seed(rng, "rng")
+            rng = np.random.default_rng(rng)
+        if start is not None:
+            start = check_start(self.cfg, self.n, start)
         self.rng = rng
         mujoco.mj_resetData(self.model, self.data)
         self.monitor.reset()
         self.tail_offset = np.zeros(2)
         if self.mission is not None:
             self.mission.reset()
-        start = place_chain(self.cfg, self.n, rng) if start is None else np.asarray(start)
+        start = place_chain(self.cfg, self.n, rng) if start is None else start
         for adr, (x, y, th) in zip(self.world.qpos_adr, start, strict=True):
             self.data.qpos[adr:adr + 3] = [x, y, self.model.qpos0[adr + 2]]
             self.data.qpos[adr + 3:adr + 7] = [np.cos(th / 2), 0, 0, np.sin(th / 2)]

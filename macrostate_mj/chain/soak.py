@@ -18,6 +18,7 @@ import numpy as np
 
 from macrostate_mj.chain.health import Fault, PhysicsError
 from macrostate_mj.core.cache import TaskCache, run_tasks, task_key
+from macrostate_mj.core.checks import check_count, check_seed
 from macrostate_mj.core.errors import UserError
 
 if TYPE_CHECKING:
@@ -83,10 +84,8 @@ def soak_tasks(scenario: str | ScenarioConfig, robots: int, seeds: int, seconds:
     from macrostate_mj.chain.world import validate_chain
 
     validate_chain(_config(scenario), robots, seconds)
-    if seeds < 1:
-        raise UserError(f"seeds must be at least 1, got {seeds}", "seeds")
-    if first_seed < 0:
-        raise UserError(f"first_seed must be non-negative, got {first_seed}", "first_seed")
+    check_count(seeds, "seeds")
+    check_seed(first_seed, "first_seed")
     if not (0 < check_hz < float("inf")):
         raise UserError(f"check_hz must be a positive number, got {check_hz}", "check_hz")
     return [SoakTask(scenario, robots, seconds, first_seed + k, check_hz) for k in range(seeds)]

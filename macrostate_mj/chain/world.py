@@ -133,6 +133,29 @@ class World:
         return self.spec.to_xml()
 
 
+def check_start(cfg: ScenarioConfig, n: int, start: object) -> np.ndarray:
+    """`start` as n poses (n, 3) of floats, or a UserError: not that shape, not finite, or a
+    robot outside the walls (the arena's centre at the origin)."""
+    try:
+        poses = np.asarray(start, float)
+    except (TypeError, ValueError):
+        poses = np.empty(0)
+    if poses.shape != (n, 3) or not np.isfinite(poses).all():
+        raise UserError(f"start must be {n} finite poses (x, y, theta), an ({n}, 3) array; got "
+                        f"{_described(start, poses)}", "start")
+    if cfg.walls is not None and (np.abs(poses[:, :2]) > np.array(cfg.arena) / 2).any():
+        raise UserError(f"start has a robot outside the {cfg.arena[0]:g} x {cfg.arena[1]:g} m "
+                        "walls (their centre at the origin); place every robot inside them",
+                        "start")
+    return poses
+
+
+def _described(start: object, poses: np.ndarray) -> str:
+    if poses.size == 0 and not isinstance(start, np.ndarray):
+        return f"{type(start).__name__} {start!r}"[:80]
+    return f"shape {poses.shape}" + ("" if np.isfinite(poses).all() else " with NaN or inf")
+
+
 def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = None) -> World:
     """Compile the scene with n robots; `start` (n, 3) poses are baked in as the default
     qpos (the simulation resets poses itself, this matters for exported MJCF). `cfg` may also
@@ -141,16 +164,8 @@ def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = No
 
     cfg = get_scenario(cfg)
     validate_chain(cfg, n, 1.0)      # from Python too: a team that fits, a drivable Head speed
-    if start is None:
-        start = place_chain(cfg, n, np.random.default_rng(0))
-    start = np.asarray(start, float)
-    if start.shape != (n, 3) or not np.isfinite(start).all():
-        raise UserError(f"start must be {n} finite poses (x, y, theta), an ({n}, 3) array; got "
-                        f"shape {start.shape}", "start")
-    if cfg.walls is not None and (np.abs(start[:, :2]) > np.array(cfg.arena) / 2).any():
-        raise UserError(f"start has a robot outside the {cfg.arena[0]:g} x {cfg.arena[1]:g} m "
-                        "walls (their centre at the origin); place every robot inside them",
-                        "start")
+    start = check_start(cfg, n, place_chain(cfg, n, np.random.default_rng(0))
+                        if start is None else start)
     names = robot_names(n)
     colours = marker_colours(n)
     spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics,

@@ -174,6 +174,21 @@ def test_same_seed_same_log_other_seed_different():
     assert not np.allclose(a, c)
 
 
+def test_reset_takes_a_seed_or_a_generator_and_refuses_bad_ones_before_touching_the_state():
+    sim = ChainSim(build_world(get_scenario("lab"), 4))
+    sim.reset(7)
+    seeded = sim.poses.copy()
+    sim.reset(np.random.default_rng(7))
+    assert np.array_equal(seeded, sim.poses)
+    for rng, start, words in ((-1, None, "integer >= 0"), ("7", None, "Generator"),
+                              (True, None, "Generator"), (0, np.zeros((3, 3)), "shape"),
+                              (0, np.full((4, 3), np.nan), "NaN"), (0, "x", "str"),
+                              (0, np.full((4, 3), 9.0), "outside")):
+        with pytest.raises(UserError, match=words):
+            sim.reset(rng, start=start)
+        assert np.array_equal(seeded, sim.poses)      # refused before any change
+
+
 def test_robotarium_chain_moves_with_preset_head():
     world = build_world(get_scenario("robotarium"), 4)
     sim = ChainSim(world)

@@ -114,6 +114,23 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, args, words):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("field,value,words", [
+    ("seed", -3, "seed must be a whole number >= 0"),
+    ("minutes", float("nan"), "minutes must be a finite number above 0"),
+    ("robots", 1, "at least 2"),
+])
+def test_bad_values_from_python_are_refused_before_anything_is_written(tmp_path, field, value,
+                                                                      words):
+    from collectors.runner import CollectRequest, collect
+    from macrostate_mj.core.errors import UserError
+
+    request = {"scenario": "lab", "robots": 3, "minutes": 1.0, "seed": 0,
+               "out": tmp_path / "never", field: value}
+    with pytest.raises(UserError, match=words):
+        collect(CollectRequest(**request))
+    assert not (tmp_path / "never").exists()
+
+
 def test_stats_prints_our_dataset_beside_real_data(reference, reference_data):
     real = reference_data / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
     res = cli("stats", str(reference / "instances.csv"), str(real))

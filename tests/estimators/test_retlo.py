@@ -102,6 +102,27 @@ def test_chain_refuses_short_chains_and_short_instances():
         predict_chain(Heuristic2X(), _rigid(2, "straight"))
     with pytest.raises(UserError, match="steps"):
         predict_chain(Heuristic2X(), _rigid(3, "straight", n_steps=11))
+    with pytest.raises(UserError, match="no chains"):
+        predict_chain(Heuristic2X(), _rigid(3, "straight")[:0])
+    with pytest.raises(UserError, match=r"\(instances, steps, robots, 3\)"):
+        predict_chain(Heuristic2X(), _rigid(3, "straight")[0])
+
+
+def test_training_refuses_bad_settings_and_chains_that_are_not_finite():
+    for settings, words in ((dict(epochs=0), "epochs"), (dict(batch=2.5), "batch"),
+                            (dict(patience=True), "patience"), (dict(threads=0), "threads"),
+                            (dict(lr=float("nan")), "lr"), (dict(lr=0.0), "lr"),
+                            (dict(angle_weight=-1.0), "angle_weight")):
+        with pytest.raises(UserError, match=words) as caught:
+            TrainConfig(**settings)
+        assert caught.value.param == words
+    good, holed = synthetic_chains(4, 3, seed=1), synthetic_chains(4, 3, seed=1)
+    holed[2, 5, 1, 0] = np.nan
+    cfg = TrainConfig(epochs=1)
+    with pytest.raises(UserError, match="training file 1 holds 1 NaN .* 1 instances"):
+        train([holed], good, cfg, progress=False)
+    with pytest.raises(UserError, match="validation file holds 1 NaN"):
+        train([good], holed, cfg, progress=False)
 
 
 def _fit(kind: str, seed: int = 0, epochs: int = 10):
