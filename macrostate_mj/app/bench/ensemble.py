@@ -108,7 +108,7 @@ def _inputs(net: Any, batch: int) -> tuple:
 
     g = torch.Generator().manual_seed(0)
     lstm = getattr(net, "f_hist", None)
-    width = lstm.input_size if lstm is not None else 9
+    width = lstm.input_size if lstm is not None else 9       # FC reads no history
     return (torch.randn(batch, 4, generator=g),
             torch.randn(batch, net.cfg.history, width, generator=g))
 
