@@ -190,7 +190,7 @@ class ChainSim:
         """Full reset: a fresh state (warm start included), start poses drawn from `rng` (a
         Generator, or a seed for one) unless given."""
         if not isinstance(rng, np.random.Generator):
-            check_seed(rng, "rng")
+            check_seed(rng, "rng", also="a numpy Generator or ")
             rng = np.random.default_rng(rng)
         if start is not None:
             start = check_start(self.cfg, self.n, start)

@@ -19,10 +19,11 @@ def _real(value: object) -> bool:
             and not isinstance(value, bool) and math.isfinite(value))
 
 
-def check_seed(value: object, name: str = "seed") -> None:
-    """A seed for numpy's generators: a whole number >= 0."""
+def check_seed(value: object, name: str = "seed", also: str = "") -> None:
+    """A seed for numpy's generators: a whole number >= 0 (`also`: what else was allowed)."""
     if not (_whole(value) and value >= 0):
-        raise UserError(f"{name} must be a whole number >= 0 (a seed), got {value!r}"[:160], name)
+        raise UserError(f"{name} must be {also}a whole number >= 0 (a seed), got {value!r}"[:160],
+                        name)
 
 
 def check_count(value: object, name: str, least: int = 1) -> None:

@@ -180,8 +180,9 @@ def test_reset_takes_a_seed_or_a_generator_and_refuses_bad_ones_before_touching_
     seeded = sim.poses.copy()
     sim.reset(np.random.default_rng(7))
     assert np.array_equal(seeded, sim.poses)
-    for rng, start, words in ((-1, None, "integer >= 0"), ("7", None, "Generator"),
-                              (True, None, "Generator"), (0, np.zeros((3, 3)), "shape"),
+    for rng, start, words in ((-1, None, "Generator or a whole number >= 0"),
+                              ("7", None, "Generator"), (True, None, "Generator"),
+                              (0, np.zeros((3, 3)), "shape"),
                               (0, np.full((4, 3), np.nan), "NaN"), (0, "x", "str"),
                               (0, np.full((4, 3), 9.0), "outside")):
         with pytest.raises(UserError, match=words):
