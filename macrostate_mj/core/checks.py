@@ -1,5 +1,6 @@
-"""The checks every layer makes of a plain number from a user, in one place: each refuses with
-a `UserError` naming the parameter (the CLI maps it onto its flag), before any work."""
+"""Shared checks of a plain number from a user (a seed, a count, a positive number), so that
+every layer words them alike: each refuses with a `UserError` naming the parameter (the CLI
+maps it onto its flag), before any work. Older checks written inline elsewhere say the same."""
 
 from __future__ import annotations
 
