@@ -81,36 +81,45 @@ def _seconds(fn: Callable[[], object], seconds: float = 0.5) -> float:
     return float(np.median(times))
 
 
-def step_flops(kind: str, batch: int) -> float:
-    """Floating-point operations of one training step (forward and backward) of the network:
-    its linear layers as torch's counter counts them, its LSTM (which that counter does not
-    see) as 3 x its forward's 2 x batch x steps x 4m x (inputs + m) per direction."""
-    from torch.utils.flop_counter import FlopCounterMode
+class _Step:
+    """One training step (forward and backward, no optimizer) of a fresh network of `kind`
+    on a fixed random batch: what `arithmetic` both counts and times."""
 
-    from estimators.retlo.models import RetloNet
+    def __init__(self, kind: str, batch: int) -> None:
+        import torch
 
-    cfg = _model(kind)
-    net = RetloNet(cfg, 1.0)
-    obs, hist = _inputs(net, batch)
-    with FlopCounterMode(display=False) as counter:
-        pos, ang = net(obs, hist)
+        from estimators.retlo.models import RetloNet
+
+        self.net = RetloNet(_model(kind), 1.0)
+        g = torch.Generator().manual_seed(0)
+        self.lstm = getattr(self.net, "f_hist", None)
+        width = self.lstm.input_size if self.lstm is not None else 9    # FC reads no history
+        self.obs = torch.randn(batch, 4, generator=g)
+        self.hist = torch.randn(batch, self.net.cfg.history, width, generator=g)
+
+    def __call__(self) -> None:
+        self.net.zero_grad()
+        pos, ang = self.net(self.obs, self.hist)
         (pos.sum() + ang.sum()).backward()
-    flops = float(counter.get_total_flops())
-    lstm = getattr(net, "f_hist", None)
-    if lstm is not None:
-        per_step = 2 * 4 * lstm.hidden_size * (lstm.input_size + lstm.hidden_size)
-        flops += 3 * batch * cfg.history * per_step * (2 if lstm.bidirectional else 1)
-    return flops
+
+    def flops(self) -> float:
+        """Its linear layers as torch's counter counts them, its LSTM (which that counter does
+        not see) as 3 x its forward's 2 x batch x steps x 4m x (inputs + m) per direction."""
+        from torch.utils.flop_counter import FlopCounterMode
+
+        with FlopCounterMode(display=False) as counter:
+            self()
+        flops = float(counter.get_total_flops())
+        if self.lstm is not None:
+            lstm, (batch, steps, _) = self.lstm, self.hist.shape
+            per_step = 2 * 4 * lstm.hidden_size * (lstm.input_size + lstm.hidden_size)
+            flops += 3 * batch * steps * per_step * (2 if lstm.bidirectional else 1)
+        return flops
 
 
-def _inputs(net: Any, batch: int) -> tuple:
-    import torch
-
-    g = torch.Generator().manual_seed(0)
-    lstm = getattr(net, "f_hist", None)
-    width = lstm.input_size if lstm is not None else 9       # FC reads no history
-    return (torch.randn(batch, 4, generator=g),
-            torch.randn(batch, net.cfg.history, width, generator=g))
+def step_flops(kind: str, batch: int) -> float:
+    """Floating-point operations of one training step (forward and backward) of the network."""
+    return _Step(kind, batch).flops()
 
 
 def bench_arithmetic(batch: int = 64) -> list[dict]:
@@ -119,8 +128,6 @@ def bench_arithmetic(batch: int = 64) -> list[dict]:
     cannot remove."""
     import torch
 
-    from estimators.retlo.models import RetloNet
-
     old = torch.get_num_threads()
     torch.set_num_threads(1)                  # as every training runs (`TrainConfig.threads`)
     try:
@@ -128,15 +135,8 @@ def bench_arithmetic(batch: int = 64) -> list[dict]:
         limit = 2 * MATMUL ** 3 / _seconds(lambda: a @ b) / 1e9
         out = []
         for kind in ("lstm", "fc"):
-            net = RetloNet(_model(kind), 1.0)
-            obs, hist = _inputs(net, batch)
-
-            def step(net: Any = net, obs: Any = obs, hist: Any = hist) -> None:
-                net.zero_grad()
-                pos, ang = net(obs, hist)
-                (pos.sum() + ang.sum()).backward()
-
-            rate = step_flops(kind, batch) / _seconds(step) / 1e9
+            step = _Step(kind, batch)
+            rate = step.flops() / _seconds(step) / 1e9
             out.append(figure("arithmetic", rate, "GFLOP/s", limit,
                               config={"model": kind, "batch": batch},
                               limit_name=f"one thread's float32 {MATMUL}x{MATMUL} matrix product"))
