@@ -69,6 +69,7 @@ class CollectRequest:
     first_episode: int = 0      # index of the first episode (a later phase of one collection)
     policy_spec: PolicySpec | None = None   # overrides policy/sigma (the SR phase's Tail)
     randomize: str | None = None    # a domain-randomization profile (`collectors.randomize`)
+    keep_unhealthy: bool = False    # assemble episodes whose tracking failed its health limits
 
 
 def parse_split(text: str | None) -> tuple[float, float, float] | None:
@@ -117,7 +118,7 @@ class EpisodeTask:
     where it keeps any) as Parquet and its figures as JSON."""
 
     stage: ClassVar[str] = "collect-episode"
-    version: ClassVar[int] = 1
+    version: ClassVar[int] = 2          # 2: stats.json holds the episode's tracking health
 
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec
@@ -140,6 +141,19 @@ class EpisodeTask:
         return files
 
 
+def tracking_verdict(req: CollectRequest, stats: dict[int, dict]) -> dict:
+    """A collection's tracking health: each episode judged against the scenario's `[tracking]`
+    limits, the worst figures per robot in one line, and whether unhealthy episodes were kept."""
+    from macrostate_mj.vision.health import TrackingHealth, worst_of
+
+    limits = scenario_for(req.scenario, req.head_speed).tracking
+    reports = {i: TrackingHealth.from_dict(s["health"]) for i, s in sorted(stats.items())}
+    findings = {str(i): [f.describe() for f in r.findings(limits)] for i, r in reports.items()}
+    findings = {i: lines for i, lines in findings.items() if lines}
+    return {"summary": worst_of(list(reports.values())).summary(), "healthy": not findings,
+            "limits": limits, "findings": findings, "keep_unhealthy": req.keep_unhealthy}
+
+
 def _parquet_bytes(table: pa.Table) -> bytes:
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, compression="zstd")
@@ -150,7 +164,7 @@ def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
     """What a collection's outputs depend on (not where or how fast it runs): its run's
     identity, so a resumed run may change --workers but not the collection."""
     identity = {k: v for k, v in asdict(req).items()
-                if k not in ("out", "workers", "ray", "overwrite", "scenario")}
+                if k not in ("out", "workers", "ray", "overwrite", "scenario", "keep_unhealthy")}
     return {"request": identity, "scenario": asdict(scenario_for(req.scenario, req.head_speed)),
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
@@ -184,10 +198,19 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
                 f"{len(failures)} of {len(specs)} episodes failed; {done} finished episode(s) "
                 f"kept in {cache.root}")
         folders = [cache.folder(t.stage, t.key()) for t in tasks]
-        with run.stage("assemble"):
-            written = assemble(req, specs, folders, fractions)
         stats = {t.spec.index: json.loads((f / "stats.json").read_text())
                  for t, f in zip(tasks, folders, strict=True)}
+        tracking = tracking_verdict(req, stats)
+        run.record(tracking=tracking)
+        if tracking["findings"] and not req.keep_unhealthy:
+            index, line = next(iter(tracking["findings"].items()))
+            raise RunFailure(
+                f"tracking unhealthy in episode {index}: {line[0]}; "
+                f"{len(tracking['findings'])} of {len(specs)} episodes unhealthy, no dataset "
+                f"assembled (episodes kept in {cache.root}); pass --keep-unhealthy to assemble "
+                "them anyway")
+        with run.stage("assemble"):
+            written = assemble(req, specs, folders, fractions)
         written["manifest"] = run.path
         run.record(px_per_cm=req.px_per_cm, workers=req.workers, ray=req.ray,
                    scenario_hash=config_hash(scenario_for(req.scenario, req.head_speed)),

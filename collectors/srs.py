@@ -19,6 +19,7 @@ The novelty models come through `NoveltyTrainer`, which the caller passes in: `c
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import shutil
 import tempfile
@@ -168,10 +169,21 @@ def collect_srs(req: SRSRequest, novelty: NoveltyTrainer,
             written = _assemble(req, ro_req, sr_req, fractions) | {
                 "novelty": model_path, "decisions": out / "decisions.parquet"}
         written["manifest"] = run.path
-        run.record(phases={"ro": str(ro_req.out), "sr": str(sr_req.out)}, novelty_sha256=sha,
+        phases = {"ro": _tracking(ro_req), "sr": _tracking(sr_req)}
+        run.record(tracking={"healthy": all(t.get("healthy") for t in phases.values()),
+                             "summary": "; ".join(f"{k.upper()} phase {t.get('summary')}"
+                                                  for k, t in phases.items()),
+                             "phases": phases},
+                   phases={"ro": str(ro_req.out), "sr": str(sr_req.out)}, novelty_sha256=sha,
                    novelty_key=key, workers=req.base.workers, ray=req.base.ray,
                    outputs={k: str(v) for k, v in written.items()})
     return written
+
+
+def _tracking(phase: CollectRequest) -> dict:
+    """A phase's tracking health, as its own collection's manifest records it."""
+    manifest = json.loads((Path(phase.out) / "manifest.json").read_text())
+    return manifest.get("tracking") or {}
 
 
 def _novelty(req: SRSRequest, ro_req: CollectRequest, novelty: NoveltyTrainer,

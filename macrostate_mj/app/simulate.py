@@ -20,6 +20,7 @@ from macrostate_mj.formats.poses import write_poses
 
 if TYPE_CHECKING:
     from macrostate_mj.chain.sim import ChainSim, Hook, Tracker
+    from macrostate_mj.vision.camera_chain import CameraChain
 
 
 @dataclass(frozen=True)
@@ -95,12 +96,36 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
                                                        "fault": failure.fault.fault.name,
                                                        "reason": str(failure)},
                    simulated_seconds=sim.time, health=asdict(sim.monitor.stats),
-                   tracking=None if chain is None else {
-                       "frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise})
+                   tracking=None if chain is None else tracking_record(chain, cfg))
         if failure is not None:
             raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up "
                              f"to then are in {out}; reproduce: {reproduce_command(req)}")
+        findings = [] if chain is None else chain.health.report().findings(cfg.tracking)
+        if findings:
+            more = f" (and {len(findings) - 1} more in the manifest)" if len(findings) > 1 else ""
+            raise RunFailure(f"tracking unhealthy: {findings[0].describe()}{more}; poses kept in "
+                             f"{out}, flagged")
     return written
+
+
+def tracking_record(chain: CameraChain, cfg: ScenarioConfig) -> dict:
+    """A tracked run's `tracking` block: frame counts, the noise, and its health against the
+    scenario's limits (`vision.health`)."""
+    health = chain.health.report()
+    findings = [f.describe() for f in health.findings(cfg.tracking)]
+    return {"frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise,
+            "marker_jitter_m": cfg.marker_jitter, "health": health.as_dict(),
+            "limits": cfg.tracking, "summary": health.summary(), "healthy": not findings,
+            "findings": findings}
+
+
+def tracking_summary(manifest: Path) -> str:
+    """The one-line tracking health of a finished run, from its manifest."""
+    import json
+
+    tracking = json.loads(Path(manifest).read_text()).get("tracking") or {}
+    state = "healthy" if tracking.get("healthy") else "UNHEALTHY"
+    return f"{state}: {tracking.get('summary', 'no tracking')}"
 
 
 def _run(req: SimulateRequest, cfg: ScenarioConfig) -> Run:

@@ -11,6 +11,7 @@ saturation and value 0-255.
 from __future__ import annotations
 
 import colorsys
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -18,6 +19,12 @@ MIN_SATURATION = 90     # of 255: a greyer pixel is never any marker's
 MIN_VALUE = 50          # of 255: a darker pixel is never any marker's
 HUE_LEVELS = 256        # full-range hue: 0-255 around the circle
 MAX_HUE_TOLERANCE = 14  # of 256: how far a marker's pixels may stray in hue (few robots)
+
+
+@dataclass(frozen=True)
+class ColourMarkers:
+    """Each robot wears a flat triangle of its own colour (the dissertation's lab, Fig 2.6):
+    the default marker kind (`[markers] kind = "colour"` in a scenario file)."""
 
 
 def marker_colours(n: int) -> np.ndarray:

@@ -12,11 +12,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
+from macrostate_mj.chain.markers import ColourMarkers
 from macrostate_mj.chain.motion import FollowerRule
 from macrostate_mj.chain.noise import NoiseConfig
 from macrostate_mj.chain.planners import PlannerSpec
 from macrostate_mj.chain.robot import top_speed
 from macrostate_mj.chain.scene import Camera, Look, Obstacle, Physics, Walls, check_camera
+from macrostate_mj.chain.tracking import TrackingLimits
 from macrostate_mj.core.errors import UserError
 
 # A scenario file's tables and keys -> ScenarioConfig's fields: one home, read by the file
@@ -33,7 +35,8 @@ LAYOUT: dict[str, dict[str, str]] = {
     "rates": {"command_hz": "command_hz", "log_hz": "log_hz"},
     "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale"},
 }
-NESTED = {"camera": "camera", "physics": "physics", "look": "look"}   # table -> dataclass field
+NESTED = {"camera": "camera", "physics": "physics", "look": "look",
+          "tracking": "tracking"}   # table -> dataclass field
 SHARED = {"imaging": "noise"}   # a dataclass field whose keys share a table with flat fields
 
 
@@ -93,6 +96,8 @@ class ScenarioConfig:
     look: Look = Look()             # colours and lighting
     obstacles: tuple[Obstacle, ...] = ()    # static boxes and cylinders on the floor
     imaging: NoiseConfig = NoiseConfig()    # what the camera chain does to each frame
+    markers: ColourMarkers = ColourMarkers()    # what each robot wears for the tracker
+    tracking: TrackingLimits = TrackingLimits()     # when a tracked run fails its health
 
     def __post_init__(self) -> None:
         """Refuse, when the scenario is made, rates that are not whole physics steps and a

@@ -23,7 +23,7 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from macrostate_mj.chain import motion, planners, scene
+from macrostate_mj.chain import markers, motion, planners, scene
 from macrostate_mj.chain.noise import NoiseConfig
 from macrostate_mj.chain.scenario import LAYOUT, NESTED, ScenarioConfig, file_key
 from macrostate_mj.core.errors import UserError
@@ -33,6 +33,8 @@ BUILTIN = Path(str(files("macrostate_mj") / "assets" / "scenarios"))
 PLANNERS = {"psi_grid": planners.PsiGrid, "cell_walk": planners.CellWalk,
             "preset_twists": planners.PresetTwists}
 FOLLOWERS = {"two_neighbours": motion.TwoNeighbours, "wait_for_behind": motion.WaitForBehind}
+MARKERS = {"colour": markers.ColourMarkers}
+RULES = {"planner": PLANNERS, "followers": FOLLOWERS, "markers": MARKERS}   # chosen by `kind`
 WALL_KEYS = {"walls", "wall_height", "wall_thickness"}
 AUTO = "auto"      # an optional value left to its default (a camera framing the arena)
 
@@ -121,12 +123,12 @@ def to_config(table: dict, source: str) -> ScenarioConfig:
         elif section in NESTED:
             kw[NESTED[section]] = _dataclass(_field_type(NESTED[section]), value, section,
                                              source)
-        elif section in ("planner", "followers"):
+        elif section in RULES:
             kw[section] = _rule(value, section, source)
         elif section in LAYOUT[""]:
             kw[LAYOUT[""][section]] = value
         else:
-            tables = sorted({*LAYOUT, *NESTED, "planner", "followers"} - {""})
+            tables = sorted({*LAYOUT, *NESTED, *RULES} - {""})
             raise UserError(f"{source}: unknown key {section!r}; the tables are "
                             f"{', '.join(tables)}")
     arena = table.get("arena", {})
@@ -165,9 +167,9 @@ def _section(value: Any, section: str, source: str, kw: dict) -> None:
 
 
 def _rule(value: Any, section: str, source: str) -> object:
-    """`[planner] kind = "psi_grid"` (+ its fields) or `followers = "two_neighbours"`: the
-    behaviour's object, chosen by the file's name for it."""
-    kinds = PLANNERS if section == "planner" else FOLLOWERS
+    """`[planner] kind = "psi_grid"` (+ its fields), `followers = "two_neighbours"` or
+    `[markers] kind = "colour"`: the behaviour's object, chosen by the file's name for it."""
+    kinds = RULES[section]
     table = {"kind": value} if isinstance(value, str) else dict(value)
     kind = table.pop("kind", None)
     if kind not in kinds:
@@ -259,7 +261,7 @@ def to_toml(cfg: ScenarioConfig) -> str:
     sections["noise"].update(_fields(cfg.imaging))
     for table, name in NESTED.items():
         sections[table] = _fields(getattr(cfg, name))
-    for section, kinds in (("planner", PLANNERS), ("followers", FOLLOWERS)):
+    for section, kinds in RULES.items():
         rule = getattr(cfg, section)
         kind = next(k for k, cls in kinds.items() if type(rule) is cls)
         sections[section] = {"kind": kind, **_fields(rule)}

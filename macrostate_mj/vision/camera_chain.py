@@ -37,6 +37,7 @@ import numpy as np
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.vision import imaging
 from macrostate_mj.vision.camera import OverheadRenderer
+from macrostate_mj.vision.health import HealthMonitor
 from macrostate_mj.vision.imaging import FrameDraw, NoiseConfig, SceneConditions, draw_episode
 from macrostate_mj.vision.tracker import Detections, Tracker
 
@@ -58,11 +59,12 @@ class CameraChain:
     `close()`. As a `Hook` (given `rng`), `ChainSim.episode` makes those calls itself.
 
     With `lazy=False` every frame is rendered and processed when it is taken (the results are
-    the same: tested)."""
+    the same: tested). `health` (a `vision.health.HealthMonitor`, or None with `health=False`)
+    compares every processed frame's detections with the truth of that moment."""
 
     def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None,
                  rng: np.random.Generator | None = None, phase: float = 0.0,
-                 windows: bool = True, lazy: bool = True):
+                 windows: bool = True, lazy: bool = True, health: bool = True):
         self.sim = sim
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
@@ -80,6 +82,11 @@ class CameraChain:
         self.windows, self.lazy = windows, lazy
         self._waiting: _Frame | None = None
         self._spare = mujoco.MjData(sim.model)     # the waiting frame's copy of the state
+        self.health: HealthMonitor | None = None
+        if health:
+            marker = float(np.sqrt(Tracker.marker_area_of(sim.world)))
+            self.health = HealthMonitor(sim.world.names, sim.world.marker_height,
+                                        sim.cfg.obstacles, marker)
 
     def start(self, rng: np.random.Generator) -> None:
         """Calibrate on the nominal camera (its lens as this episode's draw misjudges it), then
@@ -101,6 +108,8 @@ class CameraChain:
         self._latest_truth[:] = np.nan
         self._detected[:] = False
         self._seen_at = np.nan
+        if self.health is not None:
+            self.health.reset()
 
     # -- the `Hook` lifecycle: tracking at the command rate ------------------------------------
     def initialize_episode(self, sim: ChainSim) -> None:
@@ -217,6 +226,8 @@ class CameraChain:
     def _apply(self, det: Detections, t: float, truth: np.ndarray,
                jitter: np.ndarray | None) -> None:
         seen = det.detected
+        if self.health is not None:      # the tracker's own error: before the jitter
+            self.health.add(seen, det.poses, truth, self.tracker.camera.position)
         self._placed[seen] = det.poses[seen, :2]
         self._latest[seen] = det.poses[seen]
         if jitter is not None:

@@ -61,9 +61,13 @@ class Tracker:
         plane and area."""
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
-        area = marker_area(world.spec, f"{world.names[0]}/marker")
-        return cls(camera, world.colours, world.marker_height, area,
+        return cls(camera, world.colours, world.marker_height, cls.marker_area_of(world),
                    occluders=world.scenario.obstacles)
+
+    @staticmethod
+    def marker_area_of(world: World) -> float:
+        """The area (m^2) of a world's marker card seen from above."""
+        return marker_area(world.spec, f"{world.names[0]}/marker")
 
     def __post_init__(self) -> None:
         self._hues = marker_hues(self.colours)

@@ -58,6 +58,10 @@ def collect(
                                   "a profile (wide, wider) or a JSON file of parameter: "
                                   "[low, high] factors (collectors/randomize.py lists the "
                                   "parameters)."),
+    keep_unhealthy: bool = Switch(False, "Assemble the datasets even from episodes whose "
+                                  "tracking failed the scenario's [tracking] limits (recorded "
+                                  "in the manifest); without it such a collection ends with "
+                                  "exit 1 and no dataset."),
     overwrite: bool = Switch(False, "Start over, replacing existing outputs."),
 ) -> None:
     """Collect tracked pose datasets in the ThymioLoc layout; resumes after an interruption."""
@@ -72,7 +76,7 @@ def collect(
                             "phase included)")
         req = CollectRequest(scenario, robots, 0.0, seed, out, "random", sigma, workers, ray,
                              split, overwrite, episode_minutes, px_per_cm=px_per_cm,
-                             head_speed=head_speed)
+                             head_speed=head_speed, keep_unhealthy=keep_unhealthy)
         _collect_srs(req, srs, instances, ro_instances, k, track)
         return
     if instances is not None:
@@ -81,12 +85,23 @@ def collect(
         raise UserError(f"--policy {policy} needs --minutes (the simulated driving time)")
     req = CollectRequest(scenario, robots, minutes, seed, out, policy, sigma, workers, ray,
                          split, overwrite, episode_minutes, px_per_cm=px_per_cm,
-                         head_speed=head_speed, randomize=randomize)
+                         head_speed=head_speed, randomize=randomize,
+                         keep_unhealthy=keep_unhealthy)
     episodes = len(plan(req))
     with sim_progress(minutes, f"collecting {episodes} episodes", unit="sim min") as bar:
         written = run_collect(req, lambda done, sim_minutes: bar(sim_minutes))
     for kind, path in written.items():
         typer.echo(f"{kind:<16} {path}")
+    _tracking_line(written)
+
+
+def _tracking_line(written: dict) -> None:
+    """The collection's one-line tracking health, from its manifest."""
+    import json
+
+    tracking = json.loads(written["manifest"].read_text()).get("tracking") or {}
+    state = "healthy" if tracking.get("healthy") else "UNHEALTHY (kept: --keep-unhealthy)"
+    typer.echo(f"{'tracking':<16} {state}: {tracking.get('summary')}")
 
 
 def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
@@ -105,3 +120,4 @@ def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
                               NoveltyTraining(), progress)
     for kind, path in written.items():
         typer.echo(f"{kind:<16} {path}")
+    _tracking_line(written)

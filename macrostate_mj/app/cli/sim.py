@@ -50,6 +50,10 @@ def simulate(
         written = simulate_run(req, advance)
     for kind, path in written.items():
         typer.echo(f"{kind:<9} {path}")
+    if track:
+        from macrostate_mj.app.simulate import tracking_summary
+
+        typer.echo(f"tracking  {tracking_summary(written['manifest'])}")
 
 
 @app.command("export-mjcf")
