@@ -37,6 +37,8 @@ class SimulateRequest:
     head_speed: float | None = None
     track: bool = False
     overlays: str = "all"
+    video_view: str = "camera"           # viz.video.VIEWS: through the lens, or undistorted
+    camera_video: Path | None = None     # the tracker's raw frames (+ FILE.times.csv)
 
 
 def parse_overlays(text: str) -> tuple[str, ...]:
@@ -58,11 +60,21 @@ def check_request(req: SimulateRequest) -> ScenarioConfig:
     parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
     _run(req, cfg).claim()
-    for path, flag, suffix in ((req.video, "--video", ".mp4"), (req.rerun, "--rerun", ".rrd")):
+    from viz.video import VIEWS, times_path
+
+    if req.video_view not in VIEWS:
+        raise UserError(f"--video-view {req.video_view!r} is not one of {', '.join(VIEWS)}")
+    if req.camera_video is not None and not req.track:
+        raise UserError("--camera-video films what the tracker is handed; add --track")
+    outputs = ((req.video, "--video", ".mp4"), (req.rerun, "--rerun", ".rrd"),
+               (req.camera_video, "--camera-video", ".mp4"))
+    for path, flag, suffix in outputs:
         if path is not None:
             if path.suffix != suffix:
                 raise UserError(f"{flag} {path} needs the {suffix} extension")
             check_writable_file(path, req.overwrite, flag)
+    if req.camera_video is not None:
+        check_writable_file(times_path(req.camera_video), req.overwrite, "--camera-video")
     return cfg
 
 
@@ -87,6 +99,11 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
             written["video"] = req.video
         if req.rerun is not None:
             written["rerun"] = req.rerun
+        if req.camera_video is not None:
+            from viz.video import times_path
+
+            written["camera"] = req.camera_video
+            written["times"] = times_path(req.camera_video)
         written["manifest"] = run.path
         run.timings.update(ran.timings)
         run.record(robots=ran.world.names, outputs={k: str(v) for k, v in written.items()},
@@ -102,9 +119,9 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
                              f"to then are in {out}; reproduce: {reproduce_command(req)}")
         findings = [] if chain is None else chain.health.report().findings(cfg.tracking)
         if findings:
-            more = f" (and {len(findings) - 1} more in the manifest)" if len(findings) > 1 else ""
+            more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
             raise RunFailure(f"tracking unhealthy: {findings[0].describe()}{more}; poses kept in "
-                             f"{out}, flagged")
+                             f"{out}, every finding in its manifest")
     return written
 
 
@@ -137,13 +154,19 @@ def _run(req: SimulateRequest, cfg: ScenarioConfig) -> Run:
 
 def _recorders(req: SimulateRequest, cfg: ScenarioConfig, sim: ChainSim,
                tracker: Tracker | None) -> list[Hook]:
-    """The drawing hooks the request asks for: an overhead video, a rerun recording."""
+    """The recording hooks the request asks for: an overhead video (the camera's view, or the
+    undistorted one), a rerun recording, the camera's raw frames (after the camera chain)."""
     hooks: list[Hook] = []
     if req.video is not None:
         from viz.video import VideoRecorder
 
         hooks.append(VideoRecorder(req.video, sim, fps=req.video_fps,
-                                   overlays=parse_overlays(req.overlays), tracker=tracker))
+                                   overlays=parse_overlays(req.overlays), tracker=tracker,
+                                   view=req.video_view))
+    if req.camera_video is not None and tracker is not None:
+        from viz.video import CameraVideo
+
+        hooks.append(CameraVideo(req.camera_video, tracker, cfg.command_hz))
     if req.rerun is not None:
         from viz.rerun_log import RerunRecorder
 

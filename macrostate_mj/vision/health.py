@@ -26,9 +26,10 @@ from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.vision.occlusion import occluded
 
 # Likely causes, by what the figures show (docs: how-to/tracking-health).
-CAUSE_IDENTITY = ("its detections sit on another robot: two markers the classifier cannot tell "
-                  "apart (too many colours for the team; use fewer robots or [markers] kind = "
-                  "\"aruco\")")
+CAUSE_IDENTITY = ("its detections sit on another robot: its marker's colour is found there (two "
+                  "markers the classifier cannot tell apart, or a robot part rendered in marker "
+                  "colour: run `macrostate-mj scenario check`; for large teams use [markers] kind "
+                  "= \"aruco\")")
 CAUSE_OFFSET = ("pixels of its marker's colour elsewhere in view pull the fit (a robot part or the "
                 "scene rendered in marker colour: run `macrostate-mj scenario check`), or a lens "
                 "the calibration does not undo")

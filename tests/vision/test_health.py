@@ -1,0 +1,151 @@
+"""Tracking health: every tracked run compares the tracker with the simulator's truth and says,
+in the manifest and at the end of the run, when its poses are wrong."""
+
+import json
+import math
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from clitools import assert_clean_error, cli
+
+from macrostate_mj.chain.scene import Obstacle
+from macrostate_mj.chain.tracking import TrackingLimits
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.vision.health import HealthMonitor, TrackingHealth, worst_of
+
+NAMES = ["H", "F1", "T"]
+TRUTH = np.array([[0.0, 0.0, 0.0], [-0.3, 0.0, 0.1], [-0.6, 0.0, 0.2]])
+
+
+def _frames(monitor: HealthMonitor, poses: np.ndarray, detected: np.ndarray, k: int = 10):
+    for _ in range(k):
+        monitor.add(detected, poses, TRUTH, np.array([0.0, 0.0, 3.0]))
+
+
+def test_exact_detections_are_healthy_and_the_figures_are_the_errors():
+    monitor = HealthMonitor(NAMES)
+    poses = TRUTH + [[0.002, 0.0, np.radians(1.0)]] * 3
+    _frames(monitor, poses, np.ones(3, bool))
+    report = monitor.report()
+    for r in report.robots:
+        assert r.frames == 10 and r.detected == 1.0 and r.identity == 0.0
+        assert r.median_mm == pytest.approx(2.0) and r.p99_mm == pytest.approx(2.0)
+        assert r.heading_deg == pytest.approx(1.0)
+    assert report.findings(TrackingLimits()) == []
+    assert "detected >= 100.0%" in report.summary()
+
+
+def test_swapped_identities_missed_robots_and_offsets_are_each_found():
+    monitor = HealthMonitor(NAMES)
+    poses = TRUTH.copy()
+    poses[[0, 1]] = poses[[1, 0]]              # H and F1 swapped
+    poses[2, :2] += 0.05                        # T 7 cm off, still nearest its own truth
+    detected = np.ones(3, bool)
+    _frames(monitor, poses, detected, 5)
+    detected[2] = False                        # then T missed in half the frames
+    _frames(monitor, poses, detected, 5)
+    report = monitor.report()
+    findings = report.findings(TrackingLimits())
+    figures = {(f.robot, f.figure) for f in findings}
+    assert figures == {("H", "identity"), ("F1", "identity"), ("T", "median_error"),
+                       ("T", "detected")}
+    assert findings[0].figure == "identity"                  # the worst kind first
+    t = next(r for r in report.robots if r.robot == "T")
+    assert t.detected == 0.5 and t.median_mm == pytest.approx(70.7, abs=0.1)
+    line = next(f for f in findings if f.figure == "median_error").describe()
+    assert line.startswith("robot T tracked 70.7 mm from the truth") and "scenario check" in line
+
+
+def test_a_robot_hidden_by_an_obstacle_is_not_counted_as_missed():
+    wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))     # tall, right beside T
+    monitor = HealthMonitor(NAMES, 0.05, (wall,), 0.03)
+    detected = np.array([True, True, False])
+    monitor.add(detected, np.where(detected[:, None], TRUTH, np.nan), TRUTH,
+                np.array([0.0, 1.0, 2.0]))
+    t = monitor.report().robots[2]
+    assert t.hidden == 1 and t.frames == 0
+    assert monitor.report().findings(TrackingLimits()) == []
+
+
+def test_reports_survive_the_manifest_and_the_worst_episode_shows():
+    good, bad = HealthMonitor(NAMES), HealthMonitor(NAMES)
+    _frames(good, TRUTH, np.ones(3, bool))
+    _frames(bad, TRUTH, np.array([True, True, False]))
+    a = TrackingHealth.from_dict(json.loads(json.dumps(good.report().as_dict())))
+    b = TrackingHealth.from_dict(json.loads(json.dumps(bad.report().as_dict())))
+    assert a == good.report()
+    assert math.isnan(b.robots[2].median_mm)                 # never detected: no error figure
+    worst = worst_of([a, b])
+    assert worst.robots[2].detected == 0.0 and worst.robots[2].frames == 20
+    assert [f.robot for f in worst.findings(TrackingLimits())] == ["T"]
+
+
+@pytest.mark.parametrize("key,value", [("min_detected", 1.5), ("max_median_error", 0.0),
+                                       ("max_identity_errors", -0.1),
+                                       ("max_median_error", float("inf"))])
+def test_limits_out_of_range_are_refused(key, value):
+    with pytest.raises(UserError, match=f"tracking.{key}"):
+        TrackingLimits(**{key: value})
+
+
+def test_a_tracking_table_out_of_range_is_one_line_exit_2(tmp_path):
+    path = tmp_path / "lab.toml"
+    path.write_text('extends = "lab"\nname = "strict"\n\n[tracking]\nmin_detected = 95\n')
+    res = cli("simulate", "--scenario", str(path), "--robots", "3", "--seconds", "2",
+              "--track", "--out", str(tmp_path / "run"))
+    assert_clean_error(res, "tracking.min_detected", "share in [0, 1]")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_tracked_run_reports_its_health_in_the_manifest_and_one_line(tmp_path):
+    out = tmp_path / "run"
+    res = cli("simulate", "--robots", "3", "--seconds", "6", "--track", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    assert "tracking  healthy: 3 robots, detected >= " in res.stdout
+    tracking = json.loads((out / "manifest.json").read_text())["tracking"]
+    assert tracking["healthy"] and tracking["findings"] == []
+    assert set(tracking["health"]) == {"H", "F1", "T"}
+    for figures in tracking["health"].values():
+        assert figures["detected"] >= 0.9 and figures["median_mm"] < 3 and figures["frames"] > 0
+    assert tracking["limits"] == {"min_detected": 0.9, "max_median_error": 0.01,
+                                  "max_identity_errors": 0.01}
+
+
+# A floor of the third marker's hue (blue, in a team of 3): the tracker fits the Tail's marker to
+# the floor, far from the Tail, while flagging it detected.
+BLUE_FLOOR = 'extends = "lab"\nname = "blue_floor"\n\n[look]\nfloor_rgba = [0.1, 0.15, 0.6, 1.0]\n'
+
+
+def test_wrong_poses_flagged_detected_end_the_run_with_exit_1_outputs_kept(tmp_path):
+    path = tmp_path / "blue.toml"
+    path.write_text(BLUE_FLOOR)
+    out = tmp_path / "run"
+    res = cli("simulate", "--scenario", str(path), "--robots", "3", "--seconds", "4",
+              "--track", "--out", str(out))
+    assert res.returncode == 1, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if "simulating:" not in ln]   # no progress
+    assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr
+    assert "tracking unhealthy: robot T" in lines[0] and "kept in" in lines[0]
+    table = pq.read_table(out / "poses.parquet").to_pandas()
+    assert table.detected[table.robot == "T"].mean() > 0.9          # flagged detected ...
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["status"] == "failed" and not manifest["tracking"]["healthy"]
+    assert manifest["tracking"]["health"]["T"]["median_mm"] > 100   # ... but far off
+
+
+def test_collect_assembles_no_dataset_from_unhealthy_episodes_unless_kept(tmp_path):
+    path = tmp_path / "blue.toml"
+    path.write_text(BLUE_FLOOR)
+    out = tmp_path / "data"
+    args = ("collect", "--scenario", str(path), "--robots", "3", "--minutes", "0.25",
+            "--out", str(out))
+    res = cli(*args)
+    assert res.returncode == 1, res.stderr
+    assert "tracking unhealthy in episode 0: robot T" in res.stderr
+    assert "--keep-unhealthy" in res.stderr and not (out / "instances.csv").exists()
+    res = cli(*args, "--keep-unhealthy")
+    assert res.returncode == 0, res.stderr
+    assert "UNHEALTHY" in res.stdout and (out / "instances.csv").is_file()
+    tracking = json.loads((out / "manifest.json").read_text())["tracking"]
+    assert tracking["keep_unhealthy"] and tracking["findings"]["0"]
