@@ -1,5 +1,14 @@
-"""Diagnostic MP4s of the overhead camera, with overlays: ids, the Head's waypoint, trails, the
-clock, the arena walls, a scale bar and (with a tracker) its detections beside the truth."""
+"""MP4s of the overhead camera.
+
+`VideoRecorder`: the diagnostic video, with overlays (ids, the Head's waypoint, trails, the clock,
+the arena walls, a scale bar and, with a tracker, its detections beside the truth). By default it
+shows the camera's view, through the scenario's lens distortion, as the tracker saw it; every
+overlay is drawn where it lies in that image (`PinholeCamera.world_to_pixel` applies the lens).
+`view="undistorted"` shows the ideal pinhole render instead.
+
+`CameraVideo`: the raw frames the tracker was handed (lens and imaging noise, no overlays) and
+their times, so `macrostate-mj track` can run the same tracker on them offline.
+"""
 
 from __future__ import annotations
 
@@ -12,11 +21,12 @@ import numpy as np
 
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.core.draw import FONT, INK, PAPER, label
-from macrostate_mj.core.io import Mp4Writer
+from macrostate_mj.core.io import Mp4Writer, write_text_atomic
 from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
 
 OVERLAYS = ("ids", "waypoint", "trails", "clock", "walls", "scale", "detections")
-
+VIEWS = ("camera", "undistorted")     # through the scenario's lens (what the tracker saw), or not
+WALL_SAMPLES = 64                     # points per wall edge: a bending lens curves it
 
 
 class Trails:
@@ -58,13 +68,16 @@ class Recorder:
 
 class VideoRecorder(Recorder):
     """A periodic hook: render the overhead camera, draw overlays, append to an MP4 that is
-    renamed into place only by `finish()` (an interrupted run leaves no broken video)."""
+    renamed into place only by `finish()` (an interrupted run leaves no broken video). `view`:
+    "camera" (through the scenario's lens) or "undistorted" (the ideal pinhole render)."""
 
     def __init__(self, path: str | Path, sim: ChainSim, fps: float = 10.0,
                  overlays: tuple[str, ...] = OVERLAYS, trail_seconds: float = 8.0,
                  tracker: object | None = None,
                  decorate: Callable[[np.ndarray, Callable[[np.ndarray], np.ndarray]], None]
-                 | None = None):
+                 | None = None, view: str = "camera"):
+        if view not in VIEWS:
+            raise ValueError(f"view must be one of {VIEWS}, got {view!r}")
         self.path = Path(path)
         # decorate(bgr, px): draws what the scene cannot show (a virtual object, an estimate);
         # px maps world points (k, 2) on the marker plane to pixels (k, 2)
@@ -73,13 +86,18 @@ class VideoRecorder(Recorder):
         self.fps = fps
         self.overlays = overlays
         self.tracker = tracker          # anything with `latest` (n, 3) and `detected` (n,)
-        self.renderer = OverheadRenderer(sim.model)
-        self.camera = PinholeCamera.from_model(sim.model, sim.data)
+        lens = sim.cfg.camera.distortion if view == "camera" else (0.0, 0.0, 0.0, 0.0)
+        self.renderer = OverheadRenderer(sim.model, distortion=lens)
+        self.camera = PinholeCamera.from_model(sim.model, sim.data, distortion=lens)
         self.trails = Trails(sim.n, max(2, int(trail_seconds * fps)))
         self._writer = Mp4Writer(self.path, fps, (self.renderer.width, self.renderer.height))
         self.period, self.phase = 1 / fps, 0.0                      # a `Hook`
 
     def capture(self, sim: ChainSim) -> None:
+        self._writer.write_bgr(self.frame(sim))
+
+    def frame(self, sim: ChainSim) -> np.ndarray:
+        """This moment's video frame (BGR), overlays drawn; adds to the trails."""
         rgb = self.renderer.render(sim.data)
         poses = sim.poses
         self.trails.add(poses[:, :2])
@@ -87,12 +105,21 @@ class VideoRecorder(Recorder):
         tracked = None
         if self.tracker is not None and "detections" in self.overlays:
             tracked = np.where(self.tracker.detected[:, None], self.tracker.latest, np.nan)
-        draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays, tracked)
+        draw_overlays(bgr, self.camera, sim, poses, self.trails, self.overlays, tracked,
+                      self._tracker_camera())
         if self.decorate is not None:
             z = sim.world.marker_height
             self.decorate(bgr, lambda xy: self.camera.world_to_pixel(
                 np.column_stack([np.atleast_2d(xy), np.full(len(np.atleast_2d(xy)), z)])))
-        self._writer.write_bgr(bgr)
+        return bgr
+
+    def _tracker_camera(self) -> PinholeCamera | None:
+        """The camera the tracker mapped its pixels to the floor with (its calibration): its
+        poses projected back through it land on the pixels it detected them at. None in the
+        undistorted view, whose pixels are not the tracker's."""
+        if not any(self.camera.distortion):
+            return None
+        return getattr(getattr(self.tracker, "tracker", None), "camera", None)
 
     @property
     def frames(self) -> int:
@@ -110,24 +137,29 @@ class VideoRecorder(Recorder):
 
 def draw_overlays(bgr: np.ndarray, camera: PinholeCamera, sim: ChainSim, poses: np.ndarray,
                   trails: Trails, overlays: tuple[str, ...],
-                  tracked: np.ndarray | None = None) -> None:
-    """Draw the chosen overlays in place; `tracked` (n, 3), NaN where missed, are the tracker's
-    poses of this frame (drawn as magenta crosshairs with a heading tick over the true robot)."""
+                  tracked: np.ndarray | None = None,
+                  tracker_camera: PinholeCamera | None = None) -> None:
+    """Draw the chosen overlays in place, each where `camera` images it; `tracked` (n, 3), NaN
+    where missed, are the tracker's poses of this frame (crosshairs with a heading tick over the
+    true robot), placed through `tracker_camera` when given (at the pixels it detected)."""
     world = sim.world
     z = world.marker_height
 
-    def px(xy: np.ndarray, height: float = z) -> np.ndarray:
-        xy = np.atleast_2d(xy)
-        return camera.world_to_pixel(np.column_stack([xy, np.full(len(xy), height)]))
+    def projector(cam: PinholeCamera):
+        def px(xy: np.ndarray, height: float = z) -> np.ndarray:
+            xy = np.atleast_2d(xy)
+            return cam.world_to_pixel(np.column_stack([xy, np.full(len(xy), height)]))
+        return px
+
+    px = projector(camera)
 
     colours = (world.colours[:, ::-1] * 255).astype(int).tolist()
     radius = world.footprint_radius * camera.px_per_m
     if "walls" in overlays:
-        hx, hy = np.array(world.scenario.arena) / 2
-        corners = np.round(px(np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]), 0.0))
+        outline = np.round(px(wall_outline(world.scenario.arena), 0.0))
         # walls at the frame's edge (the cameras frame the arena) are drawn just inside it
-        corners = np.clip(corners, 1, [bgr.shape[1] - 2, bgr.shape[0] - 2])
-        cv2.polylines(bgr, [corners.astype(np.int32)], True, INK, 2, cv2.LINE_AA)
+        outline = np.clip(outline, 1, [bgr.shape[1] - 2, bgr.shape[0] - 2])
+        cv2.polylines(bgr, [outline.astype(np.int32)], True, INK, 2, cv2.LINE_AA)
     if "trails" in overlays:
         for trail, colour in zip(trails.points, colours, strict=True):
             if len(trail) > 1:
@@ -137,7 +169,8 @@ def draw_overlays(bgr: np.ndarray, camera: PinholeCamera, sim: ChainSim, poses: 
         u, v = np.round(px(sim.planner.target)[0]).astype(int)
         cv2.circle(bgr, (int(u), int(v)), max(3, int(radius / 3)), (0, 0, 220), -1, cv2.LINE_AA)
     if tracked is not None:
-        _draw_detections(bgr, px, tracked, radius)
+        _draw_detections(bgr, px if tracker_camera is None else projector(tracker_camera),
+                         tracked, radius)
     if "ids" in overlays:
         scale = float(np.clip(radius / 40, 0.3, 0.5))     # a label the size of the robot
         for name, (u, v) in zip(world.names, px(poses[:, :2]), strict=True):
@@ -147,6 +180,16 @@ def draw_overlays(bgr: np.ndarray, camera: PinholeCamera, sim: ChainSim, poses: 
         label(bgr, f"t = {sim.time:7.2f} s", (8, 20), 0.5)
     if "scale" in overlays:
         _scale_bar(bgr, camera.px_per_m, world.scenario.arena[0])
+
+
+def wall_outline(arena: tuple[float, float], samples: int = WALL_SAMPLES) -> np.ndarray:
+    """(4 * samples, 2) floor points around the arena's inner wall edge, corner first on each
+    side: straight in the world, curved where a lens bends them."""
+    hx, hy = np.array(arena, float) / 2
+    corners = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy], [-hx, -hy]])
+    s = np.linspace(0.0, 1.0, samples, endpoint=False)[:, None]
+    return np.concatenate([a + s * (b - a) for a, b in zip(corners[:-1], corners[1:],
+                                                           strict=True)])
 
 
 def _draw_detections(bgr: np.ndarray, px, tracked: np.ndarray, radius: float) -> None:
@@ -173,3 +216,58 @@ def _scale_bar(bgr: np.ndarray, px_per_m: float, arena_width: float) -> None:
         cv2.line(bgr, (u, v0 - 4), (u, v0 + 4), INK, 1)
     text = f"{length * 100:g} cm"
     cv2.putText(bgr, text, (u0, v0 - 6), FONT, 0.4, INK, 1, cv2.LINE_AA)
+
+
+class CameraVideo(Recorder):
+    """The camera's raw frames, as the tracker was handed them (lens, imaging noise; no
+    overlays), at the command rate, with their times in a sidecar `FILE.times.csv` (frame, t):
+    an MP4's frame rate is nominal and dropped frames are missing from it. Hooked after the
+    camera chain, whose `film` it takes over; both files appear only on `finish()`.
+
+    Encoding: H.264 4:4:4 at CRF `CRF`, not the diagnostic video's 4:2:0, whose halved chroma
+    moves the colour markers' edges (the tracker segments hue)."""
+
+    CRF = 8
+
+    def __init__(self, path: str | Path, chain, fps: float):
+        self.path = Path(path)
+        self.times_path = times_path(self.path)
+        self.times: list[float] = []
+        r = chain.renderer
+        self._writer = CameraMp4Writer(self.path, fps, (r.width, r.height), self.CRF)
+        chain.film(self.add)
+        self.period, self.phase = 1e9, 0.0      # a `Hook` that never needs a tick
+
+    def add(self, t: float, rgb: np.ndarray) -> None:
+        self._writer.write(rgb)
+        self.times.append(float(t))
+
+    def capture(self, sim: ChainSim) -> None:
+        pass
+
+    @property
+    def frames(self) -> int:
+        return self._writer.frames
+
+    def finish(self) -> None:
+        self._writer.commit()
+        write_text_atomic(self.times_path, "frame,t\n" + "".join(
+            f"{i},{t!r}\n" for i, t in enumerate(self.times)))
+
+    def abort(self) -> None:
+        self._writer.discard()
+
+
+def times_path(video: str | Path) -> Path:
+    """The sidecar of a camera video: `FILE.times.csv` beside `FILE.mp4`."""
+    video = Path(video)
+    return video.with_name(f"{video.stem}.times.csv")
+
+
+class CameraMp4Writer(Mp4Writer):
+    """`Mp4Writer` for data, not for browsers: full-resolution chroma (yuv444p) at `crf`."""
+
+    def __init__(self, path: str | Path, fps: float, size: tuple[int, int], crf: int):
+        super().__init__(path, fps, size)
+        self._stream.pix_fmt = "yuv444p"
+        self._stream.options = {"crf": str(crf), "preset": "veryfast"}

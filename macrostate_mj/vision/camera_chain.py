@@ -29,6 +29,7 @@ positions before it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -60,12 +61,16 @@ class CameraChain:
 
     With `lazy=False` every frame is rendered and processed when it is taken (the results are
     the same: tested). `health` (a `vision.health.HealthMonitor`, or None with `health=False`)
-    compares every processed frame's detections with the truth of that moment."""
+    compares every processed frame's detections with the truth of that moment. `on_frame(t, rgb)`
+    is handed every whole frame the tracker processes, as the imaging chain delivered it (see
+    `film`)."""
 
     def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None,
                  rng: np.random.Generator | None = None, phase: float = 0.0,
-                 windows: bool = True, lazy: bool = True, health: bool = True):
+                 windows: bool = True, lazy: bool = True, health: bool = True,
+                 on_frame: Callable[[float, np.ndarray], None] | None = None):
         self.sim = sim
+        self.on_frame = on_frame
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
         self.noise = noise or sim.cfg.imaging       # default: the scenario's own
@@ -110,6 +115,12 @@ class CameraChain:
         self._seen_at = np.nan
         if self.health is not None:
             self.health.reset()
+
+    def film(self, on_frame: Callable[[float, np.ndarray], None]) -> None:
+        """Hand every frame the tracker gets, whole, to `on_frame(t, rgb)` (a camera video):
+        eager and without windows (the same results: tested), so each frame not dropped is
+        rendered and processed whole when it is taken."""
+        self.on_frame, self.lazy, self.windows = on_frame, False, False
 
     # -- the `Hook` lifecycle: tracking at the command rate ------------------------------------
     def initialize_episode(self, sim: ChainSim) -> None:
@@ -219,7 +230,10 @@ class CameraChain:
         self._rendered += 1
         rects = self.regions(t)
         if rects is None:
-            return self.tracker.track(imaging.apply_chain(rgb, self.episode, draw))
+            frame = imaging.apply_chain(rgb, self.episode, draw)
+            if self.on_frame is not None:
+                self.on_frame(t, frame)
+            return self.tracker.track(frame)
         self._windowed += 1
         return self.tracker.track_regions(imaging.regions(rgb, self.episode, draw, rects))
 

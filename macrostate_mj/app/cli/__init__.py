@@ -26,6 +26,7 @@ from macrostate_mj.app.cli import sim2real as _sim2real  # noqa: F401
 from macrostate_mj.app.cli import soak as _soak  # noqa: F401
 from macrostate_mj.app.cli import srs as _srs  # noqa: F401
 from macrostate_mj.app.cli import sysid as _sysid  # noqa: F401
+from macrostate_mj.app.cli import track as _track  # noqa: F401
 from macrostate_mj.app.cli import view as _view  # noqa: F401
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.core.errors import RunFailure, UserError

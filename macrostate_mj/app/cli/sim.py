@@ -9,6 +9,7 @@ import typer
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.cli.params import (
     MAX_SECONDS,
+    Choice,
     Count,
     OutputDir,
     OutputFile,
@@ -27,7 +28,16 @@ def simulate(
     seconds: float = Positive(60.0, "Simulated seconds.", max=MAX_SECONDS),
     seed: int = Seed(),
     out: Path = OutputDir(..., "Output folder (poses.parquet, manifest.json)."),
-    video: Path = OutputFile(None, "Also render the overhead camera to this MP4.", (".mp4",)),
+    video: Path = OutputFile(None, "Also render the overhead camera to this MP4: its view "
+                             "through the scenario's lens, overlays where they lie in it.",
+                             (".mp4",)),
+    video_view: str = Choice("camera", "What --video shows: the camera's view (through its "
+                             "lens distortion, as the tracker saw it) or the undistorted "
+                             "pinhole render (a diagnostic).", ("camera", "undistorted")),
+    camera_video: Path = OutputFile(None, "With --track, also write the raw frames the tracker "
+                                    "was handed (lens and imaging noise, no overlays) to this "
+                                    "MP4, their times beside it in FILE.times.csv; `macrostate-mj "
+                                    "track` tracks it offline.", (".mp4",)),
     rerun: Path = OutputFile(None, "Also log the run to this rerun .rrd file.", (".rrd",)),
     overlays: str = typer.Option("all", help="Video overlays, comma-separated from ids, "
                                  "waypoint, trails, clock, walls, scale, detections (the "
@@ -44,7 +54,8 @@ def simulate(
     from macrostate_mj.app.simulate import SimulateRequest, check_request, simulate_run
 
     req = SimulateRequest(scenario, robots, seconds, seed, out, video, rerun, overwrite,
-                          head_speed=head_speed, track=track, overlays=overlays)
+                          head_speed=head_speed, track=track, overlays=overlays,
+                          video_view=video_view, camera_video=camera_video)
     check_request(req)
     with sim_progress(seconds, "simulating") as advance:
         written = simulate_run(req, advance)
