@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.pixels import distort_normalized, lens_fold
 
 # Smooth walls (priority 1: their low friction wins), so a robot pressed against a wall still
 # turns on the spot instead of locking by friction. Robots touch walls through their contype-2
@@ -33,6 +34,11 @@ EDGE_TOLERANCE_PX = 0.5
 # markers edge-on near its corners (a camera 2 cm up "framed" the arena at 178 deg and tracked
 # nothing).
 MAX_FOVY = 120.0
+# Points checked along each arena edge, corners included: a lens bends straight edges outward
+# (pincushion) between corners that lie inside the image.
+EDGE_SAMPLES = 33
+SCALE_STEP = 1e-3               # m: the finite difference of `Camera.px_per_m_at`
+DISTORTION_TERMS = ("k1", "k2", "p1", "p2")
 
 
 @dataclass(frozen=True)
@@ -54,6 +60,29 @@ class Camera:
         w, h = self.resolution
         half = max(arena[1] / 2, arena[0] / 2 * h / w)
         return math.degrees(2 * math.atan(half / self.height))
+
+    def focal_for(self, arena: tuple[float, float]) -> float:
+        """The focal length (px) of the camera over `arena` (its fovy may follow the arena)."""
+        return self.resolution[1] / 2 / math.tan(math.radians(self.fovy_for(arena)) / 2)
+
+    def floor_pixels(self, arena: tuple[float, float], xy: np.ndarray) -> np.ndarray:
+        """(k, 2) floor points (m, world) -> (k, 2) where the lens images them, in px from the
+        image centre (u right, v down): the pinhole, then the lens's forward map."""
+        xy = np.atleast_2d(np.asarray(xy, float))
+        xd, yd = distort_normalized(xy[:, 0] / self.height, -xy[:, 1] / self.height,
+                                    self.distortion)
+        return np.column_stack([xd, yd]) * self.focal_for(arena)
+
+    def px_per_m_at(self, arena: tuple[float, float], xy: np.ndarray) -> np.ndarray:
+        """(k,) the image's local scale (px per m) at floor points (k, 2): the smaller singular
+        value of d(pixel)/d(floor) by central differences, so a lens that squeezes one way
+        reports that way's resolution."""
+        xy = np.atleast_2d(np.asarray(xy, float))
+        step = SCALE_STEP
+        du = (self.floor_pixels(arena, xy + [step, 0]) - self.floor_pixels(arena, xy - [step, 0]))
+        dv = (self.floor_pixels(arena, xy + [0, step]) - self.floor_pixels(arena, xy - [0, step]))
+        jac = np.stack([du, dv], axis=-1) / (2 * step)                  # (k, 2, 2)
+        return np.linalg.svd(jac, compute_uv=False)[:, -1]
 
 
 @dataclass(frozen=True)
@@ -206,16 +235,40 @@ def blocked(obstacles: tuple[Obstacle, ...], xy: np.ndarray, clearance: float) -
 
 CORNERS = {"north-east": (1, 1), "north-west": (-1, 1), "south-west": (-1, -1),
            "south-east": (1, -1)}
+# Each edge from one corner to the next (anticlockwise, as CORNERS).
+EDGES = {"north": ("north-east", "north-west"), "west": ("north-west", "south-west"),
+         "south": ("south-west", "south-east"), "east": ("south-east", "north-east")}
+
+
+def arena_outline(arena: tuple[float, float]) -> tuple[np.ndarray, list[str]]:
+    """(k, 2) floor points on the arena's outline, corners first, and what to call each:
+    "north-east corner", "north edge", ..."""
+    half = np.array(arena, float) / 2
+    corner = {c: np.array(s, float) * half for c, s in CORNERS.items()}
+    points = list(corner.values())
+    names = [f"{c} corner" for c in CORNERS]
+    t = np.linspace(0.0, 1.0, EDGE_SAMPLES)[1:-1, None]
+    for edge, (a, b) in EDGES.items():
+        points += list(corner[a] + t * (corner[b] - corner[a]))
+        names += [f"{edge} edge"] * len(t)
+    return np.array(points), names
+
+
+def lens_words(distortion: tuple[float, float, float, float]) -> str:
+    """The lens as a scenario file says it, e.g. "[k1, k2, p1, p2] = [-0.2, 0, 0, 0]"."""
+    return f"[{', '.join(DISTORTION_TERMS)}] = [{', '.join(f'{c:g}' for c in distortion)}]"
 
 
 def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
-    """The camera sees the whole floor: every corner projects inside the image (the tracker
-    cannot follow a robot it does not see). One line naming the first corner that does not."""
+    """The camera can be rendered and sees the whole floor: its lens does not fold the image
+    over itself (the renderer inverts it for every pixel) and every point of the arena's
+    outline, through the lens, lands inside the image (the tracker cannot follow a robot it does
+    not see). One line naming what fails."""
     w, h = camera.resolution
     if w < 1 or h < 1 or not camera.height > 0:
         raise UserError(f"{name}: the overhead camera needs a positive height and resolution, "
                         f"got height {camera.height:g} m and {w} x {h} px")
-    if not all(math.isfinite(k) for k in camera.distortion):
+    if len(camera.distortion) != 4 or not all(math.isfinite(k) for k in camera.distortion):
         raise UserError(f"{name}: the overhead camera's distortion must be finite numbers, "
                         f"got {list(camera.distortion)}")
     fovy = camera.fovy_for(arena)
@@ -223,14 +276,46 @@ def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
         raise UserError(f"{name}: the overhead camera's fovy is {fovy:.1f} deg (at most "
                         f"{MAX_FOVY:g}: a wider lens images markers too obliquely to track); "
                         f"raise camera.height ({camera.height:g} m) or narrow camera.fovy")
-    focal = h / 2 / math.tan(math.radians(fovy) / 2)            # px
-    for corner, (sx, sy) in CORNERS.items():
-        x, y = sx * arena[0] / 2, sy * arena[1] / 2
-        out = max(abs(x) * focal / camera.height - w / 2, abs(y) * focal / camera.height - h / 2)
-        if out > EDGE_TOLERANCE_PX:
-            raise UserError(f"{name}: the overhead camera does not see the arena's {corner} corner "
-                            f"({x:g}, {y:g}) m, {out:.1f} px outside its {w} x {h} image; raise "
-                            "its height or widen its fovy (leave fovy unset to frame the arena)")
+    focal = camera.focal_for(arena)
+    if any(camera.distortion):
+        _check_fold(name, (w, h), focal, tuple(float(c) for c in camera.distortion))
+    points, names = arena_outline(arena)
+    out = np.max(np.abs(camera.floor_pixels(arena, points)) - [w / 2, h / 2], axis=1)
+    worst = int(np.argmax(out))
+    if out[worst] > EDGE_TOLERANCE_PX:
+        x, y = points[worst]
+        pinhole = np.max(np.abs(points[worst] * focal / camera.height) - [w / 2, h / 2])
+        fix = ("raise its height or widen its fovy (leave fovy unset to frame the arena)"
+               if pinhole > EDGE_TOLERANCE_PX else
+               f"its lens {lens_words(camera.distortion)} bends it out of a frame fitted for an "
+               "ideal lens: raise camera.height or set a wider camera.fovy")
+        raise UserError(f"{name}: the overhead camera does not see the arena's {names[worst]} "
+                        f"({x:g}, {y:g}) m, {out[worst]:.1f} px outside its {w} x {h} image; "
+                        f"{fix}")
+
+
+def _check_fold(name: str, resolution: tuple[int, int], focal: float,
+                distortion: tuple[float, float, float, float]) -> None:
+    """Refuse a lens whose forward map is not one-to-one over the image: the renderer's
+    `vision.camera.Lens` finds each distorted pixel's pinhole source by inverting it, and past a
+    fold there is none (the frame folds over itself and tracking fails by decimetres)."""
+    fold = _fold_px(resolution, focal, distortion)
+    if fold is None:
+        return
+    w, h = resolution
+    terms = " or ".join(f"|{t}|" for t, c in zip(DISTORTION_TERMS, distortion, strict=True) if c)
+    raise UserError(f"{name}: the overhead camera's lens {lens_words(distortion)} folds the "
+                    f"image over itself {fold:.0f} px from its centre, inside the {w} x {h} "
+                    f"image (corners {math.hypot(w, h) / 2:.0f} px out); reduce {terms}")
+
+
+@functools.cache
+def _fold_px(resolution: tuple[int, int], focal: float,
+             distortion: tuple[float, float, float, float]) -> float | None:
+    """`core.pixels.lens_fold` in px, once per camera (scenarios are made often)."""
+    w, h = resolution
+    fold = lens_fold(w / 2 / focal, h / 2 / focal, distortion)
+    return None if fold is None else fold * focal
 
 
 def build_scene(name: str, arena: tuple[float, float], walls: Walls | None, camera: Camera,

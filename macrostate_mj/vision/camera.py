@@ -18,9 +18,8 @@ import cv2
 import mujoco
 import numpy as np
 
-from macrostate_mj.core.pixels import focal_length, project
+from macrostate_mj.core.pixels import Distortion, distort_normalized, focal_length, project
 
-Distortion = tuple[float, float, float, float]
 NO_DISTORTION: Distortion = (0.0, 0.0, 0.0, 0.0)
 # undistortPoints' fixed-point iteration: its default 5 steps leave ~0.1 px at the corners of a
 # k1 = -0.2 lens; this converges to well under 1e-6 px there.
@@ -48,13 +47,9 @@ def undistort_pixels(uv: np.ndarray, k: np.ndarray, distortion: Distortion) -> n
 def distort_pixels(uv: np.ndarray, k: np.ndarray, distortion: Distortion) -> np.ndarray:
     """(..., 2) ideal pinhole pixels -> where the lens images them (the forward model)."""
     uv = np.asarray(uv, np.float64)
-    k1, k2, p1, p2 = distortion
     x = (uv[..., 0] - k[0, 2]) / k[0, 0]
     y = (uv[..., 1] - k[1, 2]) / k[1, 1]
-    r2 = x * x + y * y
-    radial = 1 + k1 * r2 + k2 * r2 * r2
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    xd, yd = distort_normalized(x, y, distortion)
     return np.stack([xd * k[0, 0] + k[0, 2], yd * k[1, 1] + k[1, 2]], axis=-1)
 
 

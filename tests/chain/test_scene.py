@@ -8,6 +8,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from clitools import cli_inprocess
 
 from macrostate_mj.chain import world as world_module
 from macrostate_mj.chain.scenarios import SCENARIOS, get_scenario
@@ -88,3 +89,86 @@ def test_an_open_floor_has_no_walls_and_an_unknown_integrator_is_named():
     assert "floor" in names and not any(n.startswith("wall_") for n in names)
     with pytest.raises(UserError, match="'rk5'.*implicitfast"):
         build_scene("x", cfg.arena, None, cfg.camera, cfg.look, Physics(0.005, integrator="rk5"))
+
+
+def lensed(cfg, distortion):
+    return cfg.with_overrides(camera=dataclasses.replace(cfg.camera, distortion=distortion))
+
+
+@pytest.mark.parametrize("k1", [-0.2, -0.35])
+def test_a_lens_that_bends_without_folding_passes(k1):
+    lensed(get_scenario("lab"), (k1, 0.0, 0.0, 0.0))
+    for name in sorted(SCENARIOS):
+        get_scenario(name)
+    get_scenario(str(Path(__file__).parents[2] / "examples" / "epuck_lab.toml"))
+
+
+@pytest.mark.parametrize(("distortion", "fix"), [
+    ((-2.0, 0.0, 0.0, 0.0), "reduce |k1|"),
+    ((0.0, -0.63, 0.0, 0.0), "reduce |k2|"),           # folds only beyond 450 px: the corners
+    ((0.0, 0.0, 0.3, 0.0), "reduce |p1|"),
+])
+def test_a_lens_that_folds_the_image_is_refused_in_one_line(distortion, fix):
+    with pytest.raises(UserError) as err:
+        lensed(get_scenario("lab"), distortion)
+    msg = str(err.value)
+    assert "\n" not in msg and "folds the image over itself" in msg and msg.endswith(fix)
+    assert f"[{', '.join(f'{c:g}' for c in distortion)}]" in msg
+
+
+def test_the_k2_fold_lies_near_the_corners_only():
+    """[0, -0.63, 0, 0] is one-to-one out to 450 px of the lab image's 471 px corners: the
+    arena's own corners still land inside the frame, so only the fold check refuses it."""
+    cam = dataclasses.replace(get_scenario("lab").camera, distortion=(0.0, -0.63, 0.0, 0.0))
+    arena = get_scenario("lab").arena
+    corners = cam.floor_pixels(arena, [[1.25, 0.95], [-1.25, -0.95]])
+    assert (np.abs(corners) < [375, 285]).all()
+    with pytest.raises(UserError, match="folds the image over itself 4[45]\\d px"):
+        check_camera("lab", arena, cam)
+
+
+def test_a_pincushion_lens_that_pushes_the_arena_out_of_frame_is_refused():
+    with pytest.raises(UserError) as err:
+        lensed(get_scenario("lab"), (3.0, 0.0, 0.0, 0.0))
+    msg = str(err.value)
+    assert "\n" not in msg and "north-east corner (1.25, 0.95) m, 443.8 px outside" in msg
+    assert "raise camera.height or set a wider camera.fovy" in msg
+    with pytest.raises(UserError, match="px outside"):
+        lensed(get_scenario("lab"), (0.05, 0.0, 0.0, 0.0))
+
+
+def test_an_edge_bent_out_between_corners_inside_is_named():
+    """A camera framing the arena exactly, with a lens whose radial gain peaks between the
+    arena's edge middles and its corners: the corners come inward, the edges bulge out."""
+    cam = Camera(height=2.0, resolution=(400, 240), fovy=2 * math.degrees(math.atan(0.3)))
+    check_camera("x", (2.0, 1.2), cam)
+    bent = dataclasses.replace(cam, distortion=(0.3, -1.0, 0.0, 0.0))
+    assert (np.abs(bent.floor_pixels((2.0, 1.2), [[1.0, 0.6]])) < [200, 120]).all()
+    with pytest.raises(UserError, match=r"arena's north edge \(0\.5, 0\.6\) m, 2\.7 px outside"):
+        check_camera("x", (2.0, 1.2), bent)
+
+
+def test_a_folding_lens_is_refused_by_check_and_simulate_with_exit_2_and_nothing_written(
+        tmp_path, capsys):
+    path = tmp_path / "folded.toml"
+    path.write_text('extends = "lab"\nname = "folded"\n[camera]\ndistortion = [-2.0, 0, 0, 0]\n')
+    out = tmp_path / "run"
+    for args in (["scenario", "check", str(path)],
+                 ["simulate", "--scenario", str(path), "--robots", "3", "--seconds", "1",
+                  "--out", str(out)]):
+        code, _, err = cli_inprocess(capsys, *args)
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "folds the image over itself" in err and "reduce |k1|" in err
+    assert not out.exists()
+    with pytest.raises(UserError, match="folds"):
+        build_world(str(path), 3)
+
+
+def test_the_local_scale_is_the_pinhole_one_without_a_lens_and_smaller_at_barrel_corners():
+    cfg = get_scenario("lab")
+    centre_and_corner = [[0.0, 0.0], [1.25, 0.95]]
+    ideal = cfg.camera.px_per_m_at(cfg.arena, centre_and_corner)
+    assert ideal == pytest.approx(cfg.camera.focal_for(cfg.arena) / cfg.camera.height)
+    barrel = dataclasses.replace(cfg.camera, distortion=(-0.2, 0.0, 0.0, 0.0))
+    bent = barrel.px_per_m_at(cfg.arena, centre_and_corner)
+    assert bent[0] == pytest.approx(ideal[0]) and bent[1] < 0.9 * ideal[1]

@@ -130,3 +130,39 @@ def test_the_tracker_undoes_the_lens_on_rendered_frames():
         chain.close()
     assert len(errors) >= 15 and max(errors) < 3.3e-3
     assert max(naive_errors) > 10e-3
+
+
+def test_the_render_and_the_scenario_check_share_one_forward_lens_model():
+    """`distort_pixels` is `core.pixels.distort_normalized` in pixels, and its Jacobian
+    determinant (what the scenario's fold check reads) matches central differences."""
+    from macrostate_mj.core.pixels import distort_normalized, distortion_jacobian_det
+
+    lens = (-0.2, 0.05, 0.003, -0.002)
+    k = np.array([[960.0, 0.0, 639.5], [0.0, 960.0, 479.5], [0.0, 0.0, 1.0]])
+    xy = np.random.default_rng(0).uniform(-0.8, 0.8, (50, 2))
+    xd, yd = distort_normalized(xy[:, 0], xy[:, 1], lens)
+    uv = distort_pixels(xy * 960.0 + [639.5, 479.5], k, lens)
+    assert np.allclose(uv, np.column_stack([xd, yd]) * 960.0 + [639.5, 479.5], atol=1e-9)
+    h = 1e-6
+    cols = []
+    for d in ([h, 0.0], [0.0, h]):
+        plus = np.column_stack(distort_normalized(*(xy + d).T, lens))
+        minus = np.column_stack(distort_normalized(*(xy - d).T, lens))
+        cols.append((plus - minus) / (2 * h))
+    numeric = cols[0][:, 0] * cols[1][:, 1] - cols[1][:, 0] * cols[0][:, 1]
+    assert np.allclose(distortion_jacobian_det(xy[:, 0], xy[:, 1], lens), numeric, atol=1e-6)
+
+
+@pytest.mark.parametrize(("lens", "folds"), [((-0.2, 0.0, 0.0, 0.0), False),
+                                              ((-0.35, 0.0, 0.0, 0.0), True)])
+def test_a_lens_the_check_calls_folded_is_one_the_render_cannot_invert(lens, folds):
+    """The e-puck lab's 1280 x 960 camera (focal 960 px): k1 = -0.2 inverts to 1e-6 px at every
+    image corner; k1 = -0.35 cannot reach them (its distorted radius peaks at 625 px of the
+    corners' 800), so the render's sources there are wrong by ~190 px, and the check says so."""
+    from macrostate_mj.core.pixels import lens_fold
+
+    k = np.array([[960.0, 0.0, 639.5], [0.0, 960.0, 479.5], [0.0, 0.0, 1.0]])
+    corners = np.array([[0.0, 0.0], [1279.0, 959.0], [0.0, 959.0], [1279.0, 0.0]])
+    back = distort_pixels(undistort_pixels(corners, k, lens), k, lens)
+    assert (np.linalg.norm(back - corners, axis=1).max() > 100) == folds
+    assert (lens_fold(640 / 960, 480 / 960, lens) is not None) == folds
