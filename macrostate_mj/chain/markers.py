@@ -12,13 +12,43 @@ from __future__ import annotations
 
 import colorsys
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+
+from macrostate_mj.core.errors import UserError
+
+if TYPE_CHECKING:
+    import mujoco
 
 MIN_SATURATION = 90     # of 255: a greyer pixel is never any marker's
 MIN_VALUE = 50          # of 255: a darker pixel is never any marker's
 HUE_LEVELS = 256        # full-range hue: 0-255 around the circle
 MAX_HUE_TOLERANCE = 14  # of 256: how far a marker's pixels may stray in hue (few robots)
+# Teams over LEGACY_TEAM wear dimmer colours: a full-value colour clips under the lab's lights
+# and its rendered hue drifts towards the nearest RGB primary or secondary (by ~9 of 256 levels,
+# for hues between them); at value LARGE_TEAM_VALUE no channel clips. Teams up to LEGACY_TEAM
+# keep their colours (the built-in scenarios' outputs, bit for bit).
+LEGACY_TEAM = 5
+LARGE_TEAM_VALUE = 0.7
+# The most colour markers the classifier separates under the default imaging noise: the worst
+# p99 hue stray of a rendered marker (thymio, e-puck, GRITSBot; docs: decisions) must fit in
+# `hue_tolerance(n)`. Measured 11 levels (GRITSBot): hue_tolerance(10) = 11.
+SEPARABLE_COLOURS = 10
+
+
+class Markers(Protocol):
+    """What each robot wears for the overhead tracker, as the world builder needs it (the
+    tracker for each kind is chosen in `vision`, by this object's type)."""
+
+    def check_team(self, n: int) -> None:
+        """Refuse a team of n the tracker could not tell apart (one-line UserError)."""
+
+    def colours(self, n: int) -> np.ndarray:
+        """(n, 3) RGB in [0, 1]: each robot's marker colour (`World.colours`)."""
+
+    def dress(self, spec: mujoco.MjSpec, names: list[str], colours: np.ndarray) -> None:
+        """Put each robot's marker on its `{name}/marker` geom in the world's spec."""
 
 
 @dataclass(frozen=True)
@@ -26,10 +56,25 @@ class ColourMarkers:
     """Each robot wears a flat triangle of its own colour (the dissertation's lab, Fig 2.6):
     the default marker kind (`[markers] kind = "colour"` in a scenario file)."""
 
+    def check_team(self, n: int) -> None:
+        if n > SEPARABLE_COLOURS:
+            raise UserError(f"{n} colour markers are more than the tracker can tell apart under "
+                            f"imaging noise (at most {SEPARABLE_COLOURS}); use [markers] kind = "
+                            f'"aruco" for teams over {SEPARABLE_COLOURS}', "n")
+
+    def colours(self, n: int) -> np.ndarray:
+        return marker_colours(n)
+
+    def dress(self, spec: mujoco.MjSpec, names: list[str], colours: np.ndarray) -> None:
+        for name, colour in zip(names, colours, strict=True):
+            spec.geom(f"{name}/marker").rgba = [*colour, 1.0]
+
 
 def marker_colours(n: int) -> np.ndarray:
-    """n saturated colours with hues spread evenly, so the tracker can tell them apart."""
-    return np.array([colorsys.hsv_to_rgb(i / n, 1.0, 1.0) for i in range(n)])
+    """n saturated colours with hues spread evenly, so the tracker can tell them apart; dimmer
+    for teams over LEGACY_TEAM, whose closer hues must not drift."""
+    value = 1.0 if n <= LEGACY_TEAM else LARGE_TEAM_VALUE
+    return np.array([colorsys.hsv_to_rgb(i / n, 1.0, value) for i in range(n)])
 
 
 def marker_hues(colours: np.ndarray) -> np.ndarray:

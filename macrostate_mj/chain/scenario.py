@@ -18,6 +18,7 @@ from macrostate_mj.chain.noise import NoiseConfig
 from macrostate_mj.chain.planners import PlannerSpec
 from macrostate_mj.chain.robot import top_speed
 from macrostate_mj.chain.scene import Camera, Look, Obstacle, Physics, Walls, check_camera
+from macrostate_mj.chain.tags import ArucoMarkers
 from macrostate_mj.chain.tracking import TrackingLimits
 from macrostate_mj.core.errors import UserError
 
@@ -96,7 +97,7 @@ class ScenarioConfig:
     look: Look = Look()             # colours and lighting
     obstacles: tuple[Obstacle, ...] = ()    # static boxes and cylinders on the floor
     imaging: NoiseConfig = NoiseConfig()    # what the camera chain does to each frame
-    markers: ColourMarkers = ColourMarkers()    # what each robot wears for the tracker
+    markers: ColourMarkers | ArucoMarkers = ColourMarkers()     # what each robot wears
     tracking: TrackingLimits = TrackingLimits()     # when a tracked run fails its health
 
     def __post_init__(self) -> None:

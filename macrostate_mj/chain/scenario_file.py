@@ -23,7 +23,7 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from macrostate_mj.chain import markers, motion, planners, scene
+from macrostate_mj.chain import markers, motion, planners, scene, tags
 from macrostate_mj.chain.noise import NoiseConfig
 from macrostate_mj.chain.scenario import LAYOUT, NESTED, ScenarioConfig, file_key
 from macrostate_mj.core.errors import UserError
@@ -33,7 +33,7 @@ BUILTIN = Path(str(files("macrostate_mj") / "assets" / "scenarios"))
 PLANNERS = {"psi_grid": planners.PsiGrid, "cell_walk": planners.CellWalk,
             "preset_twists": planners.PresetTwists}
 FOLLOWERS = {"two_neighbours": motion.TwoNeighbours, "wait_for_behind": motion.WaitForBehind}
-MARKERS = {"colour": markers.ColourMarkers}
+MARKERS = {"colour": markers.ColourMarkers, "aruco": tags.ArucoMarkers}
 RULES = {"planner": PLANNERS, "followers": FOLLOWERS, "markers": MARKERS}   # chosen by `kind`
 WALL_KEYS = {"walls", "wall_height", "wall_thickness"}
 AUTO = "auto"      # an optional value left to its default (a camera framing the arena)

@@ -1,4 +1,5 @@
-"""World assembly: the scenario's arena scene plus N robot MJCFs, each with a unique marker colour.
+"""World assembly: the scenario's arena scene plus N robot MJCFs, each with a marker of its own
+(a colour or a tag: the scenario's `markers` object dresses them).
 
 The scene is generated from the scenario (`chain.scene.build_scene`); the robot
 (`macrostate_mj/assets/mjcf/<robot>/robot.xml`) is hand-written, and only the tedious part, N
@@ -14,7 +15,6 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from macrostate_mj.chain.markers import marker_colours
 from macrostate_mj.chain.robot import load_robot
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import blocked, build_scene
@@ -50,6 +50,7 @@ def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
         raise UserError(f"{n} robots do not fit the {cfg.name} arena (at most "
                         f"{capacity} at spacing {cfg.spacing} m); use fewer robots",
                         "n")
+    cfg.markers.check_team(n)
     if not (isinstance(seconds, int | float) and seconds > 0 and seconds < float("inf")):
         raise UserError(f"seconds must be a positive finite number, got {seconds!r}", "seconds")
 
@@ -167,16 +168,16 @@ def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = No
     start = check_start(cfg, n, place_chain(cfg, n, np.random.default_rng(0))
                         if start is None else start)
     names = robot_names(n)
-    colours = marker_colours(n)
+    colours = cfg.markers.colours(n)
     spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics,
                        cfg.obstacles)
     spec.copy_during_attach = True
     robot = load_robot(cfg.robot, largest_team=max(n, chain_capacity(cfg))).spec
-    for name, colour, pose in zip(names, colours, start, strict=True):
+    for name, pose in zip(names, start, strict=True):
         frame = spec.worldbody.add_frame(pos=[pose[0], pose[1], 0.0],
                                          quat=[np.cos(pose[2] / 2), 0, 0, np.sin(pose[2] / 2)])
         spec.attach(robot, prefix=f"{name}/", frame=frame)
-        spec.geom(f"{name}/marker").rgba = [*colour, 1.0]
+    cfg.markers.dress(spec, names, colours)
     model = spec.compile()
     body = np.array([model.joint(f"{nm}/root").bodyid[0] for nm in names])
     qpos_adr = np.array([model.joint(f"{nm}/root").qposadr[0] for nm in names])

@@ -41,6 +41,7 @@ from macrostate_mj.vision.camera import OverheadRenderer
 from macrostate_mj.vision.health import HealthMonitor
 from macrostate_mj.vision.imaging import FrameDraw, NoiseConfig, SceneConditions, draw_episode
 from macrostate_mj.vision.tracker import Detections, Tracker
+from macrostate_mj.vision.trackers import tracker_for
 
 
 @dataclass
@@ -103,7 +104,7 @@ class CameraChain:
         self.rng = rng
         shape = (self.renderer.height, self.renderer.width, 3)
         self.episode = draw_episode(self.noise, rng, shape)
-        self.tracker = Tracker.for_world(
+        self.tracker = tracker_for(     # the world's marker kind's tracker
             sim.world, sim.data, self.episode.calibrated(sim.cfg.camera.distortion))
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
