@@ -97,6 +97,7 @@ class SoakRunTask:
 
     stage: ClassVar[str] = "soak-run"
     version: ClassVar[int] = 1
+    result: ClassVar[type] = SoakRun        # what its run.json holds
 
     def __init__(self, task: SoakTask):
         self.task = task
@@ -110,18 +111,19 @@ class SoakRunTask:
 
 
 def soak(tasks: list[SoakTask], workers: int = 1, ray: str | None = None,
-         progress: Callable[[int], None] | None = None, cache: TaskCache | None = None
-         ) -> list[SoakRun]:
-    """Run every task; results in seed order whatever the number of workers. With `cache`,
-    each finished run is kept there and a rerun skips the seeds it holds (an interrupted soak
-    resumes); without, the runs are kept in a temporary folder for the call."""
+         progress: Callable[[int], None] | None = None, cache: TaskCache | None = None,
+         kind: type = SoakRunTask) -> list:
+    """Run every task as a `kind` (the physics soak's `SoakRunTask`, or another seed's task
+    with a `result` type: the tracked soak's); results in seed order whatever the number of
+    workers. With `cache`, each finished run is kept there and a rerun skips the seeds it holds
+    (an interrupted soak resumes); without, the runs are kept in a temporary folder."""
     if workers < 1:
         raise UserError(f"workers must be at least 1, got {workers}", "workers")
     with tempfile.TemporaryDirectory() as tmp:
         runs = []
-        for outcome in run_tasks(cache or TaskCache(tmp), [SoakRunTask(t) for t in tasks],
+        for outcome in run_tasks(cache or TaskCache(tmp), [kind(t) for t in tasks],
                                  workers, ray):
-            runs.append(SoakRun(**json.loads((outcome.folder / "run.json").read_text())))
+            runs.append(kind.result(**json.loads((outcome.folder / "run.json").read_text())))
             if progress:
                 progress(len(runs))
     return sorted(runs, key=lambda r: r.seed)

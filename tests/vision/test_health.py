@@ -149,3 +149,20 @@ def test_collect_assembles_no_dataset_from_unhealthy_episodes_unless_kept(tmp_pa
     assert "UNHEALTHY" in res.stdout and (out / "instances.csv").is_file()
     tracking = json.loads((out / "manifest.json").read_text())["tracking"]
     assert tracking["keep_unhealthy"] and tracking["findings"]["0"]
+
+
+def test_a_tracked_soak_reports_every_run_and_fails_on_an_unhealthy_one(tmp_path):
+    res = cli("soak", "--track", "--robots", "3", "--seeds", "2", "--seconds", "4", "--json",
+              "--out", str(tmp_path / "ok"))
+    assert res.returncode == 0, res.stderr
+    row = json.loads(res.stdout.strip().splitlines()[-1])
+    assert row["runs"] == 2 and row["unhealthy"] == 0 and row["min_detected"] >= 0.9
+    runs = json.loads((tmp_path / "ok" / "soak.json").read_text())["runs"]
+    assert [set(r["health"]) for r in runs] == [{"H", "F1", "T"}] * 2
+    path = tmp_path / "blue.toml"
+    path.write_text(BLUE_FLOOR)
+    res = cli("soak", "--track", "--scenario", str(path), "--robots", "3", "--seeds", "2",
+              "--seconds", "4")
+    assert res.returncode == 1
+    assert "2 of 2 runs tracked unhealthily; first: seed 0: robot T" in res.stderr
+    assert "--track" in res.stderr.splitlines()[-1]                # the command reproduces it

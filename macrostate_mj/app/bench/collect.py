@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.app.bench import figure
-from macrostate_mj.app.bench.sim import _best_of, record_commands, replay_bare
+from macrostate_mj.app.bench.sim import _best_of, best_of_pair, record_commands, replay_bare
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world
@@ -76,6 +76,30 @@ def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> 
                config="750x570 whole frames, 1 core",
                limit_name="one bare cv2.cvtColor RGB->HSV of the frame, 1 core"),
     ]
+
+
+def bench_health(seconds: float = 20.0, robots: int = 5) -> list[dict]:
+    """What the tracking health costs: a tracked run of the lab (physics, camera chain, pose
+    log) with its health figures against the same run without them, best of alternated runs.
+    Target: at most 5 % slower (ratio >= 0.95)."""
+    from macrostate_mj.chain.sim import PoseLog
+
+    world = build_world(get_scenario("lab"), robots)
+    sim = ChainSim(world)
+
+    def tracked(health: bool) -> None:
+        sim.reset(np.random.default_rng(0))
+        chain = CameraChain(sim, rng=np.random.default_rng([0, 1]), health=health)
+        log = PoseLog(world.names, tracker=chain)
+        sim.episode(seconds, [chain, Every(1 / sim.cfg.log_hz, log.append, sim.log_phase)])
+        if health:
+            chain.health.report().findings(sim.cfg.tracking)
+
+    ours, bare = best_of_pair(lambda: tracked(True), lambda: tracked(False), repeats=3)
+    return [figure("tracked_run_with_health_s", ours, "s", bare, lower_is_better=True,
+                   config=f"lab, {robots} robots, {seconds:g} s tracked, default noise",
+                   limit_name="the same tracked run without health figures",
+                   target="ratio >= 0.95")]
 
 
 def _bare_limit(args: tuple) -> None:

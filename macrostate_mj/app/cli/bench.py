@@ -16,6 +16,7 @@ SUITES: dict[str, str] = {
     "render": "macrostate_mj.app.bench.sim:bench_render",
     "env": "macrostate_mj.app.bench.sim:bench_env",
     "tracker": "macrostate_mj.app.bench.collect:bench_tracker",
+    "health": "macrostate_mj.app.bench.collect:bench_health",
     "collect": "macrostate_mj.app.bench.collect:bench_collect",
     "colony": "macrostate_mj.app.bench.colony:bench_colony",
     "retlo": "macrostate_mj.app.bench.retlo:bench_retlo",

@@ -26,6 +26,10 @@ COLUMNS = [("runs", "runs", "d"), ("tips", "tips", "d"), ("nans", "NaNs", "d"),
            ("max_penetration_mm", "max pen. mm", ".2f"), ("min_upright", "min upright", ".4f"),
            ("max_lift_mm", "max lift mm", ".2f"), ("warnings", "warnings", "d"),
            ("steps_per_s_per_worker", "steps/s/worker", ".0f")]
+TRACK_COLUMNS = [("runs", "runs", "d"), ("unhealthy", "unhealthy", "d"), ("faults", "faults", "d"),
+                 ("min_detected", "min detected", ".4f"), ("max_median_mm", "max median mm", ".2f"),
+                 ("max_p99_mm", "max p99 mm", ".2f"), ("max_heading_deg", "max heading deg", ".2f"),
+                 ("max_identity", "max identity", ".4f"), ("wall_s_per_run", "s/run", ".1f")]
 
 
 @app.command()
@@ -42,10 +46,13 @@ def soak(
     out: Path = OutputDir(None, "Also write soak.json, manifest.json and runs/ (one file "
                              "per finished seed: a rerun resumes)."),
     as_json: bool = Switch(False, "Print the summary as one JSON line.", "--json/--table"),
+    track: bool = Switch(False, "Film and track every run instead (as simulate --track): "
+                         "report each run's tracking health against the scenario's [tracking] "
+                         "limits; exit 1 if any run is unhealthy."),
     overwrite: bool = Switch(False, "Replace an existing soak.json."),
 ) -> None:
     """Run many seeds and count tips, NaNs, escapes, climbing and obstacle intrusions; exit 1
-    if any run faulted."""
+    if any run faulted. With --track, judge every run's tracking health instead."""
     from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
     from macrostate_mj.chain.soak import run_records, soak_tasks, summary
     from macrostate_mj.chain.soak import soak as run_soak
@@ -57,16 +64,21 @@ def soak(
 
     tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
     name = scenario.name
+    if track:
+        from collectors.track_soak import TrackSoakTask, track_summary
+
+        kind, columns, tabulate = TrackSoakTask, TRACK_COLUMNS, track_summary
+    else:
+        kind, columns, tabulate = None, COLUMNS, lambda runs: summary(runs, workers)
     with contextlib.ExitStack() as stack:
+        config = {"tasks": tasks[0], "seeds": seeds, **({"track": True} if track else {})}
         run = None if out is None else stack.enter_context(
-            Run(out, "soak", {"tasks": tasks[0], "seeds": seeds}, first_seed, ["soak.json"],
-                overwrite))
+            Run(out, "soak", config, first_seed, ["soak.json"], overwrite))
         bar = stack.enter_context(sim_progress(seeds, f"soak {name} {robots} robots",
                                                unit="runs"))
         runs = run_soak(tasks, workers, ray, bar, None if out is None
-                        else TaskCache(out / "cache"))
-        row = {"scenario": name, "robots": robots, "seconds": seconds,
-               **summary(runs, workers)}
+                        else TaskCache(out / "cache"), **({"kind": kind} if kind else {}))
+        row = {"scenario": name, "robots": robots, "seconds": seconds, **tabulate(runs)}
         if run is not None:
             write_json_atomic(out / "soak.json", {"summary": row, "runs": run_records(runs)})
             run.record(workers=workers, outputs={"soak": str(out / "soak.json")})
@@ -75,10 +87,19 @@ def soak(
     else:
         typer.echo(f"{name} x {robots} robots, {seconds:g} s each, seeds "
                    f"{first_seed}..{first_seed + seeds - 1}")
-        typer.echo("  ".join(f"{head:>{max(len(head), 6)}}" for _, head, _ in COLUMNS))
-        typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" for key, head, fmt in COLUMNS))
-        if row["warnings"]:
+        typer.echo("  ".join(f"{head:>{max(len(head), 6)}}" for _, head, _ in columns))
+        typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" for key, head, fmt in columns))
+        if row.get("warnings"):
             typer.echo(f"MuJoCo warnings: {row['warning_kinds']}")
+    if track:
+        sick = [r for r in runs if r.findings]
+        if sick:
+            first = sick[0].seed
+            again = SimulateRequest(scenario, robots, seconds, first, Path(f"soak_seed{first}"),
+                                    track=True)
+            raise RunFailure(f"{len(sick)} of {len(runs)} runs tracked unhealthily; first: seed "
+                             f"{first}: {sick[0].findings[0]}; reproduce: "
+                             f"{reproduce_command(again)}")
     bad = [r for r in runs if r.fault is not None]
     if bad:
         first = bad[0].seed

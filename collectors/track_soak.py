@@ -1,0 +1,85 @@
+"""`macrostate-mj soak --track`: many seeds of a scenario filmed and tracked, each run's
+tracking health judged against the scenario's `[tracking]` limits, so that a lab is known to
+track well (or known not to) before anyone collects in it.
+
+Seed s runs exactly `simulate --track --seed s` (the same `collectors.simulate.simulate_chain`).
+Each seed is a cached task: an interrupted soak resumes.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from typing import ClassVar
+
+from macrostate_mj.chain.scenarios import scenario_for
+from macrostate_mj.chain.soak import SoakTask
+from macrostate_mj.core.cache import task_key
+
+
+@dataclass(frozen=True)
+class TrackedRun:
+    """One seed's tracking health (figures per robot as `vision.health` reports them)."""
+
+    seed: int
+    fault: str | None                # a physics fault ends the run early; the health covers
+    #                                  what ran
+    health: dict
+    findings: list[str]
+    summary: str
+    frames: int
+    wall_s: float
+
+
+def track_one(task: SoakTask) -> TrackedRun:
+    from collectors.simulate import simulate_chain
+
+    cfg = scenario_for(task.scenario) if isinstance(task.scenario, str) else task.scenario
+    t0 = time.perf_counter()
+    ran = simulate_chain(cfg, task.robots, task.seconds, task.seed, track=True)
+    report = ran.tracker.health.report()
+    return TrackedRun(task.seed, None if ran.failure is None else str(ran.failure),
+                      report.as_dict(), [f.describe() for f in report.findings(cfg.tracking)],
+                      report.summary(), ran.tracker.frames, time.perf_counter() - t0)
+
+
+class TrackSoakTask:
+    """One seed's tracked soak as a cached task, keyed by its task and the scenario."""
+
+    stage: ClassVar[str] = "track-soak-run"
+    version: ClassVar[int] = 1
+    result: ClassVar[type] = TrackedRun
+
+    def __init__(self, task: SoakTask):
+        self.task = task
+
+    def key(self) -> str:
+        cfg = scenario_for(self.task.scenario) if isinstance(self.task.scenario, str) \
+            else self.task.scenario
+        return task_key(self.stage, self.version, {"task": self.task, "scenario": cfg})
+
+    def compute(self) -> dict[str, bytes]:
+        from dataclasses import asdict
+
+        return {"run.json": json.dumps(asdict(track_one(self.task))).encode()}
+
+
+def track_summary(runs: list[TrackedRun]) -> dict:
+    """The tracked soak's one row: unhealthy runs, and the worst figures over every robot of
+    every run."""
+    from macrostate_mj.vision.health import TrackingHealth, worst_of
+
+    worst = worst_of([TrackingHealth.from_dict(r.health) for r in runs]).robots
+    finite = [r for r in worst if r.detected > 0]
+    return {
+        "runs": len(runs), "unhealthy": sum(bool(r.findings) for r in runs),
+        "faults": sum(r.fault is not None for r in runs),
+        "min_detected": min(r.detected for r in worst),
+        "max_median_mm": max((r.median_mm for r in finite), default=float("nan")),
+        "max_p99_mm": max((r.p99_mm for r in finite), default=float("nan")),
+        "max_heading_deg": max((r.heading_deg for r in finite), default=float("nan")),
+        "max_identity": max(r.identity for r in worst),
+        "frames": sum(r.frames for r in runs),
+        "wall_s_per_run": sum(r.wall_s for r in runs) / len(runs),
+    }
