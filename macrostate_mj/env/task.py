@@ -24,6 +24,7 @@ from dm_env import specs
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.vision.health import TrackingHealth
 
 OBSERVE = ("truth", "camera")
 
@@ -72,6 +73,11 @@ class TailTask(base.Task):
     def step_info(self) -> dict:
         """What a step reports beyond its observation (Gymnasium's step info)."""
         return {"fault": None if self.fault is None else str(self.fault)}
+
+    def tracking_health(self) -> TrackingHealth | None:
+        """This episode's tracking health so far (with `observe="camera"`; else None): judge it
+        with `.findings(task.sim.cfg.tracking)`, as every tracked run is judged."""
+        return None if self.camera is None else self.camera.health.report()
 
     def close(self) -> None:
         """Release the camera's renderer (with `observe="camera"`)."""

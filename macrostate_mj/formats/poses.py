@@ -3,9 +3,13 @@
 Columns: t (s), step (log index), robot (H, F1.., T), x, y (m, world frame, origin at the arena
 centre, x along the long side), theta (rad, CCW from +x, in (-pi, pi]), waypoint_x/y (the Head's
 current target, NaN without one) and, when tracking ran, x_trk, y_trk, theta_trk (the latest
-detection, same units), t_trk (when it was made), x_truth_trk, y_truth_trk, theta_truth_trk
-(the true pose at t_trk: the tracker's own error is x_trk - x_truth_trk, while x_trk - x adds
-the motion since t_trk) and detected (seen in the latest frame). Each field's unit is in the
+detection, same units, with the scenario's `marker_jitter` added), t_trk (when it was made),
+x_truth_trk, y_truth_trk, theta_truth_trk (the true pose at t_trk) and detected (seen in the
+latest frame). So x_trk - x_truth_trk is the tracker's error plus the drawn jitter (in `lab`,
+median about 3.5 mm, of which the tracker's own is 1-2 mm), while x_trk - x adds the motion
+since t_trk. The tracker's own error, before the jitter and over every processed frame, is the run
+manifest's `tracking.health` (`vision.health`), judged against the scenario's `[tracking]`
+limits. Each field's unit is in the
 schema metadata (`unit`), the frame convention in the table's (`frame`).
 """
 

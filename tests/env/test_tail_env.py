@@ -129,3 +129,18 @@ def test_a_short_ppo_run_trains_without_error(env_id):
     env.close()
     assert model.num_timesteps >= 1024
     assert action.shape == (2,) and np.all(np.isfinite(action))
+
+
+def test_a_camera_episode_reports_its_tracking_health():
+    env = load("explore", robots=3, random=2, observe="camera")
+    try:
+        env.reset()
+        for _ in range(8):
+            env.step(np.zeros(2))
+        health = env.task.tracking_health()
+        assert [r.robot for r in health.robots] == ["H", "F1", "T"]
+        assert all(r.frames > 0 and r.detected >= 0.9 for r in health.robots)
+        assert health.findings(env.task.sim.cfg.tracking) == []
+    finally:
+        env.close()
+    assert load("explore", robots=3, random=2).task.tracking_health() is None
