@@ -115,6 +115,13 @@ MEANINGS = {
     "followers.slack": "wait while the robot behind lags more than d + slack, m",
     "followers.hold": "stop, not back off, while less than this nearer than d to the robot "
                       "ahead, m (0: back off; d: never)",
+    "markers.kind": "what each robot wears: colour (a triangle of its own colour) or aruco "
+                    "(a fiducial tag, with markers.dictionary)",
+    "markers.dictionary": "aruco: OpenCV's predefined dictionary, e.g. DICT_4X4_50",
+    "tracking.min_detected": "a tracked run fails when a robot is detected in fewer of the "
+                             "frames where it is in view (share)",
+    "tracking.max_median_error": "... or tracked farther from the truth at the median, m",
+    "tracking.max_identity_errors": "... or nearer another robot's truth in more frames (share)",
 }
 
 
