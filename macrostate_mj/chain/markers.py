@@ -96,6 +96,19 @@ def hue_distance(hue: np.ndarray, centre: int) -> np.ndarray:
     return np.abs((hue - centre + half) % HUE_LEVELS - half)
 
 
+def marker_of_pixels(hsv: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """(k,) the index of the marker among `colours` each pixel of `hsv` (k, 3), 8-bit full-range
+    HSV (`cv2.COLOR_RGB2HSV_FULL`) counts for, or -1: the tracker's rule per pixel (saturation
+    and value at least MIN_SATURATION and MIN_VALUE, hue within `hue_tolerance` of a marker's),
+    for checks that judge rendered pixels as `vision.tracker` does."""
+    hsv = np.asarray(hsv).reshape(-1, 3).astype(np.int32)
+    near = hue_distance(np.arange(HUE_LEVELS)[:, None], marker_hues(colours)[None, :]) \
+        <= hue_tolerance(len(colours))                          # (hue level, marker)
+    marker_of_hue = np.where(near.any(axis=1), near.argmax(axis=1), -1)
+    bright = (hsv[:, 1] >= MIN_SATURATION) & (hsv[:, 2] >= MIN_VALUE)
+    return np.where(bright, marker_of_hue[hsv[:, 0] % HUE_LEVELS], -1)
+
+
 def taken_for_marker(rgb: tuple[float, float, float] | np.ndarray,
                      colours: np.ndarray) -> int | None:
     """The index of the marker among `colours` that a surface of colour `rgb` (0-1) would be
