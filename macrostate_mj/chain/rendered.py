@@ -72,8 +72,14 @@ def check_rendered_colours(cfg: ScenarioConfig, n: int) -> None:
     if not isinstance(cfg.markers, ColourMarkers):
         return
     path = robot_file(cfg.robot)
-    problem = _clash(str(path), path.stat().st_mtime_ns, cfg.arena, cfg.camera, cfg.look,
-                     _light_scales(cfg.imaging), cfg.imaging.light_tilt_deg, int(n))
+    key = (str(path), path.stat().st_mtime_ns, tuple(cfg.arena), cfg.camera, cfg.look,
+           _light_scales(cfg.imaging), float(cfg.imaging.light_tilt_deg), int(n))
+    try:
+        hash(key)
+    except TypeError:               # a scenario built with lists: judged, not cached
+        problem = _clash.__wrapped__(*key)
+    else:
+        problem = _clash(*key)
     if problem is not None:
         raise UserError(f"robot file {path}: {problem}", "robot")
 

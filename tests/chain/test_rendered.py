@@ -2,6 +2,7 @@
 but whose lit colour the tracker takes for a marker is refused in one line; the shipped robots
 pass; and the per-pixel rule is the tracker's own."""
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -75,3 +76,20 @@ def test_the_shipped_robots_pass_as_rendered_in_their_scenarios(scenario):
     cfg = get_scenario(scenario)
     for n in range(2, 41):
         check_rendered_colours(cfg, n)
+
+
+def test_the_check_leaves_an_open_overhead_renderer_as_it_was():
+    """World building may call it while a run's renderer is open: its own GL context comes and
+    goes, the run's frames stay bit for bit."""
+    from macrostate_mj.chain.sim import ChainSim
+    from macrostate_mj.chain.world import build_world
+    from macrostate_mj.vision.camera import OverheadRenderer
+
+    webots = SCENARIOS["webots"]                # a look no other test rendered: a cold check
+    cfg = webots.with_overrides(look=dataclasses.replace(webots.look, light_diffuse=0.5))
+    sim = ChainSim(build_world(cfg, 3))
+    sim.reset(np.random.default_rng(0))
+    with OverheadRenderer(sim.world.model) as renderer:
+        before = renderer.render(sim.data).copy()
+        check_rendered_colours(cfg, 3)
+        assert np.array_equal(renderer.render(sim.data), before)

@@ -172,3 +172,18 @@ def test_the_local_scale_is_the_pinhole_one_without_a_lens_and_smaller_at_barrel
     barrel = dataclasses.replace(cfg.camera, distortion=(-0.2, 0.0, 0.0, 0.0))
     bent = barrel.px_per_m_at(cfg.arena, centre_and_corner)
     assert bent[0] == pytest.approx(ideal[0]) and bent[1] < 0.9 * ideal[1]
+
+
+def test_scenario_check_prints_the_lens_the_corner_scale_the_markers_and_obstacles(capsys):
+    path = Path(__file__).parents[2] / "examples" / "epuck_lab.toml"
+    code, out, err = cli_inprocess(capsys, "scenario", "check", str(path))
+    assert code == 0, err
+    lines = {line.split()[0]: line for line in out.splitlines()}
+    assert "3.20 px/cm at the centre, 1.87 px/cm at the north-east corner" in lines["camera"]
+    assert lines["lens"].endswith("[k1, k2, p1, p2] = [-0.2, 0, 0, 0]")
+    assert lines["markers"].startswith("markers    colour") and "taken for no marker" in out
+    assert lines["obstacles"] == ("obstacles  2: box 0.4 x 0.3 x 0.15 m at (0.9, 0.6); "
+                                  "box 0.3 x 0.5 x 0.15 m at (-1, -0.7)")
+    code, out, _ = cli_inprocess(capsys, "scenario", "check", "lab")
+    assert "lens       ideal (pinhole)" in out and "obstacles  none" in out
+    assert "3.00 px/cm at the centre, 3.00 px/cm" in out
