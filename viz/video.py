@@ -227,6 +227,8 @@ class CameraVideo(Recorder):
     Encoding: H.264 4:4:4 at CRF `CRF`, not the diagnostic video's 4:2:0, whose halved chroma
     moves the colour markers' edges (the tracker segments hue)."""
 
+    # lab, 20 s, no jitter: the offline track's median distance from the online one is 0.00 mm
+    # (CRF 14: 0.16 mm at half the size; the diagnostic 4:2:0 at CRF 20: 0.31 mm)
     CRF = 8
 
     def __init__(self, path: str | Path, chain, fps: float):

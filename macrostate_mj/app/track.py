@@ -69,25 +69,25 @@ def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
 
 def probe(video: Path) -> Footage:
     """Open the video, count its frames and read their times (sidecar, else index / fps)."""
-    import cv2
+    import av
 
     from viz.video import times_path
 
     if not Path(video).is_file():
         raise UserError(f"video {video} does not exist; give a recorded video file")
-    cap = cv2.VideoCapture(str(video))
     try:
-        ok = cap.isOpened() and cap.grab()
-        if not ok:
-            raise UserError(f"cannot read video {video}: not a video OpenCV can decode; give "
-                            "an MP4 (or another format ffmpeg reads)")
-        size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
-        fps = float(cap.get(cv2.CAP_PROP_FPS))
-        frames = 1
-        while cap.grab():
-            frames += 1
-    finally:
-        cap.release()
+        with av.open(str(video)) as container:
+            if not container.streams.video:
+                raise UserError(f"{video} holds no video stream; give a recorded video")
+            stream = container.streams.video[0]
+            size = (stream.codec_context.width, stream.codec_context.height)
+            fps = float(stream.average_rate or 0)
+            frames = sum(1 for packet in container.demux(stream) if packet.size)
+    except av.FFmpegError as err:
+        raise UserError(f"cannot read video {video} ({err.strerror or err}); give an MP4 or "
+                        "another video ffmpeg decodes") from None
+    if frames == 0:
+        raise UserError(f"video {video} has no frames; give a recorded video")
     sidecar = times_path(video)
     if sidecar.is_file():
         times = read_times(sidecar)
@@ -118,18 +118,12 @@ def read_times(path: Path) -> np.ndarray:
 
 
 def frames_rgb(video: Path) -> Iterator[np.ndarray]:
-    """The video's frames, RGB uint8, in order."""
-    import cv2
+    """The video's frames, RGB uint8, in order (PyAV: the decoder of the writer, quiet)."""
+    import av
 
-    cap = cv2.VideoCapture(str(video))
-    try:
-        while True:
-            ok, bgr = cap.read()
-            if not ok:
-                return
-            yield cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-    finally:
-        cap.release()
+    with av.open(str(video)) as container:
+        for frame in container.decode(video=0):
+            yield frame.to_ndarray(format="rgb24")
 
 
 def track_frames(tracker, frames: Iterator[np.ndarray], n: int,

@@ -86,6 +86,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "oc evaluate": ["--model", d, "--data", d, "--out", f"{out}.json"],
         "bench": [],
         "view": [],
+        "track": [c, "--robots", "3", "--out", str(out)],
     }
 
 
