@@ -24,6 +24,7 @@ import pyarrow.parquet as pq
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import Randomization
+from macrostate_mj.chain.rendered import check_rendered_colours
 from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
@@ -93,6 +94,7 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
     check_positive(req.minutes, "minutes")
     check_seed(req.seed)
     validate_chain(cfg, req.robots, req.minutes)
+    check_rendered_colours(cfg, req.robots)     # every episode tracks: refused before any
     if req.workers < 1:
         raise UserError(f"--workers must be at least 1, got {req.workers}")
     if req.px_per_cm <= 0:

@@ -59,6 +59,10 @@ def check_request(req: SimulateRequest) -> ScenarioConfig:
     cfg = scenario_for(req.scenario, req.head_speed)
     parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
+    if req.track:                   # a robot part the tracker would take for a marker
+        from macrostate_mj.chain.rendered import check_rendered_colours
+
+        check_rendered_colours(cfg, req.robots)
     _run(req, cfg).claim()
     from viz.video import VIEWS, times_path
 

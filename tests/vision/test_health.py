@@ -3,6 +3,7 @@ in the manifest and at the end of the run, when its poses are wrong."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -166,3 +167,19 @@ def test_a_tracked_soak_reports_every_run_and_fails_on_an_unhealthy_one(tmp_path
     assert res.returncode == 1
     assert "2 of 2 runs tracked unhealthily; first: seed 0: robot T" in res.stderr
     assert "--track" in res.stderr.splitlines()[-1]                # the command reproduces it
+
+
+@pytest.mark.parametrize("command", ["simulate", "collect"])
+def test_a_robot_whose_parts_render_in_marker_colour_is_refused_before_tracking(tmp_path,
+                                                                                command):
+    """Up front, where the health check would only find it after the run: the dark-blue shell
+    renders bright enough to pass for a marker (tests/chain/robots/dark_blue)."""
+    robot = Path(__file__).resolve().parents[1] / "chain" / "robots" / "dark_blue" / "robot.xml"
+    path = tmp_path / "dark.toml"
+    path.write_text(f'extends = "robotarium"\nname = "dark"\n\n[robot]\nmodel = "{robot}"\n')
+    out = tmp_path / "run"
+    args = {"simulate": ("--seconds", "2", "--track"), "collect": ("--minutes", "0.5")}
+    res = cli(command, "--scenario", str(path), "--robots", "10", *args[command],
+              "--out", str(out))
+    assert_clean_error(res, "geom 'shell' renders at HSV", "marker")
+    assert not out.exists()
