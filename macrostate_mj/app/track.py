@@ -2,10 +2,11 @@
 
 A lab makes its real datasets with the tracker its simulated ones came from: the scenario gives
 the world (marker colours, sizes, plane), the camera at its nominal pose with the calibrated lens,
-and `Tracker.for_world` the tracker of that world (colour triangles or ArUco, as its markers
-say). Each frame of the video is tracked; the output is `poses.parquet` in the simulator's
-layout (one row per frame and robot, the truth columns NaN: there is none), the ThymioLoc
-instances at the scenario's log rate (`instances.csv`) and a manifest.
+and `vision.trackers.tracker_for` the tracker of that world (colour triangles or ArUco tags, as
+its markers say), the camera chain's own. Each frame of the video is tracked; the output is
+`poses.parquet` in the simulator's layout (one row per frame and robot, the truth columns NaN:
+there is none), the ThymioLoc instances at the scenario's log rate (`instances.csv`) and a
+manifest.
 
 Frame times come from the sidecar `FILE.times.csv` that `simulate --camera-video` writes (an
 MP4's frame rate is nominal and a dropped frame is missing), else frame index / the video's fps.
@@ -53,8 +54,11 @@ class Footage:
 
 def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
     """Every check of a track request, before anything is built or written."""
+    from macrostate_mj.chain.rendered import check_rendered_colours
+
     cfg = scenario_for(req.scenario)
     validate_chain(cfg, req.robots, 1.0)
+    check_rendered_colours(cfg, req.robots)      # markers the tracker can tell apart
     if req.px_per_cm <= 0:
         raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
     footage = probe(req.video)
@@ -166,7 +170,7 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
     )
     from macrostate_mj.formats.poses import poses_table, write_poses
     from macrostate_mj.formats.thymioloc import write_csv
-    from macrostate_mj.vision.tracker import Tracker
+    from macrostate_mj.vision.trackers import tracker_for
 
     cfg, footage = check_request(req)
     out = req.out
@@ -180,7 +184,7 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
             world = build_world(cfg, req.robots)
             data = mujoco.MjData(world.model)
             mujoco.mj_forward(world.model, data)       # the camera at its nominal pose
-            tracker = Tracker.for_world(world, data)
+            tracker = tracker_for(world, data)
         with run.stage("track"):
             got = track_frames(tracker, frames_rgb(req.video), req.robots, progress)
         times, n = footage.times[:len(got["tracked"])], req.robots
