@@ -44,6 +44,9 @@ from macrostate_mj.formats.poses import table_arrays, write_poses
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, write_csv
 
 SPLIT_NAMES = ("Train", "Val", "Test")
+# A request's fields that say where or how a collection runs, or what it keeps of unhealthy
+# tracking, not what it makes: a resumed run may change them.
+NOT_IDENTITY = ("out", "workers", "ray", "overwrite", "keep_unhealthy")
 CACHE = "cache"          # the folder of a collection's cached episodes
 PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.json",
             "decisions.parquet",
@@ -124,7 +127,7 @@ class EpisodeTask:
 
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec
-        cfg = scenario_for(spec.scenario, spec.head_speed)
+        cfg = scenario_for(spec.scenario, spec.head_speed).as_made()
         self._key = task_key(self.stage, self.version, {"spec": spec, "scenario": cfg})
 
     def key(self) -> str:
@@ -148,12 +151,12 @@ def tracking_verdict(req: CollectRequest, stats: dict[int, dict]) -> dict:
     limits, the worst figures per robot in one line, and whether unhealthy episodes were kept."""
     from macrostate_mj.vision.health import TrackingHealth, worst_of
 
-    limits = scenario_for(req.scenario, req.head_speed).tracking
+    cfg = scenario_for(req.scenario, req.head_speed)
     reports = {i: TrackingHealth.from_dict(s["health"]) for i, s in sorted(stats.items())}
-    findings = {str(i): [f.describe() for f in r.findings(limits)] for i, r in reports.items()}
+    findings = {str(i): [f.describe() for f in r.judged(cfg)] for i, r in reports.items()}
     findings = {i: lines for i, lines in findings.items() if lines}
     return {"summary": worst_of(list(reports.values())).summary(), "healthy": not findings,
-            "limits": limits, "findings": findings, "keep_unhealthy": req.keep_unhealthy}
+            "limits": cfg.tracking, "findings": findings, "keep_unhealthy": req.keep_unhealthy}
 
 
 def _parquet_bytes(table: pa.Table) -> bytes:
@@ -165,9 +168,9 @@ def _parquet_bytes(table: pa.Table) -> bytes:
 def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
     """What a collection's outputs depend on (not where or how fast it runs): its run's
     identity, so a resumed run may change --workers but not the collection."""
-    identity = {k: v for k, v in asdict(req).items()
-                if k not in ("out", "workers", "ray", "overwrite", "scenario", "keep_unhealthy")}
-    return {"request": identity, "scenario": asdict(scenario_for(req.scenario, req.head_speed)),
+    identity = {k: v for k, v in asdict(req).items() if k not in (*NOT_IDENTITY, "scenario")}
+    return {"request": identity,
+            "scenario": asdict(scenario_for(req.scenario, req.head_speed).as_made()),
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
 
@@ -203,7 +206,8 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
         stats = {t.spec.index: json.loads((f / "stats.json").read_text())
                  for t, f in zip(tasks, folders, strict=True)}
         tracking = tracking_verdict(req, stats)
-        run.record(tracking=tracking)
+        run.record(tracking=tracking,
+                   episode_stats={str(k): v for k, v in sorted(stats.items())})
         if tracking["findings"] and not req.keep_unhealthy:
             index, line = next(iter(tracking["findings"].items()))
             raise RunFailure(
@@ -219,7 +223,6 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
                    resumed_episodes=resumed, damaged_shards_rerun=damaged,
                    randomization=None if specs[0].randomize is None
                    else asdict(specs[0].randomize),
-                   episode_stats={str(k): v for k, v in sorted(stats.items())},
                    outputs={k: str(v) for k, v in written.items()})
     return written
 

@@ -33,6 +33,7 @@ import numpy as np
 from collectors.policies import PolicyConfig, PolicySpec
 from collectors.runner import (
     CACHE,
+    NOT_IDENTITY,
     SPLIT_NAMES,
     CollectRequest,
     collect,
@@ -124,11 +125,10 @@ def validate(req: SRSRequest) -> None:
 def run_config(req: SRSRequest, novelty: NoveltyTrainer) -> dict:
     """What an SRS collection's outputs depend on (not where or how fast it runs): its run's
     identity, so a resumed run may change --workers but not the collection."""
-    base = {k: v for k, v in asdict(req.base).items()
-            if k not in ("out", "workers", "ray", "overwrite")}
+    base = {k: v for k, v in asdict(req.base).items() if k not in NOT_IDENTITY}
     return {"request": base, "pick": req.pick, "instances": req.instances,
             "ro_instances": req.ro_instances, "k": req.k, "track": req.track,
-            "scenario": asdict(scenario_for(req.base.scenario, req.base.head_speed)),
+            "scenario": asdict(scenario_for(req.base.scenario, req.base.head_speed).as_made()),
             "novelty": repr(novelty.config(req.base.seed))}
 
 
@@ -170,10 +170,12 @@ def collect_srs(req: SRSRequest, novelty: NoveltyTrainer,
                 "novelty": model_path, "decisions": out / "decisions.parquet"}
         written["manifest"] = run.path
         phases = {"ro": _tracking(ro_req), "sr": _tracking(sr_req)}
-        run.record(tracking={"healthy": all(t.get("healthy") for t in phases.values()),
-                             "summary": "; ".join(f"{k.upper()} phase {t.get('summary')}"
-                                                  for k, t in phases.items()),
-                             "phases": phases},
+        known = [t["healthy"] for t in phases.values() if "healthy" in t]
+        run.record(tracking={"healthy": all(known) if len(known) == len(phases) else None,
+                             "summary": "; ".join(
+                                 f"{k.upper()} phase {t.get('summary', 'not recorded')}"
+                                 for k, t in phases.items()),
+                             "keep_unhealthy": req.base.keep_unhealthy, "phases": phases},
                    phases={"ro": str(ro_req.out), "sr": str(sr_req.out)}, novelty_sha256=sha,
                    novelty_key=key, workers=req.base.workers, ray=req.base.ray,
                    outputs={k: str(v) for k, v in written.items()})

@@ -9,6 +9,7 @@ Each seed is a cached task: an interrupted soak resumes.
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass
 from typing import ClassVar
@@ -40,7 +41,7 @@ def track_one(task: SoakTask) -> TrackedRun:
     ran = simulate_chain(cfg, task.robots, task.seconds, task.seed, track=True)
     report = ran.tracker.health.report()
     return TrackedRun(task.seed, None if ran.failure is None else str(ran.failure),
-                      report.as_dict(), [f.describe() for f in report.findings(cfg.tracking)],
+                      report.as_dict(), [f.describe() for f in report.judged(cfg)],
                       report.summary(), ran.tracker.frames, time.perf_counter() - t0)
 
 
@@ -72,14 +73,17 @@ def track_summary(runs: list[TrackedRun]) -> dict:
 
     worst = worst_of([TrackingHealth.from_dict(r.health) for r in runs]).robots
     finite = [r for r in worst if r.detected > 0]
+    def clean(v: float) -> float | None:          # JSON has no NaN
+        return None if math.isnan(v) else v
+
     return {
         "runs": len(runs), "unhealthy": sum(bool(r.findings) for r in runs),
         "faults": sum(r.fault is not None for r in runs),
-        "min_detected": min(r.detected for r in worst),
-        "max_median_mm": max((r.median_mm for r in finite), default=float("nan")),
-        "max_p99_mm": max((r.p99_mm for r in finite), default=float("nan")),
-        "max_heading_deg": max((r.heading_deg for r in finite), default=float("nan")),
-        "max_identity": max(r.identity for r in worst),
+        "min_detected": clean(min((r.detected for r in worst if r.frames), default=math.nan)),
+        "max_median_mm": clean(max((r.median_mm for r in finite), default=math.nan)),
+        "max_p99_mm": clean(max((r.p99_mm for r in finite), default=math.nan)),
+        "max_heading_deg": clean(max((r.heading_deg for r in finite), default=math.nan)),
+        "max_identity": clean(max((r.identity for r in worst if r.frames), default=math.nan)),
         "frames": sum(r.frames for r in runs),
         "wall_s_per_run": sum(r.wall_s for r in runs) / len(runs),
     }

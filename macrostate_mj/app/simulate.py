@@ -121,11 +121,11 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
         if failure is not None:
             raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up "
                              f"to then are in {out}; reproduce: {reproduce_command(req)}")
-        findings = [] if chain is None else chain.health.report().findings(cfg.tracking)
+        findings = [] if chain is None else run.extra["tracking"]["findings"]
         if findings:
             more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
-            raise RunFailure(f"tracking unhealthy: {findings[0].describe()}{more}; poses kept in "
-                             f"{out}, every finding in its manifest")
+            raise RunFailure(f"tracking unhealthy: {findings[0]}{more}; poses kept in {out}, "
+                             "every finding in its manifest")
     return written
 
 
@@ -133,7 +133,7 @@ def tracking_record(chain: CameraChain, cfg: ScenarioConfig) -> dict:
     """A tracked run's `tracking` block: frame counts, the noise, and its health against the
     scenario's limits (`vision.health`)."""
     health = chain.health.report()
-    findings = [f.describe() for f in health.findings(cfg.tracking)]
+    findings = [f.describe() for f in health.judged(cfg)]
     return {"frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise,
             "marker_jitter_m": cfg.marker_jitter, "health": health.as_dict(),
             "limits": cfg.tracking, "summary": health.summary(), "healthy": not findings,
@@ -141,12 +141,16 @@ def tracking_record(chain: CameraChain, cfg: ScenarioConfig) -> dict:
 
 
 def tracking_summary(manifest: Path) -> str:
-    """The one-line tracking health of a finished run, from its manifest."""
+    """The one-line tracking health of a finished run (a simulation, a collection, an SRS
+    collection), from its manifest: the one home of that line."""
     import json
 
     tracking = json.loads(Path(manifest).read_text()).get("tracking") or {}
-    state = "healthy" if tracking.get("healthy") else "UNHEALTHY"
-    return f"{state}: {tracking.get('summary', 'no tracking')}"
+    healthy = tracking.get("healthy")
+    state = {True: "healthy", None: "not judged"}.get(healthy, "UNHEALTHY")
+    if healthy is False and tracking.get("keep_unhealthy"):
+        state += " (kept: --keep-unhealthy)"
+    return f"{state}: {tracking.get('summary', 'no tracking recorded')}"
 
 
 def _run(req: SimulateRequest, cfg: ScenarioConfig) -> Run:

@@ -25,7 +25,7 @@ import numpy as np
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
 from macrostate_mj.chain.world import validate_chain
-from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.run import Run
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
@@ -63,7 +63,8 @@ def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
         raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
     footage = probe(req.video)
     want = tuple(cfg.camera.resolution)
-    if footage.size != want:
+    padded = tuple(-(-side // 2) * 2 for side in want)    # H.264 writers pad odd sides
+    if footage.size not in (want, padded):
         raise UserError(f"{req.video} has {footage.size[0]} x {footage.size[1]} frames but "
                         f"scenario {cfg.name}'s camera is {want[0]} x {want[1]}; give the "
                         "scenario of the camera that filmed it")
@@ -121,13 +122,20 @@ def read_times(path: Path) -> np.ndarray:
     return times
 
 
-def frames_rgb(video: Path) -> Iterator[np.ndarray]:
-    """The video's frames, RGB uint8, in order (PyAV: the decoder of the writer, quiet)."""
+def frames_rgb(video: Path, size: tuple[int, int]) -> Iterator[np.ndarray]:
+    """The video's frames, RGB uint8, in order, cropped to the camera's (width, height) `size`
+    (an odd side was padded by the writer); PyAV: the decoder of the writer, quiet. A frame
+    that does not decode ends the run in one line (the frames before are tracked and kept)."""
     import av
 
-    with av.open(str(video)) as container:
-        for frame in container.decode(video=0):
-            yield frame.to_ndarray(format="rgb24")
+    w, h = size
+    try:
+        with av.open(str(video)) as container:
+            for frame in container.decode(video=0):
+                yield np.ascontiguousarray(frame.to_ndarray(format="rgb24")[:h, :w])
+    except av.FFmpegError as err:
+        raise RunFailure(f"video {video} stops decoding ({err.strerror or err}); the frames "
+                         "before it were tracked") from None
 
 
 def track_frames(tracker, frames: Iterator[np.ndarray], n: int,
@@ -186,7 +194,10 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
             mujoco.mj_forward(world.model, data)       # the camera at its nominal pose
             tracker = tracker_for(world, data)
         with run.stage("track"):
-            got = track_frames(tracker, frames_rgb(req.video), req.robots, progress)
+            frames = frames_rgb(req.video, tuple(cfg.camera.resolution))
+            got = track_frames(tracker, frames, req.robots, progress)
+        if len(got["tracked"]) == 0:
+            raise RunFailure(f"no frame of {req.video} decodes; check the file")
         times, n = footage.times[:len(got["tracked"])], req.robots
         nan = np.full((len(times), n, 3), np.nan)
         when = np.where(got["seen"] >= 0, times[np.maximum(got["seen"], 0)], np.nan)

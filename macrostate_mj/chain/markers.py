@@ -50,6 +50,10 @@ class Markers(Protocol):
     def dress(self, spec: mujoco.MjSpec, names: list[str], colours: np.ndarray) -> None:
         """Put each robot's marker on its `{name}/marker` geom in the world's spec."""
 
+    def colour_teams(self, capacity: int) -> int | None:
+        """The largest colour team a robot's own colours must not be mistaken in (None: the
+        markers have no colours to mistake)."""
+
 
 @dataclass(frozen=True)
 class ColourMarkers:
@@ -68,6 +72,9 @@ class ColourMarkers:
     def dress(self, spec: mujoco.MjSpec, names: list[str], colours: np.ndarray) -> None:
         for name, colour in zip(names, colours, strict=True):
             spec.geom(f"{name}/marker").rgba = [*colour, 1.0]
+
+    def colour_teams(self, capacity: int) -> int | None:
+        return min(capacity, SEPARABLE_COLOURS)
 
 
 def marker_colours(n: int) -> np.ndarray:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import cv2
@@ -72,14 +72,13 @@ def check_rendered_colours(cfg: ScenarioConfig, n: int) -> None:
     if not isinstance(cfg.markers, ColourMarkers):
         return
     path = robot_file(cfg.robot)
-    key = (str(path), path.stat().st_mtime_ns, tuple(cfg.arena), cfg.camera, cfg.look,
-           _light_scales(cfg.imaging), float(cfg.imaging.light_tilt_deg), int(n))
-    try:
-        hash(key)
-    except TypeError:               # a scenario built with lists: judged, not cached
-        problem = _clash.__wrapped__(*key)
-    else:
-        problem = _clash(*key)
+    # A scenario built from Python with lists is keyed as the file loader would make it.
+    camera = replace(cfg.camera, resolution=tuple(cfg.camera.resolution),
+                     distortion=tuple(cfg.camera.distortion))
+    look = replace(cfg.look, floor_rgba=tuple(cfg.look.floor_rgba),
+                   wall_rgba=tuple(cfg.look.wall_rgba))
+    problem = _clash(str(path), path.stat().st_mtime_ns, tuple(cfg.arena), camera, look,
+                     _light_scales(cfg.imaging), float(cfg.imaging.light_tilt_deg), int(n))
     if problem is not None:
         raise UserError(f"robot file {path}: {problem}", "robot")
 

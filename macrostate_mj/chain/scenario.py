@@ -164,6 +164,12 @@ class ScenarioConfig:
                 raise UserError(f"{self.name}: {named(key)} must be a non-negative finite "
                                 f"number, got {v!r}", key)
 
+    def as_made(self) -> ScenarioConfig:
+        """The scenario as a run's outputs depend on it, for cache keys and run identities: the
+        `[tracking]` limits judge outputs and make none (a loosened limit resumes a collection
+        instead of simulating it again)."""
+        return replace(self, tracking=TrackingLimits())
+
     def with_overrides(self, **kw: object) -> ScenarioConfig:
         """A copy with fields replaced, checked as a new scenario is."""
         unknown = sorted(set(kw) - {f.name for f in fields(self)})

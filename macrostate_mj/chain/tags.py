@@ -61,6 +61,10 @@ class ArucoMarkers:
             raise UserError(f"{n} robots need {n} tag ids but {self.dictionary} has {self.ids}; "
                             "use a larger dictionary (e.g. DICT_4X4_100 or DICT_4X4_250)", "n")
 
+    def colour_teams(self, capacity: int) -> int | None:
+        """Tags are black and white: a robot's colours cannot pass for one."""
+        return None
+
     def colours(self, n: int) -> np.ndarray:
         """The plates' colour (white: the texture draws the tag)."""
         return np.tile(PLATE_RGBA[:3], (n, 1))

@@ -172,7 +172,8 @@ def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = No
     spec = build_scene(cfg.name, cfg.arena, cfg.walls, cfg.camera, cfg.look, cfg.physics,
                        cfg.obstacles)
     spec.copy_during_attach = True
-    robot = load_robot(cfg.robot, largest_team=max(n, chain_capacity(cfg))).spec
+    robot = load_robot(cfg.robot, largest_team=cfg.markers.colour_teams(
+        max(n, chain_capacity(cfg)))).spec
     for name, pose in zip(names, start, strict=True):
         frame = spec.worldbody.add_frame(pos=[pose[0], pose[1], 0.0],
                                          quat=[np.cos(pose[2] / 2), 0, 0, np.sin(pose[2] / 2)])

@@ -76,7 +76,7 @@ class TailTask(base.Task):
 
     def tracking_health(self) -> TrackingHealth | None:
         """This episode's tracking health so far (with `observe="camera"`; else None): judge it
-        with `.findings(task.sim.cfg.tracking)`, as every tracked run is judged."""
+        with `.judged(task.sim.cfg)`, as every tracked run is judged."""
         return None if self.camera is None else self.camera.health.report()
 
     def close(self) -> None:

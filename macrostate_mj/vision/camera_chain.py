@@ -108,6 +108,8 @@ class CameraChain:
             sim.world, sim.data, self.episode.calibrated(sim.cfg.camera.distortion))
         self.conditions.apply(self.episode)
         mujoco.mj_forward(sim.model, sim.data)
+        # Where the camera truly is this episode: what hides a marker, by the truth (health).
+        self._camera_at = sim.data.cam_xpos[self.conditions.cam].copy()
         self._latest[:] = np.nan
         self._placed[:] = np.nan
         self._latest_time[:] = np.nan
@@ -120,7 +122,8 @@ class CameraChain:
     def film(self, on_frame: Callable[[float, np.ndarray], None]) -> None:
         """Hand every frame the tracker gets, whole, to `on_frame(t, rgb)` (a camera video):
         eager and without windows (the same results: tested), so each frame not dropped is
-        rendered and processed whole when it is taken."""
+        rendered and processed whole when it is taken. The poses are the same bit for bit; the
+        health then counts every frame, where a lazy run skips those it never needed."""
         self.on_frame, self.lazy, self.windows = on_frame, False, False
 
     # -- the `Hook` lifecycle: tracking at the command rate ------------------------------------
@@ -242,7 +245,7 @@ class CameraChain:
                jitter: np.ndarray | None) -> None:
         seen = det.detected
         if self.health is not None:      # the tracker's own error: before the jitter
-            self.health.add(seen, det.poses, truth, self.tracker.camera.position)
+            self.health.add(seen, det.poses, truth, self._camera_at)
         self._placed[seen] = det.poses[seen, :2]
         self._latest[seen] = det.poses[seen]
         if jitter is not None:

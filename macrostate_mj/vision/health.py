@@ -9,8 +9,9 @@ detection nearer another robot's true pose than its own). Errors are the tracker
 before the scenario's marker jitter is added (that jitter is noise the user asked for, of known
 sigma, recorded beside).
 
-`TrackingHealth.findings(limits)` judges the figures against a scenario's `[tracking]` limits;
-each finding is one line naming the robot, the figure and its likely cause.
+`TrackingHealth.judged(cfg)` judges the figures against a scenario's `[tracking]` limits; each
+finding is one line naming the robot, the figure and its likely cause for the scenario's
+markers.
 """
 
 from __future__ import annotations
@@ -20,21 +21,42 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from macrostate_mj.chain.markers import ColourMarkers
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import Obstacle
+from macrostate_mj.chain.tags import ArucoMarkers
 from macrostate_mj.chain.tracking import TrackingLimits
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.vision.occlusion import occluded
 
-# Likely causes, by what the figures show (docs: how-to/tracking-health).
-CAUSE_IDENTITY = ("its detections sit on another robot: its marker's colour is found there (two "
-                  "markers the classifier cannot tell apart, or a robot part rendered in marker "
-                  "colour: run `macrostate-mj scenario check`; for large teams use [markers] kind "
-                  "= \"aruco\")")
-CAUSE_OFFSET = ("pixels of its marker's colour elsewhere in view pull the fit (a robot part or the "
-                "scene rendered in marker colour: run `macrostate-mj scenario check`), or a lens "
-                "the calibration does not undo")
-CAUSE_MISSED = ("too few of its marker's pixels pass the colour rule (a marker too small in the "
-                "image, too much blur, light or a lens that shifts its hue)")
+# Likely causes, by marker kind and by what the figures show, each naming a fix (docs:
+# how-to/tracking-health).
+EDGE = ("or its marker leaves the frame near the image's edge (markers stand above the floor a "
+        "fitted camera frames: widen camera.fovy)")
+CAUSES: dict[type, dict[str, str]] = {
+    ColourMarkers: {
+        "identity": ("its marker's colour is found on another robot (two markers the classifier "
+                     "cannot tell apart, or a robot part rendered in marker colour): run "
+                     "`macrostate-mj scenario check`, use fewer robots or [markers] kind = "
+                     "\"aruco\""),
+        "median_error": ("pixels of its marker's colour elsewhere in view pull the fit (a robot "
+                         "part, the floor or an obstacle rendered in marker colour: run "
+                         "`macrostate-mj scenario check` and recolour it grey), or a lens the "
+                         "calibration does not undo"),
+        "detected": ("too few of its marker's pixels pass the colour rule (a marker small in "
+                     "the image, blur, or light that shifts its hue: lower the camera or enlarge "
+                     f"the marker), {EDGE}"),
+    },
+    ArucoMarkers: {
+        "identity": ("a tag decoded as another robot's id (a dictionary too small for the "
+                     "image's noise: use one with fewer ids, e.g. DICT_4X4_50)"),
+        "median_error": ("its tag's corners are misplaced (a lens the calibration does not "
+                         "undo, or tags too small in the image: lower the camera)"),
+        "detected": ("its tag is not decoded (cells under about 3 px in the image, or blur: "
+                     f"lower the camera or use a dictionary of fewer bits), {EDGE}"),
+    },
+}
+NO_FRAMES = "every frame was dropped or the run ended before its first camera tick"
 
 
 @dataclass(frozen=True)
@@ -45,7 +67,7 @@ class RobotHealth:
     robot: str
     frames: int                 # frames processed in which it was in view
     hidden: int                 # frames an obstacle hid its marker (not counted against it)
-    detected: float             # share of `frames` in which it was detected
+    detected: float             # share of `frames` in which it was detected (NaN: no frames)
     median_mm: float
     p95_mm: float
     p99_mm: float
@@ -64,6 +86,8 @@ class Finding:
     cause: str
 
     def describe(self) -> str:
+        if self.figure == "frames":
+            return f"no frame tracked: {self.cause}; run longer or lower noise.drop_prob"
         if self.figure == "detected":
             what = f"detected in {self.value:.1%} of the frames (limit {self.limit:.0%})"
         elif self.figure == "median_error":
@@ -81,26 +105,36 @@ class TrackingHealth:
 
     robots: tuple[RobotHealth, ...]
 
-    def findings(self, limits: TrackingLimits) -> list[Finding]:
-        """Every figure past `limits`, worst robots' first within each figure."""
+    def findings(self, limits: TrackingLimits, markers: object = ColourMarkers()
+                 ) -> list[Finding]:
+        """Every figure past `limits`, worst robots' first within each figure, each with the
+        likely cause for the scenario's kind of `markers`. A run that tracked no frame at all
+        is a finding too (nothing was checked)."""
+        causes = CAUSES[type(markers)]
+        if all(r.frames + r.hidden == 0 for r in self.robots):
+            return [Finding("all", "frames", 0.0, 1.0, NO_FRAMES)]
         out = []
         for r in self.robots:
-            if r.frames == 0:
+            if r.frames == 0:              # hidden in every frame: nothing to judge
                 continue
             if r.identity > limits.max_identity_errors:
                 out.append(Finding(r.robot, "identity", r.identity, limits.max_identity_errors,
-                                   CAUSE_IDENTITY))
+                                   causes["identity"]))
             elif r.detected > 0 and r.median_mm / 1000 > limits.max_median_error:
                 out.append(Finding(r.robot, "median_error", r.median_mm / 1000,
-                                   limits.max_median_error, CAUSE_OFFSET))
+                                   limits.max_median_error, causes["median_error"]))
             if r.detected < limits.min_detected:
                 out.append(Finding(r.robot, "detected", r.detected, limits.min_detected,
-                                   CAUSE_MISSED))
+                                   causes["detected"]))
         order = {"identity": 0, "median_error": 1, "detected": 2}
         return sorted(out, key=lambda f: (order[f.figure], -abs(f.value - f.limit)))
 
+    def judged(self, cfg: ScenarioConfig) -> list[Finding]:
+        """The findings against scenario `cfg`'s `[tracking]` limits, in its markers' words."""
+        return self.findings(cfg.tracking, cfg.markers)
+
     def summary(self) -> str:
-        """One line: the worst robot's figures."""
+        """One line: the worst robot's figures (robots never in view left out)."""
         seen = [r for r in self.robots if r.frames]
         if not seen:
             return "no frames tracked"
@@ -141,11 +175,13 @@ def worst_of(reports: list[TrackingHealth]) -> TrackingHealth:
 
     robots = []
     for rs in zip(*(r.robots for r in reports), strict=True):
-        robots.append(RobotHealth(
+        judged = [r for r in rs if r.frames]          # an episode where it was always hidden:
+        robots.append(RobotHealth(                    # nothing to judge
             rs[0].robot, sum(r.frames for r in rs), sum(r.hidden for r in rs),
-            min(r.detected for r in rs), *(pick([getattr(r, k) for r in rs], max) for k in
-                                           ("median_mm", "p95_mm", "p99_mm", "heading_deg")),
-            max(r.identity for r in rs)))
+            pick([r.detected for r in judged], min),
+            *(pick([getattr(r, k) for r in judged], max)
+              for k in ("median_mm", "p95_mm", "p99_mm", "heading_deg")),
+            pick([r.identity for r in judged], max)))
     return TrackingHealth(tuple(robots))
 
 
@@ -190,7 +226,7 @@ class HealthMonitor:
 
     def report(self) -> TrackingHealth:
         if not self._in_view:
-            return TrackingHealth(tuple(RobotHealth(nm, 0, 0, 0.0, *[math.nan] * 4, 0.0)
+            return TrackingHealth(tuple(RobotHealth(nm, 0, 0, *[math.nan] * 6)
                                         for nm in self.names))
         in_view = np.array(self._in_view)
         det = np.array(self._detected)
@@ -204,8 +240,8 @@ class HealthMonitor:
             q = np.percentile(e, [50, 95, 99]) if len(e) else [math.nan] * 3
             robots.append(RobotHealth(
                 name, frames, int(len(in_view) - frames),
-                float(det[:, i].sum() / frames) if frames else 0.0,
+                float(det[:, i].sum() / frames) if frames else math.nan,
                 *(float(v) for v in q),
                 float(np.median(head[det[:, i], i])) if len(e) else math.nan,
-                float(ident[:, i].sum() / frames) if frames else 0.0))
+                float(ident[:, i].sum() / frames) if frames else math.nan))
         return TrackingHealth(tuple(robots))

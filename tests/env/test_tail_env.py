@@ -140,7 +140,7 @@ def test_a_camera_episode_reports_its_tracking_health():
         health = env.task.tracking_health()
         assert [r.robot for r in health.robots] == ["H", "F1", "T"]
         assert all(r.frames > 0 and r.detected >= 0.9 for r in health.robots)
-        assert health.findings(env.task.sim.cfg.tracking) == []
+        assert health.judged(env.task.sim.cfg) == []
     finally:
         env.close()
     assert load("explore", robots=3, random=2).task.tracking_health() is None

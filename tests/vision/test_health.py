@@ -82,6 +82,21 @@ def test_reports_survive_the_manifest_and_the_worst_episode_shows():
     assert [f.robot for f in worst.findings(TrackingLimits())] == ["T"]
 
 
+def test_a_run_that_tracked_nothing_is_not_healthy_and_a_hidden_robot_is_not_missed():
+    nothing = HealthMonitor(NAMES).report()
+    findings = nothing.findings(TrackingLimits())
+    assert [f.figure for f in findings] == ["frames"]
+    assert findings[0].describe().startswith("no frame tracked")
+    assert math.isnan(nothing.robots[0].detected)
+    wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))
+    hidden = HealthMonitor(NAMES, 0.05, (wall,), 0.03)
+    hidden.add(np.array([True, True, False]), TRUTH, TRUTH, np.array([0.0, 1.0, 2.0]))
+    seen = HealthMonitor(NAMES)
+    _frames(seen, TRUTH, np.ones(3, bool))
+    worst = worst_of([hidden.report(), seen.report()])
+    assert worst.robots[2].detected == 1.0          # the episode it was hidden in is not judged
+
+
 @pytest.mark.parametrize("key,value", [("min_detected", 1.5), ("max_median_error", 0.0),
                                        ("max_identity_errors", -0.1),
                                        ("max_median_error", float("inf"))])

@@ -93,7 +93,7 @@ def bench_health(seconds: float = 20.0, robots: int = 5) -> list[dict]:
         log = PoseLog(world.names, tracker=chain)
         sim.episode(seconds, [chain, Every(1 / sim.cfg.log_hz, log.append, sim.log_phase)])
         if health:
-            chain.health.report().findings(sim.cfg.tracking)
+            chain.health.report().judged(sim.cfg)
 
     ours, bare = best_of_pair(lambda: tracked(True), lambda: tracked(False), repeats=3)
     return [figure("tracked_run_with_health_s", ours, "s", bare, lower_is_better=True,

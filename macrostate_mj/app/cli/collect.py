@@ -97,11 +97,9 @@ def collect(
 
 def _tracking_line(written: dict) -> None:
     """The collection's one-line tracking health, from its manifest."""
-    import json
+    from macrostate_mj.app.simulate import tracking_summary
 
-    tracking = json.loads(written["manifest"].read_text()).get("tracking") or {}
-    state = "healthy" if tracking.get("healthy") else "UNHEALTHY (kept: --keep-unhealthy)"
-    typer.echo(f"{'tracking':<16} {state}: {tracking.get('summary')}")
+    typer.echo(f"{'tracking':<16} {tracking_summary(written['manifest'])}")
 
 
 def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,

@@ -36,6 +36,7 @@ def scenario_check(
     """Validate a scenario and print what it builds: arena, chain capacity, px/cm at the image's
     centre and worst arena corner, the lens, the markers, the obstacles, the robot's colours as
     rendered, timestep and physics steps per command and log tick."""
+    from macrostate_mj.chain.markers import ColourMarkers
     from macrostate_mj.chain.rendered import check_rendered_colours
     from macrostate_mj.chain.robot import top_speed
     from macrostate_mj.chain.scenario import steps_per_tick
@@ -55,8 +56,9 @@ def scenario_check(
                f"{cfg.head_speed:g} m/s (robot's top {top_speed(cfg.robot):.3f} m/s)")
     typer.echo(_camera_line(cfg))
     typer.echo(_lens_line(cfg.camera.distortion))
-    typer.echo(f"markers    {_markers_kind(cfg.markers)}; robot parts as rendered taken for "
-               f"no marker ({_teams_words(teams)})")
+    checked = (f"robot parts as rendered taken for no marker ({_teams_words(teams)})"
+               if isinstance(cfg.markers, ColourMarkers) else "tags: no colours to check")
+    typer.echo(f"markers    {_markers_kind(cfg.markers)}; {checked}")
     typer.echo(_obstacles_line(cfg.obstacles))
     typer.echo(f"physics    timestep {dt:g} s: {steps_per_tick(1 / cfg.command_hz, dt, 'command')}"
                f" steps a command tick ({cfg.command_hz:g} Hz), "
@@ -111,7 +113,7 @@ def _markers_kind(markers: object) -> str:
     """The marker kind as a scenario file names it (`[markers] kind`), and its settings."""
     from macrostate_mj.chain import scenario_file
 
-    kinds = getattr(scenario_file, "RULES", {}).get("markers", {})
+    kinds = scenario_file.RULES["markers"]
     kind = next((k for k, c in kinds.items() if type(markers) is c), type(markers).__name__)
     settings = ", ".join(f"{f.name} {getattr(markers, f.name)}" for f in fields(markers))
     return f"{kind}" + (f" ({settings})" if settings else "")

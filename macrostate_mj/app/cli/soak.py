@@ -66,6 +66,9 @@ def soak(
     name = scenario.name
     if track:
         from collectors.track_soak import TrackSoakTask, track_summary
+        from macrostate_mj.chain.rendered import check_rendered_colours
+
+        check_rendered_colours(scenario, robots)    # refused before any run, as simulate does
 
         kind, columns, tabulate = TrackSoakTask, TRACK_COLUMNS, track_summary
     else:
@@ -88,7 +91,8 @@ def soak(
         typer.echo(f"{name} x {robots} robots, {seconds:g} s each, seeds "
                    f"{first_seed}..{first_seed + seeds - 1}")
         typer.echo("  ".join(f"{head:>{max(len(head), 6)}}" for _, head, _ in columns))
-        typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" for key, head, fmt in columns))
+        typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" if row[key] is not None
+                             else f"{'n/a':>{max(len(head), 6)}}" for key, head, fmt in columns))
         if row.get("warnings"):
             typer.echo(f"MuJoCo warnings: {row['warning_kinds']}")
     if track:

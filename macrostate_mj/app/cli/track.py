@@ -24,7 +24,7 @@ def track(
                              "FILE.times.csv beside it gives the frame times)."),
     scenario: str = Scenario,
     robots: int = Count(..., "Robots in the video (Head, Followers, Tail: the scenario's "
-                        "marker colours in chain order).", min=2),
+                        "markers, colours or tag ids, in chain order).", min=2),
     out: Path = OutputDir(..., "Output folder (poses.parquet, instances.csv, manifest.json)."),
     px_per_cm: float = Positive(DEFAULT_PX_PER_CM, "Pixel scale of the ThymioLoc CSV."),
     overwrite: bool = Switch(False, "Replace existing outputs."),
