@@ -154,9 +154,20 @@ def test_bench_prints_ratios_against_limits_in_one_schema():
     assert table.returncode == 0 and "ratio" in table.stdout, table.stderr
 
 
+def test_the_health_suite_counts_what_the_health_figures_cost():
+    """Its figures in the one schema (speed itself is the bench's, not a test's)."""
+    from macrostate_mj.app.bench import FIELDS
+    from macrostate_mj.app.bench.collect import bench_health
+
+    paired, share = bench_health(seconds=3.0, robots=3)
+    assert set(FIELDS) <= set(paired) and paired["ratio"] > 0
+    assert share["name"] == "health_share_of_tracked_run" and 0 < share["value"] < 1
+
+
 def test_tracked_log_carries_the_truth_at_tracking_time_and_units(tmp_path):
-    """x_trk - x_truth_trk is the tracker's own error (mm); x_trk - x also holds the motion
-    between the frame and the log tick, which is what made a good tracker read as a bad one."""
+    """x_trk - x_truth_trk is the tracker's error plus the drawn marker jitter (mm); x_trk - x
+    also holds the motion between the frame and the log tick, which is what made a good tracker
+    read as a bad one."""
     out = tmp_path / "run"
     res = cli("simulate", "--robots", "3", "--seconds", "20", "--seed", "3", "--track",
               "--out", str(out))
