@@ -11,12 +11,10 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import ClassVar
 
-from macrostate_mj.chain.scenarios import scenario_for
-from macrostate_mj.chain.soak import SoakTask
-from macrostate_mj.core.cache import task_key
+from macrostate_mj.chain.soak import SoakRunTask, SoakTask, config_of
 
 
 @dataclass(frozen=True)
@@ -36,7 +34,7 @@ class TrackedRun:
 def track_one(task: SoakTask) -> TrackedRun:
     from collectors.simulate import simulate_chain
 
-    cfg = scenario_for(task.scenario) if isinstance(task.scenario, str) else task.scenario
+    cfg = config_of(task.scenario)
     t0 = time.perf_counter()
     ran = simulate_chain(cfg, task.robots, task.seconds, task.seed, track=True)
     report = ran.tracker.health.report()
@@ -45,24 +43,15 @@ def track_one(task: SoakTask) -> TrackedRun:
                       report.summary(), ran.tracker.frames, time.perf_counter() - t0)
 
 
-class TrackSoakTask:
-    """One seed's tracked soak as a cached task, keyed by its task and the scenario."""
+class TrackSoakTask(SoakRunTask):
+    """One seed's tracked soak as a cached task, keyed as the physics soak's (its task and the
+    scenario) under a stage of its own."""
 
     stage: ClassVar[str] = "track-soak-run"
     version: ClassVar[int] = 1
     result: ClassVar[type] = TrackedRun
 
-    def __init__(self, task: SoakTask):
-        self.task = task
-
-    def key(self) -> str:
-        cfg = scenario_for(self.task.scenario) if isinstance(self.task.scenario, str) \
-            else self.task.scenario
-        return task_key(self.stage, self.version, {"task": self.task, "scenario": cfg})
-
     def compute(self) -> dict[str, bytes]:
-        from dataclasses import asdict
-
         return {"run.json": json.dumps(asdict(track_one(self.task))).encode()}
 
 

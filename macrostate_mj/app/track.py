@@ -26,6 +26,7 @@ from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.io import check_writable_dir
 from macrostate_mj.core.run import Run
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
@@ -181,12 +182,7 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
     from macrostate_mj.vision.trackers import tracker_for
 
     cfg, footage = check_request(req)
-    out = req.out
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise UserError(f"cannot create --out {out}: {err.strerror}; "
-                        "choose a writable folder") from None
+    out = check_writable_dir(req.out)
     with _run(req, cfg) as run:
         with run.stage("build"):
             world = build_world(cfg, req.robots)

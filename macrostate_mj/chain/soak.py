@@ -56,7 +56,7 @@ def soak_one(task: SoakTask) -> SoakRun:
     from macrostate_mj.chain.sim import ChainSim
     from macrostate_mj.chain.world import build_world
 
-    world = build_world(_config(task.scenario), task.robots)
+    world = build_world(config_of(task.scenario), task.robots)
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(task.seed))
     dt = world.model.opt.timestep
@@ -73,7 +73,8 @@ def soak_one(task: SoakTask) -> SoakRun:
                    s.max_penetration_mm, s.warnings, int(round(sim.time / dt)), wall)
 
 
-def _config(scenario: str | ScenarioConfig) -> ScenarioConfig:
+def config_of(scenario: str | ScenarioConfig) -> ScenarioConfig:
+    """A soak task's scenario, resolved (a name or a file, or the config itself)."""
     from macrostate_mj.chain.scenarios import scenario_for
 
     return scenario_for(scenario) if isinstance(scenario, str) else scenario
@@ -83,7 +84,7 @@ def soak_tasks(scenario: str | ScenarioConfig, robots: int, seeds: int, seconds:
                first_seed: int = 0, check_hz: float = 50.0) -> list[SoakTask]:
     from macrostate_mj.chain.world import validate_chain
 
-    validate_chain(_config(scenario), robots, seconds)
+    validate_chain(config_of(scenario), robots, seconds)
     check_count(seeds, "seeds")
     check_seed(first_seed, "first_seed")
     if not (0 < check_hz < float("inf")):
@@ -104,7 +105,7 @@ class SoakRunTask:
 
     def key(self) -> str:
         return task_key(self.stage, self.version,
-                        {"task": self.task, "scenario": _config(self.task.scenario)})
+                        {"task": self.task, "scenario": config_of(self.task.scenario)})
 
     def compute(self) -> dict[str, bytes]:
         return {"run.json": json.dumps(asdict(soak_one(self.task))).encode()}

@@ -110,6 +110,7 @@ class Mp4Writer:
 
     CODEC = "libx264"
     CRF = 20            # visually lossless for these flat scenes, ~1/10 the size of mp4v
+    PIX_FMT = "yuv420p"     # subclasses for data, not browsers, keep full chroma (yuv444p)
 
     def __init__(self, path: str | os.PathLike, fps: float, size: tuple[int, int]):
         from fractions import Fraction
@@ -127,9 +128,9 @@ class Mp4Writer:
             self._file.discard()
             raise UserError(f"cannot write MP4 video {self.path} ({err}); choose another "
                             "path") from None
-        # yuv420p needs even sides; odd frames are padded by one edge pixel
+        # H.264 needs even sides; odd frames are padded by one edge pixel
         stream.width, stream.height = (self.size[0] + 1) // 2 * 2, (self.size[1] + 1) // 2 * 2
-        stream.pix_fmt = "yuv420p"
+        stream.pix_fmt = self.PIX_FMT
         stream.thread_count = 1
         stream.options = {"crf": str(self.CRF), "preset": "veryfast"}
         self._stream = stream

@@ -22,7 +22,7 @@ from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.tags import ArucoMarkers, dictionary
 from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
-from macrostate_mj.vision.occlusion import occluded
+from macrostate_mj.vision.occlusion import hide_occluded
 from macrostate_mj.vision.tracker import Detections, Tracker
 
 MIN_PERIMETER = 0.5     # of the tag's expected perimeter (px): smaller quads are not tags
@@ -88,11 +88,8 @@ class ArucoTracker:
             ahead = world[:, 0] + world[:, 1] - world[:, 2] - world[:, 3]   # top edge - bottom
             poses[ids] = np.column_stack([centre, np.arctan2(ahead[:, 1], ahead[:, 0])])
             detected[ids] = True
-        if self.occluders and detected.any():
-            hidden = occluded(poses[:, :2], self.marker_height, self.camera.position,
-                              self.occluders, float(np.sqrt(self.marker_area)))
-            poses[hidden] = np.nan
-            detected &= ~hidden
+        hide_occluded(poses, detected, self.marker_height, self.camera.position, self.occluders,
+                      self.marker_area)
         return Detections(poses, detected)
 
     def _detect(self, rgb: np.ndarray) -> list[tuple[int, np.ndarray]]:

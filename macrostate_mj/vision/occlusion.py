@@ -33,3 +33,15 @@ def occluded(xy: np.ndarray, marker_height: float, camera: np.ndarray,
         dist = ob.distance(ray.reshape(-1, 2))[0].reshape(len(ray), SAMPLES)
         hidden[np.flatnonzero(ok)] |= dist.min(axis=1) < marker_radius
     return hidden
+
+
+def hide_occluded(poses: np.ndarray, detected: np.ndarray, marker_height: float,
+                  camera: np.ndarray, obstacles: tuple[Obstacle, ...], marker_area: float
+                  ) -> None:
+    """In place: a detection an obstacle hides (`occluded`, the marker's size its area's
+    square root) becomes a miss (NaN pose, not detected), as every tracker reports it."""
+    if not obstacles or not detected.any():
+        return
+    hidden = occluded(poses[:, :2], marker_height, camera, obstacles, float(np.sqrt(marker_area)))
+    poses[hidden] = np.nan
+    detected &= ~hidden

@@ -29,7 +29,7 @@ from macrostate_mj.chain.markers import (
 from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
-from macrostate_mj.vision.occlusion import occluded
+from macrostate_mj.vision.occlusion import hide_occluded
 
 
 @dataclass(frozen=True)
@@ -139,11 +139,8 @@ class Tracker:
             tip = self.camera.pixel_to_world(uv[ok] + 10 * axis[ok], self.marker_height)
             heading = np.arctan2(tip[:, 1] - xy[:, 1], tip[:, 0] - xy[:, 0])
             poses[ok] = np.column_stack([xy, heading])
-        if self.occluders and detected.any():
-            hidden = occluded(poses[:, :2], self.marker_height, self.camera.position,
-                              self.occluders, float(np.sqrt(self.marker_area)))
-            poses[hidden] = np.nan
-            detected &= ~hidden
+        hide_occluded(poses, detected, self.marker_height, self.camera.position, self.occluders,
+                      self.marker_area)
         return Detections(poses, detected)
 
 
