@@ -26,7 +26,7 @@ from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import Randomization
 from macrostate_mj.chain.rendered import check_rendered_colours
 from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
-from macrostate_mj.chain.world import validate_chain
+from macrostate_mj.chain.world import robot_names, validate_chain
 from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
 from macrostate_mj.core.checks import check_positive, check_seed
 from macrostate_mj.core.errors import RunFailure, UserError
@@ -148,14 +148,18 @@ class EpisodeTask:
 
 def tracking_verdict(req: CollectRequest, stats: dict[int, dict]) -> dict:
     """A collection's tracking health: each episode judged against the scenario's `[tracking]`
-    limits, the worst figures per robot in one line, and whether unhealthy episodes were kept."""
+    limits, the worst figures per robot over its episodes (`health`, and in one line), and
+    whether unhealthy episodes were kept."""
     from macrostate_mj.vision.health import TrackingHealth, worst_of
 
     cfg = scenario_for(req.scenario, req.head_speed)
-    reports = {i: TrackingHealth.from_dict(s["health"]) for i, s in sorted(stats.items())}
+    names = robot_names(req.robots)
+    reports = {i: TrackingHealth.from_dict(s["health"], names)
+               for i, s in sorted(stats.items())}
     findings = {str(i): [f.describe() for f in r.judged(cfg)] for i, r in reports.items()}
     findings = {i: lines for i, lines in findings.items() if lines}
-    return {"summary": worst_of(list(reports.values())).summary(), "healthy": not findings,
+    worst = worst_of(list(reports.values()))
+    return {"summary": worst.summary(), "health": worst.as_dict(), "healthy": not findings,
             "limits": cfg.tracking, "findings": findings, "keep_unhealthy": req.keep_unhealthy}
 
 

@@ -211,12 +211,28 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
             del written["instances"]
         written["manifest"] = run.path
         share = got["detected"].mean(axis=0) if len(times) else np.zeros(n)
+        shares = {name: round(float(s), 4) for name, s in zip(world.names, share, strict=True)}
         run.record(robots=world.names, frames=len(times), frames_in_video=footage.frames,
-                   instances=len(cut), px_per_cm=req.px_per_cm,
-                   detected_share={name: round(float(s), 4)
-                                   for name, s in zip(world.names, share, strict=True)},
+                   instances=len(cut), px_per_cm=req.px_per_cm, detected_share=shares,
                    outputs={k: str(v) for k, v in written.items()})
+        missed = {k: v for k, v in shares.items() if v < cfg.tracking.min_detected}
+        if missed:        # footage has no truth: a robot seldom seen is the one sign left
+            name = min(missed, key=missed.get)
+            raise RunFailure(
+                f"robot {name} detected in {missed[name]:.1%} of the frames (limit "
+                f"{cfg.tracking.min_detected:.0%}; {len(missed)} robot(s) under it): is --robots "
+                f"{req.robots} the team filmed (colour markers are chosen by team size) and the "
+                f"scenario its lab? Poses kept in {out}")
     return written
+
+
+def detected_line(manifest: Path) -> str:
+    """The per-robot detected shares of a finished track, in one line."""
+    import json
+
+    record = json.loads(Path(manifest).read_text())
+    shares = record.get("detected_share", {})
+    return ", ".join(f"{k} {shares[k]:.1%}" for k in record.get("robots", shares))  # chain order
 
 
 def _run(req: TrackRequest, cfg: ScenarioConfig) -> Run:

@@ -41,8 +41,9 @@ CAUSES: dict[type, dict[str, str]] = {
                      "\"aruco\""),
         "median_error": ("pixels of its marker's colour elsewhere in view pull the fit (a robot "
                          "part, the floor or an obstacle rendered in marker colour: run "
-                         "`macrostate-mj scenario check` and recolour it grey), or a lens the "
-                         "calibration does not undo"),
+                         "`macrostate-mj scenario check` and recolour it grey), a lens the "
+                         "calibration does not undo, or a limit tighter than the tracker's "
+                         "accuracy (about 1 mm in the built-in labs)"),
         "detected": ("too few of its marker's pixels pass the colour rule (a marker small in "
                      "the image, blur, or light that shifts its hue: lower the camera or enlarge "
                      f"the marker), {EDGE}"),
@@ -159,11 +160,12 @@ class TrackingHealth:
                 for r in self.robots}
 
     @classmethod
-    def from_dict(cls, data: dict) -> TrackingHealth:
-        """Back from `as_dict` (a cached episode's figures)."""
+    def from_dict(cls, data: dict, names: list[str] | None = None) -> TrackingHealth:
+        """Back from `as_dict` (a cached episode's figures), robots in chain order `names`
+        (JSON written with sorted keys loses it)."""
         return cls(tuple(RobotHealth(name, **{k: math.nan if v is None else v
-                                              for k, v in figs.items()})
-                         for name, figs in data.items()))
+                                              for k, v in data[name].items()})
+                         for name in (names or list(data))))
 
 
 def worst_of(reports: list[TrackingHealth]) -> TrackingHealth:

@@ -28,7 +28,18 @@ def recorded(tmp_path_factory):
     res = cli("track", str(tmp / "cam.mp4"), "--scenario", str(scenario), "--robots", "3",
               "--out", str(tmp / "trk"))
     assert res.returncode == 0, res.stderr
+    assert "detected  H 100.0%" in res.stdout
     return tmp
+
+
+def test_tracking_footage_as_the_wrong_team_says_so(recorded):
+    """Footage has no truth to judge by; a robot the tracker seldom finds is the sign left
+    (colours are chosen by team size: as 4 robots, a 3-robot video's markers mostly miss)."""
+    res = cli("track", str(recorded / "cam.mp4"), "--scenario", str(recorded / "lab_still.toml"),
+              "--robots", "4", "--out", str(recorded / "wrong"))
+    assert res.returncode == 1
+    assert "is --robots 4 the team filmed" in res.stderr.splitlines()[-1]
+    assert (recorded / "wrong" / "poses.parquet").is_file()           # kept, and said
 
 
 def test_filming_the_camera_leaves_the_run_as_it_was(recorded):

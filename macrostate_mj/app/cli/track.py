@@ -31,7 +31,7 @@ def track(
 ) -> None:
     """Track a recorded video with the scenario's camera and tracker into a pose log and
     ThymioLoc instances, as a simulated run's would be."""
-    from macrostate_mj.app.track import TrackRequest, check_request, track_video
+    from macrostate_mj.app.track import TrackRequest, check_request, detected_line, track_video
     from macrostate_mj.core.progress import sim_progress
 
     req = TrackRequest(video, scenario, robots, out, overwrite, px_per_cm)
@@ -40,3 +40,4 @@ def track(
         written = track_video(req, advance)
     for kind, path in written.items():
         typer.echo(f"{kind:<9} {path}")
+    typer.echo(f"detected  {detected_line(written['manifest'])}")
