@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -285,13 +285,34 @@ def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
     if out[worst] > EDGE_TOLERANCE_PX:
         x, y = points[worst]
         pinhole = np.max(np.abs(points[worst] * focal / camera.height) - [w / 2, h / 2])
+        wide = _fovy_that_frames(arena, camera, points)
         fix = ("raise its height or widen its fovy (leave fovy unset to frame the arena)"
                if pinhole > EDGE_TOLERANCE_PX else
                f"its lens {lens_words(camera.distortion)} bends it out of a frame fitted for an "
-               "ideal lens: raise camera.height or set a wider camera.fovy")
+               "ideal lens: " + (f"set camera.fovy = {wide:.1f} (or more)" if wide is not None
+                                 else "raise camera.height"))
         raise UserError(f"{name}: the overhead camera does not see the arena's {names[worst]} "
                         f"({x:g}, {y:g}) m, {out[worst]:.1f} px outside its {w} x {h} image; "
                         f"{fix}")
+
+
+def _fovy_that_frames(arena: tuple[float, float], camera: Camera, points: np.ndarray
+                      ) -> float | None:
+    """The narrowest fovy (deg, to 0.1) whose frame, through the lens, holds every outline
+    point, or None when even MAX_FOVY does not."""
+    w, h = camera.resolution
+
+    def fits(fovy: float) -> bool:
+        uv = replace(camera, fovy=fovy).floor_pixels(arena, points)
+        return bool(np.all(np.abs(uv) - [w / 2, h / 2] <= EDGE_TOLERANCE_PX))
+
+    lo, hi = camera.fovy_for(arena), MAX_FOVY
+    if not fits(hi):
+        return None
+    while hi - lo > 0.05:
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if fits(mid) else (mid, hi)
+    return math.ceil(hi * 10) / 10
 
 
 def _check_fold(name: str, resolution: tuple[int, int], focal: float,

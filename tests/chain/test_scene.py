@@ -132,9 +132,14 @@ def test_a_pincushion_lens_that_pushes_the_arena_out_of_frame_is_refused():
         lensed(get_scenario("lab"), (3.0, 0.0, 0.0, 0.0))
     msg = str(err.value)
     assert "\n" not in msg and "north-east corner (1.25, 0.95) m, 443.8 px outside" in msg
-    assert "raise camera.height or set a wider camera.fovy" in msg
-    with pytest.raises(UserError, match="px outside"):
+    assert "bends it out of a frame fitted for an ideal lens: set camera.fovy = 79.4" in msg
+    with pytest.raises(UserError, match="px outside") as err:
         lensed(get_scenario("lab"), (0.05, 0.0, 0.0, 0.0))
+    wide = float(str(err.value).split("set camera.fovy = ")[1].split()[0])
+    cfg = get_scenario("lab")                        # the fovy it names frames the arena
+    camera = dataclasses.replace(cfg.camera, fovy=wide, distortion=(0.05, 0.0, 0.0, 0.0))
+    ok = cfg.with_overrides(camera=camera)
+    assert ok.camera.fovy == wide
 
 
 def test_an_edge_bent_out_between_corners_inside_is_named():
