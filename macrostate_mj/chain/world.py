@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import mujoco
 import numpy as np
 
@@ -130,6 +131,12 @@ class World:
     def top_speed(self) -> float:
         return self.max_wheel_speed * self.wheel_radius
 
+    @property
+    def marker_area(self) -> float:
+        """The area (m^2) of a robot's marker (card or tag plate) seen from above: what a
+        tracker expects to see of it."""
+        return marker_area(self.spec, f"{self.names[0]}/marker")
+
     def to_xml(self) -> str:
         return self.spec.to_xml()
 
@@ -155,6 +162,13 @@ def _described(start: object, poses: np.ndarray) -> str:
     if poses.size == 0 and not isinstance(start, np.ndarray):
         return f"{type(start).__name__} {start!r}"[:80]
     return f"shape {poses.shape}" + ("" if np.isfinite(poses).all() else " with NaN or inf")
+
+
+def marker_area(spec: mujoco.MjSpec, mesh_name: str) -> float:
+    """Area (m^2) of a flat marker mesh seen from above, from its authored vertices (MuJoCo
+    re-centres and re-orients compiled meshes, the spec keeps them as written)."""
+    verts = np.asarray(spec.mesh(mesh_name).uservert, np.float32).reshape(-1, 3)
+    return float(cv2.contourArea(cv2.convexHull(np.ascontiguousarray(verts[:, :2]))))
 
 
 def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = None) -> World:

@@ -40,7 +40,7 @@ from macrostate_mj.vision import imaging
 from macrostate_mj.vision.camera import OverheadRenderer
 from macrostate_mj.vision.health import HealthMonitor
 from macrostate_mj.vision.imaging import FrameDraw, NoiseConfig, SceneConditions, draw_episode
-from macrostate_mj.vision.tracker import Detections, Tracker
+from macrostate_mj.vision.tracker import Detections
 from macrostate_mj.vision.trackers import tracker_for
 
 
@@ -90,7 +90,7 @@ class CameraChain:
         self._spare = mujoco.MjData(sim.model)     # the waiting frame's copy of the state
         self.health: HealthMonitor | None = None
         if health:
-            marker = float(np.sqrt(Tracker.marker_area_of(sim.world)))
+            marker = float(np.sqrt(sim.world.marker_area))
             self.health = HealthMonitor(sim.world.names, sim.world.marker_height,
                                         sim.cfg.obstacles, marker)
 

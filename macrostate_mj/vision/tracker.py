@@ -61,13 +61,8 @@ class Tracker:
         plane and area."""
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
-        return cls(camera, world.colours, world.marker_height, cls.marker_area_of(world),
+        return cls(camera, world.colours, world.marker_height, world.marker_area,
                    occluders=world.scenario.obstacles)
-
-    @staticmethod
-    def marker_area_of(world: World) -> float:
-        """The area (m^2) of a world's marker card seen from above."""
-        return marker_area(world.spec, f"{world.names[0]}/marker")
 
     def __post_init__(self) -> None:
         self._hues = marker_hues(self.colours)
@@ -143,9 +138,3 @@ class Tracker:
                       self.marker_area)
         return Detections(poses, detected)
 
-
-def marker_area(spec, mesh_name: str) -> float:
-    """Area (m^2) of a flat marker mesh seen from above, from its authored vertices (MuJoCo
-    re-centres and re-orients compiled meshes, the spec keeps them as written)."""
-    verts = np.asarray(spec.mesh(mesh_name).uservert, np.float32).reshape(-1, 3)
-    return float(cv2.contourArea(cv2.convexHull(np.ascontiguousarray(verts[:, :2]))))

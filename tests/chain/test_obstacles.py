@@ -13,10 +13,10 @@ from macrostate_mj.chain.planners import CellWalk, PresetTwists
 from macrostate_mj.chain.scenario_file import load_scenario, to_toml
 from macrostate_mj.chain.scene import Obstacle, blocked
 from macrostate_mj.chain.sim import ChainSim
-from macrostate_mj.chain.world import build_world, place_chain
+from macrostate_mj.chain.world import build_world, marker_area, place_chain
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision.camera import PinholeCamera
-from macrostate_mj.vision.tracker import Tracker, marker_area
+from macrostate_mj.vision.tracker import Tracker
 
 SCENARIO = Path(__file__).with_name("obstacles.toml")
 

@@ -14,7 +14,6 @@ from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision.aruco import ArucoTracker
 from macrostate_mj.vision.camera import OverheadRenderer
-from macrostate_mj.vision.tracker import Tracker
 from macrostate_mj.vision.trackers import tracker_for
 
 HALL = "examples/tag_hall.toml"
@@ -75,7 +74,7 @@ def test_ids_outside_the_team_are_ignored(hall):
 def test_the_plate_is_a_square_tag_at_the_cards_height():
     colour, tag = build_world("examples/epuck_lab.toml", 3), build_world(HALL, 3)
     assert tag.marker_height == pytest.approx(colour.marker_height, abs=1e-9)
-    assert Tracker.marker_area_of(tag) == pytest.approx(0.051**2)     # the card's length
+    assert tag.marker_area == pytest.approx(0.051**2)     # the card's length
     data = mujoco.MjData(tag.model)
     mujoco.mj_forward(tag.model, data)
     g = tag.model.geom("F1/marker").id

@@ -6,12 +6,12 @@ import pytest
 
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
-from macrostate_mj.chain.world import build_world
+from macrostate_mj.chain.world import build_world, marker_area
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
 from macrostate_mj.vision.camera_chain import CameraChain
 from macrostate_mj.vision.imaging import NoiseConfig, degrade, draw_episode
-from macrostate_mj.vision.tracker import Tracker, marker_area
+from macrostate_mj.vision.tracker import Tracker
 
 
 def errors_over_run(seconds: float, seed: int, noise: NoiseConfig, jitter: float = 0.0):
