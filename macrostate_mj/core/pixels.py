@@ -57,10 +57,9 @@ def distortion_jacobian_det(x: np.ndarray, y: np.ndarray, distortion: Distortion
     radial = 1 + k1 * r2 + k2 * r2 * r2
     slope = 2 * k1 + 4 * k2 * r2                     # d(radial)/d(r2) times 2
     dxx = radial + x * x * slope + 2 * p1 * y + 6 * p2 * x
-    dxy = x * y * slope + 2 * p1 * x + 2 * p2 * y
-    dyx = x * y * slope + 2 * p1 * x + 2 * p2 * y
     dyy = radial + y * y * slope + 6 * p1 * y + 2 * p2 * x
-    return dxx * dyy - dxy * dyx
+    cross = x * y * slope + 2 * p1 * x + 2 * p2 * y      # d(xd)/dy = d(yd)/dx for this model
+    return dxx * dyy - cross * cross
 
 
 def lens_fold(half_width: float, half_height: float, distortion: Distortion) -> float | None:

@@ -62,16 +62,15 @@ class CameraChain:
 
     With `lazy=False` every frame is rendered and processed when it is taken (the results are
     the same: tested). `health` (a `vision.health.HealthMonitor`, or None with `health=False`)
-    compares every processed frame's detections with the truth of that moment. `on_frame(t, rgb)`
-    is handed every whole frame the tracker processes, as the imaging chain delivered it (see
-    `film`)."""
+    compares every processed frame's detections with the truth of that moment. `film(on_frame)`
+    hands every whole frame the tracker processes to `on_frame(t, rgb)`, as the imaging chain
+    delivered it."""
 
     def __init__(self, sim: ChainSim, noise: NoiseConfig | None = None,
                  rng: np.random.Generator | None = None, phase: float = 0.0,
-                 windows: bool = True, lazy: bool = True, health: bool = True,
-                 on_frame: Callable[[float, np.ndarray], None] | None = None):
+                 windows: bool = True, lazy: bool = True, health: bool = True):
         self.sim = sim
-        self.on_frame = on_frame
+        self.on_frame: Callable[[float, np.ndarray], None] | None = None    # see `film`
         self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
         self._episode_rng = rng
         self.noise = noise or sim.cfg.imaging       # default: the scenario's own
@@ -88,11 +87,7 @@ class CameraChain:
         self.windows, self.lazy = windows, lazy
         self._waiting: _Frame | None = None
         self._spare = mujoco.MjData(sim.model)     # the waiting frame's copy of the state
-        self.health: HealthMonitor | None = None
-        if health:
-            marker = float(np.sqrt(sim.world.marker_area))
-            self.health = HealthMonitor(sim.world.names, sim.world.marker_height,
-                                        sim.cfg.obstacles, marker)
+        self.health = HealthMonitor.for_world(sim.world) if health else None
 
     def start(self, rng: np.random.Generator) -> None:
         """Calibrate on the nominal camera (its lens as this episode's draw misjudges it), then

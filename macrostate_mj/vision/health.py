@@ -26,6 +26,7 @@ from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.tags import ArucoMarkers
 from macrostate_mj.chain.tracking import TrackingLimits
+from macrostate_mj.chain.world import World
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.vision.occlusion import occluded
 
@@ -192,11 +193,16 @@ class HealthMonitor:
     gives the figures. Cheap: a few numpy operations on (n, n) arrays per processed frame."""
 
     def __init__(self, names: list[str], marker_height: float = 0.0,
-                 occluders: tuple[Obstacle, ...] = (), marker_size: float = 0.0):
+                 occluders: tuple[Obstacle, ...] = (), marker_area: float = 0.0):
         self.names = list(names)
-        self.marker_height, self.occluders, self.marker_size = marker_height, occluders, \
-            marker_size
+        self.marker_height, self.occluders = marker_height, occluders
+        self.marker_size = float(np.sqrt(marker_area))     # as the trackers' occlusion rule
         self.reset()
+
+    @classmethod
+    def for_world(cls, world: World) -> HealthMonitor:
+        """The monitor of a chain world: its robots, marker plane and size, obstacles."""
+        return cls(world.names, world.marker_height, world.scenario.obstacles, world.marker_area)
 
     def reset(self) -> None:
         self._in_view: list[np.ndarray] = []

@@ -60,7 +60,7 @@ def test_swapped_identities_missed_robots_and_offsets_are_each_found():
 
 def test_a_robot_hidden_by_an_obstacle_is_not_counted_as_missed():
     wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))     # tall, right beside T
-    monitor = HealthMonitor(NAMES, 0.05, (wall,), 0.03)
+    monitor = HealthMonitor(NAMES, 0.05, (wall,), 0.03**2)
     detected = np.array([True, True, False])
     monitor.add(detected, np.where(detected[:, None], TRUTH, np.nan), TRUTH,
                 np.array([0.0, 1.0, 2.0]))
@@ -89,7 +89,7 @@ def test_a_run_that_tracked_nothing_is_not_healthy_and_a_hidden_robot_is_not_mis
     assert findings[0].describe().startswith("no frame tracked")
     assert math.isnan(nothing.robots[0].detected)
     wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))
-    hidden = HealthMonitor(NAMES, 0.05, (wall,), 0.03)
+    hidden = HealthMonitor(NAMES, 0.05, (wall,), 0.03**2)
     hidden.add(np.array([True, True, False]), TRUTH, TRUTH, np.array([0.0, 1.0, 2.0]))
     seen = HealthMonitor(NAMES)
     _frames(seen, TRUTH, np.ones(3, bool))
