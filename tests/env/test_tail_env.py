@@ -17,7 +17,9 @@ ID = "macrostate_mj/ExploreTail-v0"
 def test_check_env_passes(observe):
     env = gymnasium.make(ID, observe=observe, render_mode="rgb_array")
     try:
-        check_env(env.unwrapped, skip_render_check=False)
+        check_env(env.unwrapped, skip_render_check=False)       # raises on any breach
+        obs, _ = env.reset(seed=0)
+        assert env.observation_space.contains(obs)
     finally:
         env.close()
 
