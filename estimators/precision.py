@@ -17,6 +17,7 @@ is measured where the docs say so; nothing uses it unless asked.
 from __future__ import annotations
 
 import contextlib
+import functools
 from dataclasses import dataclass
 
 from macrostate_mj.core.errors import UserError
@@ -35,6 +36,34 @@ class Precision:
 
         return torch.autocast(device_type=torch.device(device).type,
                               dtype=getattr(torch, self.dtype))
+
+    def check_runs(self, net, device: str = "cpu") -> None:
+        """Refuse, in one line before any work, a network this machine cannot run in this
+        precision. oneDNN has a bfloat16 LSTM only on CPUs with AVX512 (measured: this
+        project's 2-core build machine and its CI fail with "could not create a primitive
+        descriptor"); matrix products and convolutions emulate bfloat16 anywhere."""
+        import torch
+
+        if self.dtype is None or not any(isinstance(m, torch.nn.LSTM) for m in net.modules()):
+            return
+        if not lstm_runs(self.dtype, torch.device(device).type):
+            raise UserError(f"this {device.upper()} cannot run an LSTM in {self.name} (its "
+                            f"oneDNN has no {self.dtype} LSTM, which needs AVX512); "
+                            "train it with --precision fp32", "precision")
+
+
+@functools.cache
+def lstm_runs(dtype: str, device_type: str) -> bool:
+    """Whether a one-step LSTM runs under autocast to `dtype` on this machine (probed once)."""
+    import torch
+
+    lstm = torch.nn.LSTM(2, 2, batch_first=True).to(device_type)
+    try:
+        with torch.autocast(device_type=device_type, dtype=getattr(torch, dtype)):
+            lstm(torch.zeros(1, 1, 2, device=device_type))
+    except RuntimeError:
+        return False
+    return True
 
 
 FP32 = Precision("fp32", None)

@@ -63,7 +63,9 @@ class TrainConfig:
     precision: str = "fp32"   # the training forward passes' arithmetic (`estimators.precision`)
 
     def __post_init__(self) -> None:
-        precision_named(self.precision)
+        precision = precision_named(self.precision)
+        if precision.dtype is not None:      # refused here, before a run collects or loads
+            precision.check_runs(RetloNet(self.model, 1.0))
         for name in ("epochs", "patience", "batch", "threads"):
             check_count(getattr(self, name), name)
         check_seed(self.seed)

@@ -10,6 +10,7 @@ import pytest
 import torch
 from clitools import cli_inprocess as _cli
 
+from estimators.precision import lstm_runs
 from estimators.retlo.chain import SplitChain, predict_chain, tracks_from_world, window
 from estimators.retlo.files import pixels_to_world, read_world, world_to_pixels
 from estimators.retlo.frames import FrameEstimate, history_features
@@ -145,10 +146,10 @@ def test_training_lowers_validation_error(kind):
     assert info["curve"][-1]["train_loss"] < info["curve"][0]["train_loss"]
 
 
-def test_bf16_training_repeats_keeps_float32_weights_and_learns():
+def _bf16_repeats_keeps_float32_weights_and_learns(kind: str) -> None:
     val = synthetic_chains(12, 3, seed=2)
     cfg = TrainConfig(epochs=4, seed=0, batch=64, lr=3e-3, precision="bf16",
-                      model=ModelConfig(kind="lstm", **TINY))
+                      model=ModelConfig(kind=kind, **TINY))
     runs = [train([synthetic_chains(40, 3, seed=1)], val, c, progress=False)
             for c in (cfg, cfg, replace(cfg, precision="fp32"))]
     (one, info), (two, _), (fp32, _) = runs
@@ -157,8 +158,24 @@ def test_bf16_training_repeats_keeps_float32_weights_and_learns():
     assert all(torch.equal(state[k], again[k]) for k in state)
     assert not all(torch.equal(state[k], full[k]) for k in state)
     assert info["curve"][-1]["train_loss"] < info["curve"][0]["train_loss"]
+
+
+def test_bf16_training_repeats_keeps_float32_weights_and_learns():
+    """FC's matrix products run in bfloat16 on any CPU (emulated where it lacks the unit)."""
+    _bf16_repeats_keeps_float32_weights_and_learns("fc")
     with pytest.raises(UserError, match="unknown precision 'half'"):
         TrainConfig(precision="half")
+
+
+def test_bf16_lstm_trains_where_the_cpu_can_and_is_refused_in_one_line_where_not():
+    """oneDNN has a bfloat16 LSTM on AVX512 CPUs only: elsewhere the config is refused before
+    any work, naming the fix, instead of a RuntimeError from deep inside the first batch."""
+    if lstm_runs("bfloat16", "cpu"):
+        _bf16_repeats_keeps_float32_weights_and_learns("lstm")
+    else:
+        with pytest.raises(UserError, match="cannot run an LSTM in bf16.*--precision fp32"):
+            TrainConfig(precision="bf16", model=ModelConfig(kind="lstm", **TINY))
+    TrainConfig(precision="bf16", model=ModelConfig(kind="fc", **TINY))   # no LSTM: accepted
 
 
 def test_checkpoint_round_trip_is_exact_and_versioned(tmp_path):
