@@ -57,9 +57,22 @@ PROFILES: dict[str, dict[str, tuple[float, float] | float]] = {
 REFIT = {"k_f": 4.8917, "k_t": 1.8631, "k_omega": 1.0835, "head_speed": 0.9504,
          "chain_speed": 0.4807, "wait_slack": 1.4125, "marker_jitter": 1.0066,
          "head_jitter_scale": 0.7382}
+
+
+def around(factors: dict[str, float], ranges: dict[str, tuple[float, float] | float] | None
+           ) -> dict[str, tuple[float, float] | float]:
+    """A profile centred on fitted `factors`: each range of `ranges` times the parameter's
+    fitted factor (1 where none was fitted), the other fitted factors fixed."""
+    out: dict[str, tuple[float, float] | float] = dict(factors)
+    for name, bounds in (ranges or {}).items():
+        low, high = bounds if isinstance(bounds, tuple | list) else (bounds, bounds)
+        f = factors.get(name, 1.0)
+        out[name] = (low * f, high * f) if low != high else low * f
+    return out
+
+
 PROFILES["refit"] = dict(REFIT)
-PROFILES["refit-wider"] = {**REFIT, **{k: (lo * REFIT.get(k, 1.0), hi * REFIT.get(k, 1.0))
-                                       for k, (lo, hi) in PROFILES["wider"].items()}}
+PROFILES["refit-wider"] = around(REFIT, PROFILES["wider"])
 
 
 @dataclass(frozen=True)
@@ -105,6 +118,10 @@ class Randomization:
             out.append((name, low, high))
         return cls(profile if profile in PROFILES else str(Path(profile).resolve()),
                    tuple(sorted(out)))
+
+    def profile(self) -> dict[str, tuple[float, float] | float]:
+        """Its ranges as a profile (what `around` centres on a fit)."""
+        return {name: low if low == high else (low, high) for name, low, high in self.ranges}
 
     def draw(self, rng: np.random.Generator) -> dict[str, float]:
         """One episode's factors, in the profile's (sorted) order."""

@@ -108,10 +108,10 @@ def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray
 
 
 def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
-             train_csv: Path) -> dict:
+             real_poses: np.ndarray) -> dict:
     """Collect with these fixed factors (a collection of its own, resumable, in a folder named
-    by what it is made from) and score it against the real features (a cached task keyed by
-    the collection's identity and the real file's content)."""
+    by what it is made from, so fits against other real data share it) and score it against
+    the real features (a cached task keyed by the collection's identity and the real poses)."""
     made_of = {"factors": factors, "config": identity(cfg)}
     folder = out / "candidates" / task_key("sysid-collect", 1, made_of)[:16]
     cache = TaskCache(out / "cache")
@@ -129,30 +129,36 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
         return {"score.json": json.dumps({"factors": factors, "score": score(rows),
                                           "folder": str(folder)}).encode()}
 
-    key = task_key("sysid-score", SCORE_VERSION, made_of, [train_csv])
+    key = task_key("sysid-score", SCORE_VERSION, made_of, [real_poses])
     return json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
 
 
-def _features(path: Path, robots: int | None = None) -> dict:
-    """Motion features of a ThymioLoc file; with `robots`, refuse another team size or layout."""
+def real_poses(path: Path, robots: int) -> np.ndarray:
+    """A real ThymioLoc file's poses (px, degrees); refused unless `robots` robots, 26 steps."""
     poses = read_csv(path).poses
-    if robots is not None:
-        motion_stats.check_comparable((0, INSTANCE_STEPS, robots), poses.shape,
-                                      (f"a {robots}-robot collection", path.name))
-    return motion_stats.features(poses, DEFAULT_PX_PER_CM)
+    motion_stats.check_comparable((0, INSTANCE_STEPS, robots), poses.shape,
+                                  (f"a {robots}-robot collection", path.name))
+    return poses
 
 
-def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
+def _features(path: Path) -> dict:
+    """Motion features of a ThymioLoc file (a candidate's collection)."""
+    return motion_stats.features(read_csv(path).poses, DEFAULT_PX_PER_CM)
+
+
+def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
         progress: Callable[[int, int], None] | None = None) -> dict:
-    """Both stages, then the check on Val; writes fit.json and fitted.json; returns the fit."""
-    real = _features(train_csv, cfg.robots)
-    val = _features(val_csv, cfg.robots)
+    """Both stages on the real `train` poses (px, degrees: a Train file, or the blocks of a
+    cross-validation fold), then the check on `val`; the report (`write` saves it). Candidates
+    are cached under `out`, shared by fits against other real data."""
+    real = motion_stats.features(train, DEFAULT_PX_PER_CM)
+    held = motion_stats.features(val, DEFAULT_PX_PER_CM)
     total, tried = cfg.first + cfg.refine, []
 
     def run(points: np.ndarray) -> None:
         for x in points:
             factors = {k: float(round(np.exp(v), 4)) for k, v in zip(FITTED, x, strict=True)}
-            tried.append(evaluate(factors, out, cfg, real, train_csv))
+            tried.append(evaluate(factors, out, cfg, real, train))
             if progress is not None:
                 progress(len(tried), total)
 
@@ -166,9 +172,14 @@ def fit(cfg: SysidConfig, train_csv: Path, val_csv: Path, out: Path,
               "rows": {}}
     for name, cand in (("before", before), ("after", best)):
         sim = _features(Path(cand["folder"]) / "instances.csv")
-        val_rows = motion_stats.compare(sim, val)
+        val_rows = motion_stats.compare(sim, held)
         report["val"][name] = score(val_rows)
         report["rows"][name] = {"train": motion_stats.compare(sim, real), "val": val_rows}
-    write_json_atomic(out / "fit.json", report)
-    write_text_atomic(out / "fitted.json", json.dumps(best["factors"], indent=1, sort_keys=True))
     return report
+
+
+def write(report: dict, out: Path) -> None:
+    """fit.json (the whole report) and fitted.json (the factors: a `--randomize` profile)."""
+    write_json_atomic(out / "fit.json", report)
+    write_text_atomic(out / "fitted.json",
+                      json.dumps(report["fitted"], indent=1, sort_keys=True))

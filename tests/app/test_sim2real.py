@@ -5,6 +5,7 @@ test needs no reference data)."""
 import json
 import shutil
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,17 @@ from macrostate_mj.app.experiments import cv_blocks, execute, sim2real
 from macrostate_mj.app.experiments.sim2real import PROFILES, equivalent_fraction
 from macrostate_mj.chain import scenarios
 from macrostate_mj.core.errors import UserError
+
+
+@pytest.fixture(scope="module")
+def stand_in(tmp_path_factory):
+    """A small lab collection standing in for the real Train.csv and Val.csv (read only)."""
+    folder = tmp_path_factory.mktemp("s2r") / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
+              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
+              "--out", str(folder))
+    assert res.returncode == 0, res.stderr
+    return folder
 
 
 @pytest.mark.parametrize("fold", range(5))
@@ -37,12 +49,7 @@ def test_equivalent_fraction_interpolates_in_log_share():
         np.exp(np.log(0.1) + 5 / 6 * (np.log(0.25) - np.log(0.1))))  # a noisy bump is ignored
 
 
-def test_experiment_sim2real_quick(tmp_path, monkeypatch):
-    stand_in = tmp_path / "stand_in"
-    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
-              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
-              "--out", str(stand_in))
-    assert res.returncode == 0, res.stderr
+def test_experiment_sim2real_quick(stand_in, tmp_path, monkeypatch):
     out = tmp_path / "s2r"
     res = cli("experiment", "sim2real", "--quick", "--real", str(stand_in), "--out", str(out))
     assert res.returncode == 0, res.stderr
@@ -102,14 +109,9 @@ def test_experiment_sim2real_quick(tmp_path, monkeypatch):
     assert (out / "results.json").read_bytes() == before
 
 
-def test_arms_train_only_what_they_need(tmp_path):
+def test_arms_train_only_what_they_need(stand_in, tmp_path):
     """`--arm sim` trains the sim models alone (no ratio without the real arm); `--arm real`
     collects no lab data; an unknown arm is one line, exit 2."""
-    stand_in = tmp_path / "stand_in"
-    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "3",
-              "--episode-minutes", "1.5", "--seed", "78", "--split", "80/20/0",
-              "--out", str(stand_in))
-    assert res.returncode == 0, res.stderr
     for arms, trained in ((["sim"], 2), (["real"], 4), (["real", "sim"], 2)):
         out = tmp_path / "_".join(arms)
         args = [a for arm in arms for a in ("--arm", arm)]
@@ -169,3 +171,61 @@ def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():
                                              chained=True).key()
     assert plain.key() != sim2real.ModelTask("real", 0, 2, chains, chains, chains,
                                              chained=False).key()
+
+
+def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, monkeypatch):
+    """`--fit fold` fits each fold's lab on that fold's training and validation blocks alone
+    (never its test block); `--fit train` on the real Train.csv (what the folds' test blocks
+    are cut from: leaky). The first fit feeds the sim arm; each fit's sim-only models are
+    reported apart, on the same folds. The fit and the collection are stand-ins here (a fit
+    end to end is `test_sysid`'s): each fitted factor is made of its data's size, and each
+    collection is the stand-in lab with as many Train rows dropped, so every fit trains its
+    own models (fit k makes factor 1 + k / 10 and drops k rows)."""
+    import collectors.sysid
+
+    seen = {}
+
+    def fit(cfg, train, val, out, progress=None):
+        seen[len(seen)] = (train, val)
+        score = {"before": 1.0, "after": 0.5}
+        return {"fitted": {"k_f": 1 + len(seen) / 10}, "train": score, "val": score}
+
+    def lab(config, out, progress, randomize):
+        drop = round((json.loads(Path(randomize).read_text())["k_f"][0] / 0.8 - 1) * 10)
+        out.mkdir(parents=True, exist_ok=True)
+        rows = (stand_in / "Train.csv").read_text().splitlines(keepends=True)
+        (out / "Train.csv").write_text("".join(rows[:-drop]))
+        shutil.copy(stand_in / "Val.csv", out / "Val.csv")
+        return out
+
+    monkeypatch.setattr(collectors.sysid, "fit", fit)
+    monkeypatch.setattr(sim2real, "_collect", lab)
+    config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "real"),
+                     fits=("fold", "train"), randomize="wide")
+    out = tmp_path / "nested"
+    execute("sim2real", config, out)
+    pooled = sim2real.read_real(stand_in)
+    n_train = len(sim2real.read_csv(stand_in / "Train.csv").poses)
+    for fold in range(2):
+        pool, val, test = cv_blocks(len(pooled), config.folds, fold, config.val_share)
+        train_seen, val_seen = seen[fold]
+        assert np.array_equal(train_seen, pooled[pool]) and np.array_equal(val_seen,
+                                                                             pooled[val])
+        assert len(train_seen) + len(val_seen) == len(pooled) - len(test)
+    assert np.array_equal(seen[2][0], pooled[:n_train])
+    assert np.array_equal(seen[2][1], pooled[n_train:])
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["fits"]) == {"fold0", "fold1", "train"}
+    assert results["fits"]["fold1"]["fitted"] == {"k_f": 1.2}
+    by_fit = results["sim_by_fit"]
+    assert by_fit["fold"]["head_cm"] == results["arms"]["sim"]["0"]["head_cm"]
+    assert by_fit["fold"]["head_cm_by_seed"] != by_fit["train"]["head_cm_by_seed"]
+    assert by_fit["train"]["sim_over_real"] == pytest.approx(
+        by_fit["train"]["head_cm"]["mean"] / results["arms"]["real"]["1"]["head_cm"]["mean"])
+    profile = json.loads((out / "data" / "fold0.profile.json").read_text())
+    assert profile["k_f"] == pytest.approx([0.8 * 1.1, 1.2 * 1.1])    # wide's, around 1.1
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["models_trained"] == 2 * 2 + 2 * 2       # sim per fit and seed; real
+    bad = replace(config, fits=("fold", "fold"))
+    with pytest.raises(UserError, match="at most once"):
+        sim2real.validate(bad)

@@ -23,7 +23,7 @@ from macrostate_mj.app.cli.params import (
     Seed,
     Switch,
 )
-from macrostate_mj.app.experiments.sim2real import ARMS
+from macrostate_mj.app.experiments.sim2real import ARMS, FITS
 
 
 @experiment_app.command("sim2real")
@@ -49,6 +49,13 @@ def experiment_sim2real(
     ray: str = typer.Option(None, "--ray", help="Run tasks on Ray: local, auto or ADDRESS."),
     arm: list[str] = Choice(None, "Train only this arm (repeatable; default all): `--arm sim` "
                             "asks only how far a lab collection carries.", ARMS, "--arm"),
+    fit: list[str] = Choice(None, "Where the lab's factors come from (repeatable: the first "
+                            "feeds every arm, each other trains a sim-only model on the same "
+                            "folds): none (the scenario as written), train (`sysid` on the "
+                            "real Train.csv, which these folds' test blocks are cut from), "
+                            "fold (one fit per fold on its training blocks only: the nested "
+                            "protocol, what a held-out test will show). With a fit, "
+                            "--randomize names the ranges drawn around it.", FITS, "--fit"),
     chained: bool = Chained,
     fraction: list[float] = Positive(None, "Train the real-data arms on this share of the real "
                                      "pool (repeatable; default: the profile's, 0.1, 0.25, 0.5 "
@@ -70,7 +77,7 @@ def experiment_sim2real(
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
                      scenario=scenario,
                      randomize=randomize, seed=seed, mix_weight=mix_weight, chained=chained,
-                     precision=precision,
+                     precision=precision, fits=tuple(fit or ("none",)),
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if fraction:
         config = replace(config, fractions=tuple(sorted(set(fraction))))

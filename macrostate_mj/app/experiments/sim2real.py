@@ -42,6 +42,7 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 PRODUCTS = ["results.json", "sim2real.png"]
 ARMS = ("sim", "real", "finetune", "mixed")
 REAL_FILES = ("Train.csv", "Val.csv")
+FITS = ("none", "train", "fold")
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,16 @@ class Config:
     arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
     chained: bool = True       # train on chained Followers too (`TrainConfig.chained`)
     precision: str = "fp32"    # the trainings' arithmetic (`estimators.precision`)
+    # where the lab's factors come from (`FITS`): the scenario as written, a `sysid` fit on the
+    # real Train.csv (what a lab with one real file does; under these folds it has seen the
+    # test blocks), or one fit per fold on that fold's training blocks only (the nested
+    # protocol). The first fit's lab data trains the sim arm and feeds the later arms; each
+    # other fit trains a sim-only model of its own, on the same folds (`sim_by_fit`). With a
+    # fit, `randomize` names the ranges drawn around the fitted factors.
+    fits: tuple[str, ...] = ("none",)
+    sysid_first: int = 16
+    sysid_refine: int = 8
+    sysid_minutes: float = 30.0
 
 
 PROFILES = {
@@ -73,7 +84,8 @@ PROFILES = {
     # results/s2r_mixed); the command's own --randomize replaces it (none by default)
     "full": Config(randomize="wider"),
     "quick": Config(seeds=2, fractions=(0.5, 1.0), epochs=2, finetune_epochs=1,
-                    sim_minutes=6.0, episode_minutes=3.0),
+                    sim_minutes=6.0, episode_minutes=3.0, sysid_first=2, sysid_refine=1,
+                    sysid_minutes=1.0),
 }
 
 
@@ -90,15 +102,13 @@ def _require_splits(folder: Path, flag: str, hint: str) -> None:
 
 
 def read_real(folder: Path) -> np.ndarray:
-    """The pooled real instances (metres), Train then Val; one-line errors otherwise."""
-    from estimators.retlo.files import pixels_to_world
-
+    """The pooled real instances (px, degrees), Train then Val; one-line errors otherwise."""
     _require_splits(folder, "--real", "the folder of the real ThymioLoc Train.csv and Val.csv")
     parts = [read_csv(folder / f).poses for f in REAL_FILES]
     if len({p.shape[1:] for p in parts}) != 1 or parts[0].shape[2] != 3:
         raise UserError(f"--real {folder}: Train.csv and Val.csv must both hold 3-robot "
                         "instances of the same length")
-    return pixels_to_world(np.concatenate(parts), DEFAULT_PX_PER_CM)
+    return np.concatenate(parts)
 
 
 def validate(config: Config) -> np.ndarray:
@@ -123,23 +133,77 @@ def validate(config: Config) -> np.ndarray:
 
     if config.randomize is not None:
         Randomization.parse(config.randomize)
+    bad = [f for f in config.fits if f not in FITS]
+    if bad or not config.fits or len(set(config.fits)) != len(config.fits):
+        raise UserError(f"--fit {', '.join(bad or config.fits) or '(none)'}: name each of "
+                        f"{', '.join(FITS)} at most once")
+    if config.fits != ("none",) and config.sim is not None:
+        raise UserError("--fit fits the lab collection this command makes; drop it or --sim")
     if not 0.0 < config.mix_weight < 1.0:
         raise UserError(f"--mix-weight {config.mix_weight:g}: the lab data's share of the "
                         "mixed arm's loss must be in (0, 1)")
     return pooled
 
 
-def _sim_data(config: Config, out: Path, workers: int, ray: str | None) -> Path:
-    """The folder of the lab Train.csv / Val.csv: `--sim`, or a lab collection in `out` (a
-    `collect` run: resumed, and replaced when another config made it, its episodes kept)."""
-    if config.sim is not None:
-        return config.sim
+def _collect(config: Config, out: Path, progress: Progress, randomize: str | None) -> Path:
+    """A lab collection in `out` (a `collect` run: resumed, and replaced when another config
+    made it, its episodes kept)."""
     req = CollectRequest(config.scenario, 3, config.sim_minutes, config.sim_seed, out, "passive",
-                         workers=workers, ray=ray, split="80/20/0", overwrite=True,
-                         episode_minutes=config.episode_minutes, randomize=config.randomize)
+                         workers=progress.workers, ray=progress.ray, split="80/20/0",
+                         overwrite=True, episode_minutes=config.episode_minutes,
+                         randomize=randomize)
     if not finished(req):
         collect(req)
     return out
+
+
+def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, name: str,
+                progress: Progress) -> tuple[Path, dict]:
+    """`sysid` on real poses `train` (checked on `val`), then a lab collection drawn around the
+    fitted factors (`randomize`'s ranges times each factor) in `out / "data" / name`. The
+    candidates' collections are cached in `out / "sysid"`, shared by every fit of the run."""
+    from collectors.randomize import Randomization, around
+    from collectors.sysid import SysidConfig, fit
+
+    cfg = SysidConfig(scenario=config.scenario, robots=3, minutes=config.sysid_minutes,
+                      seed=config.sim_seed, first=config.sysid_first,
+                      refine=config.sysid_refine, episode_minutes=config.episode_minutes,
+                      workers=progress.workers)
+    report = fit(cfg, train, val, out / "sysid",
+                 lambda done, total: progress.report(f"sysid {name}", done, total))
+    ranges = None if config.randomize is None else \
+        Randomization.parse(config.randomize).profile()
+    folder = out / "data" / name
+    folder.mkdir(parents=True, exist_ok=True)
+    profile = folder.parent / f"{name}.profile.json"
+    write_json_atomic(profile, around(report["fitted"], ranges))
+    summary = {"fitted": report["fitted"], "train_ks": report["train"],
+               "val_ks": report["val"]}
+    return _collect(config, folder, progress, str(profile)), summary
+
+
+def lab_data(config: Config, fit: str, pooled: np.ndarray, folds: list[tuple], out: Path,
+             progress: Progress) -> tuple[list[Path], dict]:
+    """Each model seed's lab collection (Train.csv and Val.csv) and the fits made, by `fit`:
+    `--sim`, or one collection for every seed (the scenario as written, or fitted on the real
+    Train.csv), or one per fold fitted on that fold's training blocks only."""
+    if config.sim is not None:
+        return [config.sim] * len(folds), {}
+    if fit == "none":
+        return [_collect(config, out / "data" / "sim", progress, config.randomize)] * \
+            len(folds), {}
+    if fit == "train":
+        n_train = len(read_csv(config.real / REAL_FILES[0]).poses)
+        folder, fitted = _fitted_lab(config, pooled[:n_train], pooled[n_train:], out, "train",
+                                     progress)
+        return [folder] * len(folds), {"train": fitted}
+    made: dict[int, tuple[Path, dict]] = {}
+    for fold, pool, val in folds:
+        if fold not in made:
+            made[fold] = _fitted_lab(config, pooled[pool], pooled[val], out, f"fold{fold}",
+                                     progress)
+    return [made[fold][0] for fold, _, _ in folds], \
+        {f"fold{f}": fitted for f, (_, fitted) in sorted(made.items())}
 
 
 Data = Path | np.ndarray
@@ -206,31 +270,41 @@ class ModelTask:
 
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect (or take) the lab data, train every arm and fraction, plot; summary lines."""
+    from estimators.retlo.files import pixels_to_world
     from viz.sim2real_figures import plot_curve
 
     with progress.stage("data"):
-        pooled = validate(config)
-        sim = None if config.arms == ("real",) else \
-            _sim_data(config, out / "data" / "sim", progress.workers, progress.ray)
+        pixels = validate(config)
+        folds = [(i % config.folds, *cv_blocks(len(pixels), config.folds, i % config.folds,
+                                               config.val_share)[:2])
+                 for i in range(config.seeds)]
+        labs, fits = {}, {}
+        for fit in config.fits if config.arms != ("real",) else ():
+            labs[fit], made = lab_data(config, fit, pixels, folds, out, progress)
+            fits |= made
+    pooled = pixels_to_world(pixels, DEFAULT_PX_PER_CM)
+    sims = labs.get(config.fits[0], [None] * config.seeds)
     later = [a for a in ARMS[1:] if a in config.arms]
     sim_models = "sim" in config.arms or "finetune" in config.arms
-    total = config.seeds * (sim_models + len(later) * len(config.fractions))
+    total = config.seeds * (sim_models * len(labs) + len(later) * len(config.fractions))
     blocks, first = [], []
-    for i in range(config.seeds):
+    for i, sim in enumerate(sims):
         s = config.seed + i
         pool, val, test = cv_blocks(len(pooled), config.folds, i % config.folds,
                                     config.val_share)
-        blocks.append((s, pooled[pool], pooled[val], pooled[test]))
+        blocks.append((s, pooled[pool], pooled[val], pooled[test], sim))
         if sim_models:
-            first.append(({"arm": "sim", "fraction": 0.0, "count": 0, "seed": s},
-                          ModelTask("sim", s, config.epochs, sim / "Train.csv",
-                                    sim / "Val.csv", pooled[test], chained=config.chained,
-                                    precision=config.precision)))
+            first += [({"arm": "sim", "fit": fit, "fraction": 0.0, "count": 0, "seed": s},
+                       ModelTask("sim", s, config.epochs, lab[i] / "Train.csv",
+                                 lab[i] / "Val.csv", pooled[test], chained=config.chained,
+                                 precision=config.precision))
+                      for fit, lab in labs.items()]
     with progress.stage("models"):
         done = _train(first, progress, total)
         second: list[tuple[dict, ModelTask]] = []
-        for i, (s, pool, val, test) in enumerate(blocks):
-            checkpoint = done[id(first[i][1])].folder / "model.pt" if sim_models else None
+        for i, (s, pool, val, test, sim) in enumerate(blocks):
+            checkpoint = done[id(first[i * len(labs)][1])].folder / "model.pt" \
+                if sim_models else None
             for f in config.fractions:
                 count = max(1, int(np.ceil(f * len(pool))))
                 second += [({"arm": arm, "fraction": f, "count": count, "seed": s},
@@ -239,11 +313,18 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         done |= _train(second, progress, total, len(first))
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
                for meta, task in [*first, *second] if meta["arm"] in config.arms]
+    # the first fit's sim models are the sim arm; the other fits' are kept apart
+    others = [r for r in reports if r.get("fit", config.fits[0]) != config.fits[0]]
+    reports = [r for r in reports if r not in others]
     results = summarize(reports, config, len(pooled))
+    if len(labs) > 1:
+        results["sim_by_fit"] = by_fit(reports, others, config, results)
+    if fits:
+        results["fits"] = fits
     write_json_atomic(out / "results.json", results)
     plot_curve(results, out / "sim2real.png")
     hits = set(progress.cache.hits)
-    progress.record(models=len(reports), sim_data=str(sim),
+    progress.record(models=len(reports), sim_data=sorted({str(p) for p in sims if p is not None}),
                     models_trained=len({t.key() for _, t in [*first, *second]} - hits))
     return summary_lines(results)
 
@@ -300,6 +381,20 @@ def summarize(reports: list[dict], config: Config, n_real: int) -> dict:
         f: equivalent_fraction(v["head_cm"]["mean"], config.fractions,
                                [real[f"{g:g}"]["head_cm"]["mean"] for g in config.fractions])
         for f, v in out["arms"].get("finetune", {}).items()}
+    return out
+
+
+def by_fit(reports: list[dict], others: list[dict], config: Config, results: dict) -> dict:
+    """The sim-only Head error of every fit on the same folds, with its ratio to real only
+    (where the real arm ran) and, per seed, for paired comparisons."""
+    out = {}
+    for fit in config.fits:
+        cell = [r for r in [*reports, *others] if r["arm"] == "sim" and r.get("fit") == fit]
+        out[fit] = {"head_cm": mean_std([r["head_cm"] for r in cell]),
+                    "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in cell}}
+        if "real" in results["arms"]:
+            real = results["arms"]["real"][f"{max(config.fractions):g}"]["head_cm"]["mean"]
+            out[fit]["sim_over_real"] = out[fit]["head_cm"]["mean"] / real
     return out
 
 
