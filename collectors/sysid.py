@@ -70,16 +70,9 @@ def identity(cfg: SysidConfig) -> dict:
 
 
 def score(rows: list[dict]) -> float:
-    """Summed KS over per-robot rows; the lags of one autocorrelation family averaged."""
-    plain, lags = 0.0, {}
-    for r in rows:
-        if r["robot"] == "pooled":
-            continue
-        if "_acf_lag" in r["feature"]:
-            lags.setdefault((r["feature"].split("_lag")[0], r["robot"]), []).append(r["ks"])
-        else:
-            plain += r["ks"]
-    return plain + sum(float(np.mean(v)) for v in lags.values())
+    """Summed KS over per-robot rows; the lags of one autocorrelation family averaged
+    (`motion_stats.rank`'s sums, over every statistic)."""
+    return sum(r["sum"] for r in motion_stats.rank(rows))
 
 
 def _sobol(n: int, seed: int) -> np.ndarray:

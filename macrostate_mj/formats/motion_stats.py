@@ -94,6 +94,28 @@ def compare(a: dict, b: dict) -> list[dict]:
     return rows
 
 
+def family(feature: str) -> str:
+    """The statistic a compared row belongs to: each autocorrelation's ten lags are one."""
+    return feature.split("_lag")[0] if "_acf_lag" in feature else feature
+
+
+def rank(rows: list[dict]) -> list[dict]:
+    """The statistics of `compare`'s rows, farthest apart first: per robot (or pair) its KS
+    distance (an autocorrelation's lags averaged, so that ten lags weigh as one statistic),
+    their sum and the worst; the pooled rows are left out (robots differ: pooling hides it)."""
+    per: dict[str, dict[str, list[float]]] = {}
+    for r in rows:
+        if r["robot"] != "pooled":
+            per.setdefault(family(r["feature"]), {}).setdefault(r["robot"], []).append(r["ks"])
+    ranked = [{"statistic": name,
+               "ks": {who: float(np.mean(v)) for who, v in robots.items()}}
+              for name, robots in per.items()]
+    for r in ranked:
+        r["sum"] = float(sum(r["ks"].values()))
+        r["worst"] = max(r["ks"], key=r["ks"].get)
+    return sorted(ranked, key=lambda r: (-r["ks"][r["worst"]], r["statistic"]))
+
+
 def check_comparable(shape_a: tuple[int, ...], shape_b: tuple[int, ...], names: tuple[str, str]
                      ) -> None:
     """Two files compare robot by robot only with the same team size and instance length."""

@@ -47,9 +47,34 @@ def test_files_that_do_not_compare_are_refused(tmp_path, capsys):
     three, five = _file(tmp_path, "3.csv"), _file(tmp_path, "5.csv", n_robots=5)
     for args, words in ((["--compare", str(three), str(five)], "same team size"),
                         (["--compare", str(three)], "exactly two files"),
-                        ([str(three), "--plot", str(tmp_path / "p.png")], "needs --compare")):
+                        ([str(three), "--plot", str(tmp_path / "p.png")], "need --compare")):
         code, _, err = _cli(capsys, "stats", *args)
         assert code == 2 and err.count("\n") == 1 and words in err, err
     assert not (tmp_path / "p.png").exists()
     with pytest.raises(UserError, match="too short"):
         motion_stats.features(np.zeros((2, 8, 3, 3)), 3.0)
+
+
+def test_the_ranked_gap_puts_the_statistic_that_differs_first(tmp_path, capsys):
+    """1 cm of tracker noise on one copy: the frame-to-frame jitter ranks first, with the lab
+    parameters that shape it beside it; an autocorrelation's ten lags are one statistic; the
+    table and --json say the same."""
+    from collectors.gap import SHAPED_BY
+
+    clean, noisy = _file(tmp_path, "c.csv"), _file(tmp_path, "n.csv", jitter=0.01)
+    code, out, err = _cli(capsys, "stats", "--compare", str(clean), str(noisy), "--rank",
+                          "--json")
+    assert code == 0, err
+    ranked = [json.loads(line) for line in out.splitlines()]
+    assert ranked[0]["statistic"] == "jitter_cm" and "marker_jitter" in ranked[0]["shaped_by"]
+    assert {r["statistic"] for r in ranked} == set(SHAPED_BY)        # every one, lags as one
+    worst = [r["ks"][r["worst"]] for r in ranked]
+    assert worst == sorted(worst, reverse=True)
+    assert all(r["sum"] == pytest.approx(sum(r["ks"].values())) for r in ranked)
+    assert set(ranked[0]["ks"]) == {"H", "F1", "T"} and "pooled" not in ranked[0]["ks"]
+    spacing = next(r for r in ranked if r["statistic"] == "spacing_cm")
+    assert set(spacing["ks"]) == {"H-F1", "F1-T"}
+    code, table, _ = _cli(capsys, "stats", "--compare", str(clean), str(noisy), "--rank")
+    assert code == 0 and table.index("jitter_cm") < table.index("spacing_cm")
+    code, _, err = _cli(capsys, "stats", str(clean), "--rank")
+    assert code == 2 and "need --compare" in err and err.count("\n") == 1

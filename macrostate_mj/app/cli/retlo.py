@@ -51,6 +51,9 @@ def stats(
                            "--json/--table"),
     compare: bool = Switch(False, "Two files (SIM REAL): compare distributions, per robot and "
                            "pooled, with the Kolmogorov-Smirnov distance of each feature."),
+    rank: bool = Switch(False, "With --compare: the statistics ranked by how far apart the "
+                        "two files are (worst robot's KS; an autocorrelation's ten lags as one), "
+                        "with the lab parameters that shape each."),
     plot: Path = OutputFile(None, "With --compare: histograms side by side to this PNG.",
                             (".png",)),
     overwrite: bool = Switch(False, "Replace an existing --plot."),
@@ -66,11 +69,11 @@ def stats(
     from macrostate_mj.core.errors import UserError
     from macrostate_mj.formats.thymioloc import chain_stats, read_csv
 
-    if compare or plot is not None:
+    if compare or plot is not None or rank:
         if not compare or len(csv) != 2:
             raise UserError("--compare takes exactly two files (SIM.csv REAL.csv), and --plot "
-                            "needs --compare")
-        _compare(csv, px_per_cm, plot, overwrite, as_json)
+                            "and --rank need --compare")
+        _compare(csv, px_per_cm, plot, overwrite, as_json, rank)
         return
     found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
     if as_json:
@@ -366,7 +369,7 @@ def _load_one(model: str) -> tuple[Module, str]:
 
 
 def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bool,
-             as_json: bool) -> None:
+             as_json: bool, rank: bool = False) -> None:
     import json
 
     from rich.console import Console
@@ -386,6 +389,9 @@ def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bo
         from viz.compare_figures import compare_figure
 
         compare_figure(plot, *feats, rows, (csv[0].name, csv[1].name))
+    if rank:
+        _ranked(csv, rows, as_json)
+        return
     if as_json:
         for row in rows:
             print(json.dumps({"files": [str(p) for p in csv], **row}))
@@ -403,3 +409,28 @@ def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bo
     if plot is not None:
         print(f"plot      {plot}")
 
+
+
+def _ranked(csv: list[Path], rows: list[dict], as_json: bool) -> None:
+    """`stats --compare --rank`: the gap between two files, its largest statistic first."""
+    import json
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from collectors.gap import ranked_gap
+
+    ranked = ranked_gap(rows)
+    if as_json:
+        for row in ranked:
+            print(json.dumps({"files": [str(p) for p in csv], **row}))
+        return
+    table = Table(title=f"{csv[0].name} vs {csv[1].name}: statistics ranked by the worst "
+                  "robot's KS distance")
+    for col in ("#", "statistic", "worst", "each robot (pair)", "sum", "shaped in the lab by"):
+        table.add_column(col, justify="right" if col in ("#", "sum") else "left")
+    for i, r in enumerate(ranked, 1):
+        table.add_row(str(i), r["statistic"], f"{r['worst']} {r['ks'][r['worst']]:.3f}",
+                      "  ".join(f"{who} {ks:.3f}" for who, ks in r["ks"].items()),
+                      f"{r['sum']:.2f}", ", ".join(r["shaped_by"]) or "-")
+    Console(width=150).print(table)

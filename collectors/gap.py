@@ -1,0 +1,37 @@
+"""The sim-to-real gap, ranked: which motion statistic a lab collection gets most wrong against
+a real file, and which of the lab's parameters shape it (what `sysid` can move, what the
+randomization profiles draw, `collectors.randomize`).
+
+The ranking is `motion_stats.rank` (each statistic's KS distance per robot, an
+autocorrelation's lags as one); the parameters beside each are the lab's models of it, so a
+statistic high in the ranking with nothing beside it is a difference the lab does not model.
+"""
+
+from __future__ import annotations
+
+from collectors.randomize import PARAMETERS
+from macrostate_mj.formats import motion_stats
+
+# Which of the lab's parameters move each statistic (by the chain's rules: the Head's speed cap
+# and the Followers' gains, cap and wait rule drive speeds and spacing; the heading gain turns;
+# the tracker's noise makes the frame-to-frame jitter and, through it, accelerations and the
+# autocorrelations' short lags; wheel grip and motor torque limit accelerations).
+SHAPED_BY: dict[str, tuple[str, ...]] = {
+    "spacing_cm": ("k_f", "k_t", "wait_slack"),
+    "speed_cm_s": ("head_speed", "chain_speed", "k_f", "k_t", "wait_slack"),
+    "turn_deg_s": ("k_omega", "marker_jitter", "head_jitter_scale"),
+    "heading_change_deg": ("k_omega", "marker_jitter", "head_jitter_scale"),
+    "accel_cm_s2": ("motor_torque", "wheel_friction", "marker_jitter", "head_jitter_scale"),
+    "jitter_cm": ("marker_jitter", "head_jitter_scale", "sensor_sigma", "blur_px",
+                  "psf_sigma_px"),
+    "wait_share": ("wait_slack", "chain_speed", "k_f"),
+    "speed_acf": ("marker_jitter", "head_jitter_scale", "k_f", "k_t"),
+    "turn_acf": ("k_omega", "marker_jitter", "head_jitter_scale"),
+}
+assert all(set(v) <= set(PARAMETERS) for v in SHAPED_BY.values())
+
+
+def ranked_gap(rows: list[dict]) -> list[dict]:
+    """`motion_stats.rank` of compared rows, each with the lab parameters that shape it."""
+    return [{**r, "shaped_by": list(SHAPED_BY.get(r["statistic"], ()))}
+            for r in motion_stats.rank(rows)]
