@@ -3,8 +3,11 @@ controller and imaging parameters drawn from ranges around the scenario's values
 
 A profile maps parameter names to (low, high) factors applied to the scenario's own value, so one
 profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by a uniform draw in
-[0.8, 1.2]. Draws come from the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized
-collection is still bit-identical for any worker count. A profile is a built-in name or a JSON
+[0.8, 1.2]. The `ABSOLUTE` parameters, whose scenario value is zero by default, are added in
+their own unit instead (`frame_jitter: (0, 0.1)` delays each frame by up to 0-0.1 s more,
+`follow_start: 0.01` lets a rear robot wait 1 cm more before it sets off). Draws come from
+the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized collection is still
+bit-identical for any worker count. A profile is a built-in name or a JSON
 file `{"k_f": [0.8, 1.2], ...}`; a bare number fixes a factor (`{"k_f": 1.1}`: what
 `sysid` writes). The collection's manifest records it.
 """
@@ -27,10 +30,12 @@ from macrostate_mj.vision.imaging import NoiseConfig
 # Where each parameter lives: the scenario's rules, the compiled model, or the imaging chain.
 SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "marker_jitter",
             "head_jitter_scale")
-RULES = ("wait_slack",)          # the lab Followers' wait rule (`WaitForBehind.slack`)
+RULES = ("wait_slack", "follow_start")   # the lab Followers' wait rule (`WaitForBehind`)
 MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
-PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING)
+TIMING = ("frame_hz", "frame_jitter")     # the camera's frames (`ScenarioConfig.camera_hz`)
+PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING)
+ABSOLUTE = ("frame_jitter", "follow_start")   # added in their unit (s, m): zero by default
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
@@ -62,12 +67,18 @@ REFIT = {"k_f": 4.8917, "k_t": 1.8631, "k_omega": 1.0835, "head_speed": 0.9504,
 def around(factors: dict[str, float], ranges: dict[str, tuple[float, float] | float] | None
            ) -> dict[str, tuple[float, float] | float]:
     """A profile centred on fitted `factors`: each range of `ranges` times the parameter's
-    fitted factor (1 where none was fitted), the other fitted factors fixed."""
+    fitted factor (1 where none was fitted; an `ABSOLUTE` one's range shifted by its fitted
+    value), the other fitted factors fixed."""
     out: dict[str, tuple[float, float] | float] = dict(factors)
     for name, bounds in (ranges or {}).items():
         low, high = bounds if isinstance(bounds, tuple | list) else (bounds, bounds)
-        f = factors.get(name, 1.0)
-        out[name] = (low * f, high * f) if low != high else low * f
+        if name in ABSOLUTE:
+            f = factors.get(name, 0.0)
+            low, high = low + f, high + f
+        else:
+            f = factors.get(name, 1.0)
+            low, high = low * f, high * f
+        out[name] = (low, high) if low != high else low
     return out
 
 
@@ -111,10 +122,13 @@ class Randomization:
             except (TypeError, ValueError):
                 raise UserError(f"--randomize: {name} wants [low, high] factors or one fixed "
                                 f"factor, got {bounds!r}") from None
-            if not (math.isfinite(low) and math.isfinite(high)) or low <= 0 or \
+            least = 0.0 if name in ABSOLUTE else math.ulp(0.0)
+            if not (math.isfinite(low) and math.isfinite(high)) or low < least or \
                     (low >= high and not fixed):
-                raise UserError(f"--randomize: {name} range [{low:g}, {high:g}] is empty or not "
-                                "positive; give factors with 0 < low < high")
+                what = ("values (s, m) with 0 <= low < high" if name in ABSOLUTE
+                        else "positive factors with 0 < low < high")
+                raise UserError(f"--randomize: {name} range [{low:g}, {high:g}] is empty or "
+                                f"out of range; give {what}")
             out.append((name, low, high))
         return cls(profile if profile in PROFILES else str(Path(profile).resolve()),
                    tuple(sorted(out)))
@@ -129,11 +143,26 @@ class Randomization:
                 for name, low, high in self.ranges}
 
 
+def check_fits(profile: Randomization, cfg: ScenarioConfig) -> None:
+    """Refuse, before any episode, a profile whose extremes make no valid scenario (a frame
+    jitter as long as the fastest frame period)."""
+    highest = {name: high for name, _, high in profile.ranges}
+    try:
+        randomized_scenario(cfg, highest)
+    except UserError as err:
+        raise UserError(f"--randomize {profile.name}: at its highest values, {err}") from None
+
+
 def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
     cfg = replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
-    if "wait_slack" in factors and isinstance(cfg.followers, WaitForBehind):
-        cfg = replace(cfg, followers=replace(cfg.followers,
-                                             slack=cfg.followers.slack * factors["wait_slack"]))
+    if "frame_hz" in factors or "frame_jitter" in factors:
+        cfg = replace(cfg, frame_hz=cfg.camera_hz * factors.get("frame_hz", 1.0),
+                      frame_jitter=cfg.frame_jitter + factors.get("frame_jitter", 0.0))
+    rule = cfg.followers
+    if isinstance(rule, WaitForBehind) and {"wait_slack", "follow_start"} & set(factors):
+        cfg = replace(cfg, followers=replace(
+            rule, slack=rule.slack * factors.get("wait_slack", 1.0),
+            start=rule.start + factors.get("follow_start", 0.0)))
     return cfg
 
 

@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig, PolicySpec
-from collectors.randomize import Randomization
+from collectors.randomize import Randomization, check_fits
 from macrostate_mj.chain.rendered import check_rendered_colours
 from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
 from macrostate_mj.chain.world import robot_names, validate_chain
@@ -112,6 +112,8 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
                         f"give at least {math.ceil(shortest * 100) / 100:g} minutes")
     policy = req.policy_spec or PolicyConfig(req.policy, req.sigma)
     randomize = None if req.randomize is None else Randomization.parse(req.randomize)
+    if randomize is not None:
+        check_fits(randomize, cfg)
     return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
                         head_speed=req.head_speed, randomize=randomize)
             for i in range(req.first_episode, req.first_episode + n)]

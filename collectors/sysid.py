@@ -3,7 +3,9 @@
 What is fitted: factors on the scenario's own values (`collectors.randomize` names, so a fit is
 a fixed-factor profile that `collect --randomize fitted.json` reads): the Follower and Tail
 gains, the heading gain, the Head's and the chain's speed caps, the lab wait rule's slack, the
-tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`).
+tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`),
+the camera's frame rate; and values added to the scenario's zero: the frames' timing jitter
+(s) and the rear robots' start gap (m).
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
@@ -26,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from collectors.randomize import ABSOLUTE
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import TaskCache, task_key
@@ -40,10 +43,16 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 # spacing (their median speed jumps from 1.5 to 6 cm/s between gaps of 29 and 31 cm), which the
 # lab's proportional rule reaches only with gains several times its own and a speed cap near the
 # Head's; the real Head's marker jitter is lower than the others' (docs: decisions/sysid).
+# The camera's frame timing (issue 54): the real Head's row-to-row speed alternates (lag-1
+# autocorrelation -0.35, lag-2 +0.29), which frames of uneven age make and a steady 4 fps under
+# a 2 Hz log cannot; the rear robots' start gap (m), which keeps a stiff parked chain still.
+# The `ABSOLUTE` ones' boxes are in their units (s, m) from 0 (the scenario as written), the
+# others' factors; a jitter stays under the fastest frame period (1 / (4 Hz x 1.6) = 0.156 s).
 BOUNDS: dict[str, tuple[float, float]] = {
     "k_f": (0.6, 10.0), "k_t": (0.6, 10.0), "k_omega": (0.6, 1.6), "head_speed": (0.6, 1.6),
     "chain_speed": (0.3, 1.6), "wait_slack": (0.6, 1.6), "marker_jitter": (0.6, 1.6),
-    "head_jitter_scale": (0.5, 1.6)}
+    "head_jitter_scale": (0.5, 1.6), "frame_hz": (0.6, 1.6), "frame_jitter": (0.0, 0.15),
+    "follow_start": (0.0, 0.04)}
 FITTED = tuple(BOUNDS)
 SCORE_VERSION = 1          # bump when the motion features or the score change
 
@@ -84,12 +93,26 @@ def _sobol(n: int, seed: int) -> np.ndarray:
 
 
 def box() -> tuple[np.ndarray, np.ndarray]:
-    """The log-factor box's lower and upper corners, in FITTED's order."""
-    return tuple(np.log([BOUNDS[k][i] for k in FITTED]) for i in (0, 1))
+    """The search box's lower and upper corners, in FITTED's order: log-factors, and the
+    `ABSOLUTE` parameters' values as they are (0, the scenario as written, is the origin of
+    both)."""
+    return tuple(np.array([BOUNDS[k][i] if k in ABSOLUTE else np.log(BOUNDS[k][i])
+                           for k in FITTED]) for i in (0, 1))
+
+
+def values(x: np.ndarray) -> dict[str, float]:
+    """A point of the box as the profile `collect --randomize` reads (factors, and values)."""
+    return {k: float(round(v if k in ABSOLUTE else np.exp(v), 4))
+            for k, v in zip(FITTED, x, strict=True)}
+
+
+def point(fitted: dict[str, float]) -> np.ndarray:
+    """`values`' inverse."""
+    return np.array([fitted[k] if k in ABSOLUTE else np.log(fitted[k]) for k in FITTED])
 
 
 def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray:
-    """Log-factor points (k, len(FITTED)): stage 1 over the whole box (point 0 = no change),
+    """Points of the box (k, len(FITTED)): stage 1 over the whole box (point 0 = no change),
     or stage 2 around `centre`."""
     lo, hi = box()
     if centre is None:
@@ -150,14 +173,13 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
 
     def run(points: np.ndarray) -> None:
         for x in points:
-            factors = {k: float(round(np.exp(v), 4)) for k, v in zip(FITTED, x, strict=True)}
-            tried.append(evaluate(factors, out, cfg, real, train))
+            tried.append(evaluate(values(x), out, cfg, real, train))
             if progress is not None:
                 progress(len(tried), total)
 
     run(candidates(cfg))
     best = min(tried, key=lambda c: c["score"])
-    run(candidates(cfg, np.log([best["factors"][k] for k in FITTED])))
+    run(candidates(cfg, point(best["factors"])))
     best = min(tried, key=lambda c: c["score"])
     before = tried[0]
     report = {"config": identity(cfg), "fitted": best["factors"], "candidates": tried,

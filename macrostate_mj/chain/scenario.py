@@ -33,7 +33,8 @@ LAYOUT: dict[str, dict[str, str]] = {
               "k_f": "k_f", "k_t": "k_t", "k_omega": "k_omega", "allow_reverse": "allow_reverse",
               "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
               "avoid_gain": "avoid_gain"},
-    "rates": {"command_hz": "command_hz", "log_hz": "log_hz"},
+    "rates": {"command_hz": "command_hz", "log_hz": "log_hz", "frame_hz": "frame_hz",
+              "frame_jitter": "frame_jitter"},
     "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale"},
 }
 NESTED = {"camera": "camera", "physics": "physics", "look": "look",
@@ -99,6 +100,17 @@ class ScenarioConfig:
     imaging: NoiseConfig = NoiseConfig()    # what the camera chain does to each frame
     markers: ColourMarkers | ArucoMarkers = ColourMarkers()     # what each robot wears
     tracking: TrackingLimits = TrackingLimits()     # when a tracked run fails its health
+    frame_hz: float | None = None   # the camera's frame rate (None, "auto" in a file: the
+    #                                 command rate, the text's 4 fps); frames land on the
+    #                                 nearest physics step, so any rate is allowed
+    frame_jitter: float = 0.0       # each frame's delay after its nominal instant, uniform in
+    #                                 [0, frame_jitter) s: a tracker whose frames take uneven
+    #                                 time, so each 2 Hz row's frame has an uneven age
+
+    @property
+    def camera_hz(self) -> float:
+        """The rate frames are taken at (`frame_hz`, else the command rate)."""
+        return self.command_hz if self.frame_hz is None else self.frame_hz
 
     def __post_init__(self) -> None:
         """Refuse, when the scenario is made, rates that are not whole physics steps and a
@@ -124,7 +136,22 @@ class ScenarioConfig:
                 raise UserError(f"{self.name}: the {what} rate {named(f'{what}_hz')} must be "
                                 f"positive, got {hz:g} Hz", f"{what}_hz")
             steps_per_tick(1 / hz, self.physics.timestep, f"{self.name} {what}")
+        self._check_frames()
         self._check_robot()
+
+    def _check_frames(self) -> None:
+        """A positive frame rate; a jitter that keeps every frame before the next one's
+        nominal instant (frames stay in order)."""
+        if self.frame_hz is not None and not (isinstance(self.frame_hz, int | float)
+                                              and math.isfinite(self.frame_hz)
+                                              and self.frame_hz > 0):
+            raise UserError(f"{self.name}: {named('frame_hz')} must be a positive rate (Hz) "
+                            f"or auto, got {self.frame_hz!r}", "frame_hz")
+        j = self.frame_jitter
+        if not (isinstance(j, int | float) and math.isfinite(j) and 0 <= j < 1 / self.camera_hz):
+            raise UserError(f"{self.name}: {named('frame_jitter')} must be a delay >= 0 s "
+                            f"under one frame period ({1 / self.camera_hz:g} s), got {j!r}",
+                            "frame_jitter")
 
     def _check_robot(self) -> None:
         """The robot file meets the contract and can drive the Head's speed (the robot's

@@ -77,18 +77,24 @@ class Every:
 
 class _Ticks:
     """When a hook is due: tick times rounded to whole physics steps and computed from the tick
-    count (no drift)."""
+    count (no drift). A hook with `tick_time(count)` (s after its phase) ticks irregularly:
+    the camera's frames when their timing jitters."""
 
     def __init__(self, hook: Hook, t0: float, dt: float):
         self.hook, self.dt = hook, dt
         self.origin, self.count = t0 + hook.phase, 0
-        self.next_step = int(round(self.origin / dt))
+        self.when = getattr(hook, "tick_time", None)
+        self.next_step = int(round(self._time(0) / dt))
+
+    def _time(self, count: int) -> float:
+        return self.origin + (count * self.hook.period if self.when is None
+                              else self.when(count))
 
     def fire_if_due(self, sim: ChainSim, step: int) -> None:
         if step >= self.next_step:
             self.hook.on_tick(sim)
             self.count += 1
-            self.next_step = int(round((self.origin + self.count * self.hook.period) / self.dt))
+            self.next_step = int(round(self._time(self.count) / self.dt))
 
 
 class Mission(Protocol):

@@ -18,6 +18,10 @@ window around each (`regions`): the window holds the marker wherever the robot c
 since, and `imaging.regions` makes its pixels exactly as the whole frame's chain would. After a
 miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 
+Frames are taken at the scenario's `frame_hz` (the command rate unless set), each delayed by
+up to `frame_jitter` s (its own stream, drawn only when above zero): the 2 Hz log then records
+frames of uneven age, as the real logger did (the real Head's speed alternates from row to row).
+
 The scenario's `marker_jitter` adds white Gaussian noise to every tracked position (the Head's
 scaled by `head_jitter_scale`), drawn per frame from the imaging stream (only when it is above
 zero, so a scenario without it keeps its outputs bit for bit). It stands for what our rendered
@@ -71,7 +75,7 @@ class CameraChain:
                  windows: bool = True, lazy: bool = True, health: bool = True):
         self.sim = sim
         self.on_frame: Callable[[float, np.ndarray], None] | None = None    # see `film`
-        self.period, self.phase = 1 / sim.cfg.command_hz, phase     # a `Hook`: command rate
+        self.period, self.phase = 1 / sim.cfg.camera_hz, phase      # a `Hook`: frame rate
         self._episode_rng = rng
         self.noise = noise or sim.cfg.imaging       # default: the scenario's own
         self.renderer = OverheadRenderer(sim.model, distortion=sim.cfg.camera.distortion)
@@ -97,6 +101,9 @@ class CameraChain:
         self.conditions.restore()
         mujoco.mj_forward(sim.model, sim.data)
         self.rng = rng
+        if sim.cfg.frame_jitter > 0:     # its own stream: the imaging draws stay as they were
+            self._timing = rng.spawn(1)[0]
+            self.tick_time = self._jittered
         shape = (self.renderer.height, self.renderer.width, 3)
         self.episode = draw_episode(self.noise, rng, shape)
         self.tracker = tracker_for(     # the world's marker kind's tracker
@@ -113,6 +120,11 @@ class CameraChain:
         self._seen_at = np.nan
         if self.health is not None:
             self.health.reset()
+
+    def _jittered(self, count: int) -> float:
+        """When frame `count` is taken (s after the first nominal instant): its nominal instant
+        plus a delay uniform in [0, frame_jitter) (`ChainSim` asks once per frame)."""
+        return count * self.period + float(self._timing.uniform(0.0, self.sim.cfg.frame_jitter))
 
     def film(self, on_frame: Callable[[float, np.ndarray], None]) -> None:
         """Hand every frame the tracker gets, whole, to `on_frame(t, rgb)` (a camera video):

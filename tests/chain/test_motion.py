@@ -131,3 +131,21 @@ def test_cell_planner_redraws_on_entering_a_new_cell():
     assert np.array_equal(planner.target, first)
     planner.update(np.array([0.4, 0.1, 0]), 2.0, rng)      # next cell: new nearby centre
     assert planner.grid.adjacent(planner.cell, planner.grid.cell_of(planner.target))
+
+
+def test_a_start_gap_keeps_rear_robots_still_until_the_robot_ahead_pulls_clearly_away():
+    """`start`: a rear robot less than `start` beyond d waits (a parked chain is not tugged
+    into turning on the spot); beyond it, it sets off at once at the speed its gain gives (the
+    real rear robots' jump); without `start` the rule is bit for bit what it was."""
+    just_beyond = np.array([[0.0, 0], [-0.31, 0], [-0.62, 0]])
+    clearly = np.array([[0.0, 0], [-0.33, 0], [-0.66, 0]])
+    started, plain = WaitForBehind(0.05, start=0.02), WaitForBehind(0.05)
+    assert np.all(chain_velocities(just_beyond, None, 0.3, 40, 20, followers=started) == 0)
+    assert np.all(chain_velocities(just_beyond, None, 0.3, 40, 20, followers=plain)[1:, 0] > 0)
+    assert np.array_equal(chain_velocities(clearly, None, 0.3, 40, 20, followers=started),
+                          chain_velocities(clearly, None, 0.3, 40, 20, followers=plain))
+    assert np.array_equal(chain_velocities(just_beyond, None, 0.3, 40, 20,
+                                           followers=WaitForBehind(0.05, start=0.0)),
+                          chain_velocities(just_beyond, None, 0.3, 40, 20, followers=plain))
+    with pytest.raises(ValueError, match="followers.start"):
+        WaitForBehind(0.05, start=-0.01)

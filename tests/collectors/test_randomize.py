@@ -9,6 +9,8 @@ from clitools import assert_clean_error, cli
 from collectors.randomize import (
     PROFILES,
     Randomization,
+    around,
+    check_fits,
     randomize_model,
     randomized_noise,
     randomized_scenario,
@@ -90,3 +92,30 @@ def test_a_bare_number_fixes_a_factor(tmp_path):
     path.write_text(json.dumps({"k_f": 0}))
     with pytest.raises(UserError, match="positive"):
         Randomization.parse(str(path))
+
+
+def test_absolute_parameters_add_to_the_scenario_and_their_extremes_are_checked(tmp_path):
+    """The frame timing jitter and the rear robots' start gap are zero in the built-in labs:
+    a profile adds to them in their own unit (0 is a valid low), `around` shifts their range
+    by the fitted value, and a profile whose highest frame rate leaves no room for its jitter
+    is refused before any episode."""
+    lab = get_scenario("lab")
+    cfg = randomized_scenario(lab, {"frame_hz": 0.75, "frame_jitter": 0.05,
+                                    "follow_start": 0.02, "wait_slack": 2.0})
+    assert cfg.camera_hz == 3.0 and cfg.frame_jitter == 0.05
+    assert cfg.followers.start == 0.02 and cfg.followers.slack == 2 * lab.followers.slack
+    assert lab.frame_hz is None and lab.camera_hz == lab.command_hz == 4.0
+    profile = tmp_path / "p.json"
+    profile.write_text(json.dumps({"frame_jitter": [0.0, 0.1], "frame_hz": [0.8, 1.2]}))
+    parsed = Randomization.parse(str(profile))
+    assert parsed.profile() == {"frame_hz": (0.8, 1.2), "frame_jitter": (0.0, 0.1)}
+    check_fits(parsed, lab)
+    assert around({"frame_jitter": 0.05, "k_f": 2.0}, {"frame_jitter": (0.0, 0.1),
+                                                        "k_f": (0.5, 1.5)}) == \
+        {"frame_jitter": (0.05, pytest.approx(0.15)), "k_f": (1.0, 3.0)}
+    profile.write_text(json.dumps({"frame_jitter": [0.0, 0.2], "frame_hz": [1.0, 1.6]}))
+    with pytest.raises(UserError, match="highest values.*frame_jitter"):
+        check_fits(Randomization.parse(str(profile)), lab)
+    profile.write_text(json.dumps({"k_f": [0.0, 1.2]}))
+    with pytest.raises(UserError, match="positive factors with 0 < low"):
+        Randomization.parse(str(profile))

@@ -7,7 +7,17 @@ import numpy as np
 import pytest
 from clitools import cli
 
-from collectors.sysid import FITTED, SysidConfig, box, candidates, identity, score
+from collectors.randomize import ABSOLUTE
+from collectors.sysid import (
+    FITTED,
+    SysidConfig,
+    box,
+    candidates,
+    identity,
+    point,
+    score,
+    values,
+)
 
 
 def test_score_sums_per_robot_rows_and_averages_each_lag_family():
@@ -24,7 +34,11 @@ def test_candidates_start_from_the_scenario_and_stay_in_the_box():
     first = candidates(cfg)
     assert first.shape == (8, len(FITTED)) and np.array_equal(first[0], np.zeros(len(FITTED)))
     lo, hi = box()
-    assert np.all((first >= lo) & (first <= hi)) and np.all(lo < 0) and np.all(hi > 0)
+    assert np.all((first >= lo) & (first <= hi)) and np.all(lo <= 0) and np.all(hi > 0)
+    factor = np.array([k not in ABSOLUTE for k in FITTED])
+    assert np.all(lo[factor] < 0) and np.all(lo[~factor] == 0)       # 0: as the lab is written
+    assert values(first[0]) == {k: (0.0 if k in ABSOLUTE else 1.0) for k in FITTED}
+    assert np.allclose(point(values(first[3])), first[3], atol=1e-4)
     assert np.array_equal(first, candidates(cfg))                       # seeded
     centre = first[3]
     second = candidates(cfg, centre)

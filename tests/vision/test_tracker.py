@@ -241,3 +241,37 @@ def test_the_chain_on_crops_matches_the_whole_frame():
         for x0, y0, img in imaging.regions(rgb, ep, draw, rects):
             assert np.array_equal(img, full[y0:y0 + img.shape[0], x0:x0 + img.shape[1]]), (
                 seed, x0, y0)
+
+
+def test_frames_at_their_own_rate_with_a_timing_jitter_are_seeded_and_in_order():
+    """`frame_hz` and `frame_jitter`: frames are taken at the camera's own rate, each delayed
+    by up to the jitter after its nominal instant (on whole physics steps), from a stream of
+    their own: the same seed gives the same frames, and the 2 Hz log then holds frames of
+    uneven age. Without them the camera keeps the command rate."""
+    from macrostate_mj.chain.sim import PoseLog
+
+    cfg = get_scenario("lab").with_overrides(frame_hz=3.0, frame_jitter=0.1)
+
+    def frame_times(cfg, seed):
+        sim = ChainSim(build_world(cfg, 3))
+        sim.reset(np.random.default_rng(seed))
+        chain = CameraChain(sim, rng=np.random.default_rng([seed, 1]), lazy=False)
+        taken = []
+        capture = chain.capture
+        chain.capture = lambda s: (taken.append(s.time), capture(s))
+        log = PoseLog(sim.world.names, tracker=chain)
+        sim.episode(12.0, [chain, Every(0.5, log.append, 0.1)])
+        return np.array(taken), log.tracked_arrays()
+
+    times, log = frame_times(cfg, 5)
+    gaps = np.diff(times)
+    assert np.all(gaps > 1 / 3 - 0.1 - 1e-9) and np.all(gaps < 1 / 3 + 0.1 + 1e-9)
+    assert gaps.std() > 0.02                       # not a steady rate
+    assert len(times) == pytest.approx(12 * 3, abs=1)
+    again, log_again = frame_times(cfg, 5)
+    assert np.array_equal(times, again)
+    assert np.array_equal(log["tracked"], log_again["tracked"], equal_nan=True)
+    ages = (np.arange(len(log["tracked_time"])) * 0.5 + 0.1)[:, None] - log["tracked_time"]
+    assert np.nanstd(ages[2:, 0]) > 0.03
+    steady, _ = frame_times(get_scenario("lab"), 5)
+    assert np.allclose(np.diff(steady), 0.25)
