@@ -34,8 +34,10 @@ RULES = ("wait_slack", "follow_start")   # the lab Followers' wait rule (`WaitFo
 MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
 TIMING = ("frame_hz", "frame_jitter")     # the camera's frames (`ScenarioConfig.camera_hz`)
-PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING)
-ABSOLUTE = ("frame_jitter", "follow_start")   # added in their unit (s, m): zero by default
+SPREAD = ("wheel_spread", "marker_offset")   # how the robots differ (`ScenarioConfig`)
+PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING, *SPREAD)
+# added in their unit (s, m, a share), not factors: zero by default
+ABSOLUTE = ("frame_jitter", "follow_start", *SPREAD)
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
@@ -155,6 +157,7 @@ def check_fits(profile: Randomization, cfg: ScenarioConfig) -> None:
 
 def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
     cfg = replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
+    cfg = replace(cfg, **{k: getattr(cfg, k) + f for k, f in factors.items() if k in SPREAD})
     if "frame_hz" in factors or "frame_jitter" in factors:
         cfg = replace(cfg, frame_hz=cfg.camera_hz * factors.get("frame_hz", 1.0),
                       frame_jitter=cfg.frame_jitter + factors.get("frame_jitter", 0.0))

@@ -5,7 +5,7 @@ a fixed-factor profile that `collect --randomize fitted.json` reads): the Follow
 gains, the heading gain, the Head's and the chain's speed caps, the lab wait rule's slack, the
 tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`),
 the camera's frame rate; and values added to the scenario's zero: the frames' timing jitter
-(s) and the rear robots' start gap (m).
+(s), the rear robots' start gap (m), the wheels' radius spread and the markers' offset (m).
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
@@ -45,14 +45,15 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 # Head's; the real Head's marker jitter is lower than the others' (docs: decisions/sysid).
 # The camera's frame timing (issue 54): the real Head's row-to-row speed alternates (lag-1
 # autocorrelation -0.35, lag-2 +0.29), which frames of uneven age make and a steady 4 fps under
-# a 2 Hz log cannot; the rear robots' start gap (m), which keeps a stiff parked chain still.
+# a 2 Hz log cannot; the rear robots' start gap (m), which keeps a stiff parked chain still;
+# how the robots differ (each wheel's radius, each marker's place on its body).
 # The `ABSOLUTE` ones' boxes are in their units (s, m) from 0 (the scenario as written), the
 # others' factors; a jitter stays under the fastest frame period (1 / (4 Hz x 1.6) = 0.156 s).
 BOUNDS: dict[str, tuple[float, float]] = {
     "k_f": (0.6, 10.0), "k_t": (0.6, 10.0), "k_omega": (0.6, 1.6), "head_speed": (0.6, 1.6),
     "chain_speed": (0.3, 1.6), "wait_slack": (0.6, 1.6), "marker_jitter": (0.6, 1.6),
     "head_jitter_scale": (0.5, 1.6), "frame_hz": (0.6, 1.6), "frame_jitter": (0.0, 0.15),
-    "follow_start": (0.0, 0.04)}
+    "follow_start": (0.0, 0.04), "wheel_spread": (0.0, 0.05), "marker_offset": (0.0, 0.01)}
 FITTED = tuple(BOUNDS)
 SCORE_VERSION = 1          # bump when the motion features or the score change
 

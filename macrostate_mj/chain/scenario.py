@@ -28,14 +28,15 @@ from macrostate_mj.core.errors import UserError
 LAYOUT: dict[str, dict[str, str]] = {
     "": {"name": "name"},
     "arena": {"size": "arena", "margin": "wall_margin", "obstacles": "obstacles"},
-    "robot": {"model": "robot"},
+    "robot": {"model": "robot", "wheel_spread": "wheel_spread"},
     "chain": {"spacing": "spacing", "head_speed": "head_speed", "chain_speed": "chain_speed",
               "k_f": "k_f", "k_t": "k_t", "k_omega": "k_omega", "allow_reverse": "allow_reverse",
               "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
               "avoid_gain": "avoid_gain"},
     "rates": {"command_hz": "command_hz", "log_hz": "log_hz", "frame_hz": "frame_hz",
               "frame_jitter": "frame_jitter"},
-    "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale"},
+    "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale",
+              "marker_offset": "marker_offset"},
 }
 NESTED = {"camera": "camera", "physics": "physics", "look": "look",
           "tracking": "tracking"}   # table -> dataclass field
@@ -107,6 +108,13 @@ class ScenarioConfig:
     #                                 [0, frame_jitter) s: a tracker whose frames take uneven
     #                                 time, so each 2 Hz row's frame has an uneven age
 
+    wheel_spread: float = 0.0       # robots are not alike: each wheel's radius differs from
+    #                                 the robot file's by a factor 1 + N(0, spread) drawn per
+    #                                 episode (kept within +-3 spread), so each robot drives at
+    #                                 its own speed and curves a little
+    marker_offset: float = 0.0      # each robot's marker sits off its body's centre by
+    #                                 N(0, offset) m per body axis, drawn per episode
+
     @property
     def camera_hz(self) -> float:
         """The rate frames are taken at (`frame_hz`, else the command rate)."""
@@ -141,12 +149,17 @@ class ScenarioConfig:
 
     def _check_frames(self) -> None:
         """A positive frame rate; a jitter that keeps every frame before the next one's
-        nominal instant (frames stay in order)."""
+        nominal instant (frames stay in order); robots' spreads of a plausible size."""
         if self.frame_hz is not None and not (isinstance(self.frame_hz, int | float)
                                               and math.isfinite(self.frame_hz)
                                               and self.frame_hz > 0):
             raise UserError(f"{self.name}: {named('frame_hz')} must be a positive rate (Hz) "
                             f"or auto, got {self.frame_hz!r}", "frame_hz")
+        for key in ("wheel_spread", "marker_offset"):
+            v = getattr(self, key)
+            if not (isinstance(v, int | float) and math.isfinite(v) and 0 <= v < 0.1):
+                raise UserError(f"{self.name}: {named(key)} must be >= 0 and under 0.1 (a "
+                                f"share for the wheels, metres for the marker), got {v!r}", key)
         j = self.frame_jitter
         if not (isinstance(j, int | float) and math.isfinite(j) and 0 <= j < 1 / self.camera_hz):
             raise UserError(f"{self.name}: {named('frame_jitter')} must be a delay >= 0 s "

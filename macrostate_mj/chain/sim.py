@@ -188,8 +188,21 @@ class ChainSim:
         self.monitor = PhysicsMonitor(world)
         # Health checks at least this often (physics steps); events bound the stretches too.
         self.check_steps = 10**9
+        self._wheels = np.array([self.model.geom(f"{nm}/wheel_{side}").id
+                                 for nm in world.names for side in ("left", "right")])
+        self._wheel_size = self.model.geom_size[self._wheels, 0].copy()
         self._state_spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._saved = np.empty(mujoco.mj_stateSize(self.model, self._state_spec))
+
+    def _spread_wheels(self, rng: np.random.Generator) -> None:
+        """Each wheel's radius this episode (`wheel_spread`): drawn from a child of the reset
+        stream only when the spread is above zero, so a lab without it keeps every draw."""
+        self.model.geom_size[self._wheels, 0] = self._wheel_size
+        spread = self.cfg.wheel_spread
+        if spread > 0:
+            child = np.random.default_rng(rng.integers(2**63))
+            factor = 1 + spread * np.clip(child.standard_normal(len(self._wheels)), -3, 3)
+            self.model.geom_size[self._wheels, 0] = self._wheel_size * factor
 
     # -- lifecycle ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator | int, start: np.ndarray | None = None) -> None:
@@ -207,6 +220,7 @@ class ChainSim:
         if self.mission is not None:
             self.mission.reset()
         start = place_chain(self.cfg, self.n, rng) if start is None else start
+        self._spread_wheels(rng)
         for adr, (x, y, th) in zip(self.world.qpos_adr, start, strict=True):
             self.data.qpos[adr:adr + 3] = [x, y, self.model.qpos0[adr + 2]]
             self.data.qpos[adr + 3:adr + 7] = [np.cos(th / 2), 0, 0, np.sin(th / 2)]

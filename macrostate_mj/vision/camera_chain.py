@@ -21,6 +21,8 @@ miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 Frames are taken at the scenario's `frame_hz` (the command rate unless set), each delayed by
 up to `frame_jitter` s (its own stream, drawn only when above zero): the 2 Hz log then records
 frames of uneven age, as the real logger did (the real Head's speed alternates from row to row).
+A `marker_offset` moves each robot's tracked point off its body's centre (drawn per episode,
+turning with the body): real markers are not stuck on exactly.
 
 The scenario's `marker_jitter` adds white Gaussian noise to every tracked position (the Head's
 scaled by `head_jitter_scale`), drawn per frame from the imaging stream (only when it is above
@@ -101,9 +103,16 @@ class CameraChain:
         self.conditions.restore()
         mujoco.mj_forward(sim.model, sim.data)
         self.rng = rng
-        if sim.cfg.frame_jitter > 0:     # its own stream: the imaging draws stay as they were
-            self._timing = rng.spawn(1)[0]
-            self.tick_time = self._jittered
+        self._offset = None
+        if sim.cfg.frame_jitter > 0 or sim.cfg.marker_offset > 0:
+            # streams of their own (children of the imaging stream's seed, which they leave as
+            # it was): each frame's delay, and each robot's marker offset on its body
+            self._timing, placing = rng.spawn(2)
+            if sim.cfg.frame_jitter > 0:
+                self.tick_time = self._jittered
+            if sim.cfg.marker_offset > 0:
+                self._offset = placing.normal(0.0, sim.cfg.marker_offset,
+                                              (len(sim.world.names), 2))
         shape = (self.renderer.height, self.renderer.width, 3)
         self.episode = draw_episode(self.noise, rng, shape)
         self.tracker = tracker_for(     # the world's marker kind's tracker
@@ -257,6 +266,11 @@ class CameraChain:
         self._latest[seen] = det.poses[seen]
         if jitter is not None:
             self._latest[seen, :2] += jitter[seen]
+        if self._offset is not None:     # the marker's offset, turning with the body
+            c, s = np.cos(truth[seen, 2]), np.sin(truth[seen, 2])
+            off = self._offset[seen]
+            self._latest[seen, :2] += np.stack([c * off[:, 0] - s * off[:, 1],
+                                                s * off[:, 0] + c * off[:, 1]], axis=1)
         self._latest_time[seen] = t
         self._latest_truth[seen] = truth[seen]
         self._detected[:] = det.detected

@@ -275,3 +275,35 @@ def test_frames_at_their_own_rate_with_a_timing_jitter_are_seeded_and_in_order()
     assert np.nanstd(ages[2:, 0]) > 0.03
     steady, _ = frame_times(get_scenario("lab"), 5)
     assert np.allclose(np.diff(steady), 0.25)
+
+
+def test_robots_that_differ_wheels_and_markers_drawn_per_episode_from_the_seed():
+    """`wheel_spread`: each wheel's radius drawn per episode from a child of the reset stream
+    (the same seed, the same wheels; none without it); `marker_offset`: each robot's tracked
+    point sits off its centre by a fixed vector that turns with the body."""
+    cfg = get_scenario("lab").with_overrides(wheel_spread=0.03, marker_offset=0.005,
+                                             marker_jitter=0.0)   # the offset alone
+    sim = ChainSim(build_world(cfg, 3))
+    nominal = sim.model.geom_size[sim._wheels, 0].copy()
+    sim.reset(7)
+    first = sim.model.geom_size[sim._wheels, 0].copy()
+    sim.reset(7)
+    assert np.array_equal(first, sim.model.geom_size[sim._wheels, 0])
+    ratio = first / nominal
+    assert len(set(ratio.round(6))) == 6 and np.all(np.abs(ratio - 1) <= 0.09)
+    plain = ChainSim(build_world(get_scenario("lab"), 3))
+    plain.reset(7)
+    assert np.array_equal(plain.model.geom_size[plain._wheels, 0], nominal)
+
+    chain = CameraChain(sim, rng=np.random.default_rng([7, 1]), lazy=False)
+    seen = []
+    sim.reset(7)
+    sim.episode(10.0, [chain, Every(0.5, lambda s: seen.append(
+        (chain.latest.copy(), chain.latest_truth.copy())), 0.3)])
+    tracked, truth = (np.array(a)[4:] for a in zip(*seen, strict=True))
+    c, s = np.cos(truth[..., 2]), np.sin(truth[..., 2])
+    d = tracked[..., :2] - truth[..., :2]
+    body = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
+    offset = np.median(body, axis=0)                 # per robot, in its body frame
+    assert np.all(np.abs(body - offset).max(axis=0) < 0.004)     # fixed on the body
+    assert np.abs(offset).max() > 0.002
