@@ -407,6 +407,47 @@ def s2r_sim(real: str, *folders: str) -> Table:
     return rows
 
 
+FIT_LABELS = {"none": "none: the scenario as written",
+              "fold": "fold: fitted in each fold on its training blocks (nested)",
+              "train": "train: fitted on the real Train.csv (has seen the test blocks)"}
+
+
+@source
+def s2r_fits(folder: str) -> Table:
+    """A sim-to-real run's sim-only models by where the lab's factors came from (`--fit`), on
+    the same folds and seeds: Head error (cm), its ratio to the real-only arm on all of the
+    pool, and the per-seed difference to the first fit's (mean ± std over seeds)."""
+    data = load(f"{folder}/results.json")
+    fits = data["sim_by_fit"]  # type: ignore[index]
+    first = next(iter(fits.values()))["head_cm_by_seed"]
+    rows = [["lab factors (--fit)", "sim only, Head (cm)", "÷ real only (100 %)",
+             "− the first, per seed (cm)"]]
+    for i, (fit, cell) in enumerate(fits.items()):
+        diffs = [cell["head_cm_by_seed"][s] - first[s] for s in first]
+        rows.append([FIT_LABELS.get(fit, fit), _stat(cell["head_cm"], ".2f"),
+                     f"{cell['sim_over_real']:.2f}x" if "sim_over_real" in cell else "",
+                     f"{statistics.fmean(diffs):+.2f} ± {statistics.stdev(diffs):.2f}"
+                     if i and len(diffs) > 1 else ""])
+    return rows
+
+
+@source
+def gap_ranked(*files: str) -> Table:
+    """Ranked sim-to-real gaps (`stats --compare --rank --json` files, one per lab): per
+    statistic the worst robot's KS distance in each, in the first file's order."""
+    runs = [[json.loads(line) for line in (RESULTS / f).read_text().splitlines()]
+            for f in files]
+    rows = [["statistic", *(Path(f).stem for f in files), "shaped in the lab by"]]
+    for r in runs[0]:
+        cells = []
+        for run in runs:
+            other = next(x for x in run if x["statistic"] == r["statistic"])
+            cells.append(f"{other['ks'][other['worst']]:.2f} ({other['worst']})")
+        rows.append([r["statistic"], *cells, ", ".join(r["shaped_by"])])
+    rows.append(["summed", *(f"{sum(x['sum'] for x in run):.2f}" for run in runs), ""])
+    return rows
+
+
 @source
 def retlo_sim(folder: str) -> Table:
     """Fig 2.2: per case, the chained MLPs' mean and max error (cm) and the 2X heuristic's."""

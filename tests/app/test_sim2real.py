@@ -222,7 +222,8 @@ def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, m
     assert by_fit["fold"]["head_cm_by_seed"] != by_fit["train"]["head_cm_by_seed"]
     assert by_fit["train"]["sim_over_real"] == pytest.approx(
         by_fit["train"]["head_cm"]["mean"] / results["arms"]["real"]["1"]["head_cm"]["mean"])
-    profile = json.loads((out / "data" / "fold0.profile.json").read_text())
+    data = results["fits"]["fold0"]["data"]
+    profile = json.loads((out / "data" / f"{data}.profile.json").read_text())
     assert profile["k_f"] == pytest.approx([0.8 * 1.1, 1.2 * 1.1])    # wide's, around 1.1
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["models_trained"] == 2 * 2 + 2 * 2       # sim per fit and seed; real

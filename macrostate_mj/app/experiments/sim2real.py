@@ -160,7 +160,7 @@ def _collect(config: Config, out: Path, progress: Progress, randomize: str | Non
 def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, name: str,
                 progress: Progress) -> tuple[Path, dict]:
     """`sysid` on real poses `train` (checked on `val`), then a lab collection drawn around the
-    fitted factors (`randomize`'s ranges times each factor) in `out / "data" / name`. The
+    fitted factors (`randomize`'s ranges times each factor) in `out / "data"`. The
     candidates' collections are cached in `out / "sysid"`, shared by every fit of the run."""
     from collectors.randomize import Randomization, around
     from collectors.sysid import SysidConfig, fit
@@ -173,12 +173,14 @@ def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, n
                  lambda done, total: progress.report(f"sysid {name}", done, total))
     ranges = None if config.randomize is None else \
         Randomization.parse(config.randomize).profile()
-    folder = out / "data" / name
+    drawn = around(report["fitted"], ranges)
+    # folds whose fits agree share one collection: its folder is named by the profile
+    folder = out / "data" / f"fit-{task_key('sim2real-lab', 1, drawn)[:12]}"
     folder.mkdir(parents=True, exist_ok=True)
-    profile = folder.parent / f"{name}.profile.json"
-    write_json_atomic(profile, around(report["fitted"], ranges))
+    profile = folder.parent / f"{folder.name}.profile.json"
+    write_json_atomic(profile, drawn)
     summary = {"fitted": report["fitted"], "train_ks": report["train"],
-               "val_ks": report["val"]}
+               "val_ks": report["val"], "data": folder.name}
     return _collect(config, folder, progress, str(profile)), summary
 
 
