@@ -13,6 +13,11 @@ is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Fou
 - real: trained on a fraction of the pool, selected on the real validation block;
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`);
 - mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`).
+Where the lab's factors come from (`fits`, `--fit`): the scenario as written; a `sysid` fit on
+the real Train.csv (leaky under these folds, whose test blocks it has seen); or the nested
+protocol, one fit per fold on that fold's training and validation blocks alone, so the
+cross-validated ratio estimates what a held-out real test will show. Naming several trains
+each one's sim-only models on the same folds (`sim_by_fit`).
 Every model is the LSTM of `train retlo --model lstm`, a cached task
 (`cache/sim2real-model/<key>/`: its report, and a sim model's checkpoint) keyed by its training
 settings and the bytes of its data (the lab CSVs, the real blocks, a fine-tuned model's sim
@@ -326,7 +331,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     write_json_atomic(out / "results.json", results)
     plot_curve(results, out / "sim2real.png")
     hits = set(progress.cache.hits)
-    progress.record(models=len(reports), sim_data=sorted({str(p) for p in sims if p is not None}),
+    progress.record(models=len(reports),
+                    sim_data=sorted({str(p) for lab in labs.values() for p in lab}),
                     models_trained=len({t.key() for _, t in [*first, *second]} - hits))
     return summary_lines(results)
 
