@@ -85,6 +85,11 @@ MEANINGS = {
     "chain.avoid_radius": "robots repel each other within it, m",
     "chain.avoid_gain": "strength of that repulsion",
     "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
+    "rates.frame_hz": "the camera's frame rate, Hz (auto: the command rate)",
+    "rates.frame_jitter": "each frame's delay after its nominal instant, uniform up to it, s",
+    "robot.wheel_spread": "each wheel's radius factor 1 + N(0, spread), drawn per episode",
+    "noise.marker_offset": "each robot's marker off its centre, m (σ per body axis, per "
+                           "episode)",
     "noise.marker_jitter": "white noise added to every tracked position, m (σ)",
     "noise.head_jitter_scale": "the Head's marker jitter as a share of marker_jitter",
     "noise.light_scale": "[low, high] of the diffuse light's intensity factor, drawn per episode",
@@ -115,6 +120,7 @@ MEANINGS = {
     "followers.slack": "wait while the robot behind lags more than d + slack, m",
     "followers.hold": "stop, not back off, while less than this nearer than d to the robot "
                       "ahead, m (0: back off; d: never)",
+    "followers.start": "wait until the robot ahead is more than d + start away, m",
     "markers.kind": "what each robot wears: colour (a triangle of its own colour) or aruco "
                     "(a fiducial tag, with markers.dictionary)",
     "markers.dictionary": "aruco: OpenCV's predefined dictionary, e.g. DICT_4X4_50",
