@@ -20,7 +20,7 @@ miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 
 Frames are taken at the scenario's `frame_hz` (the command rate unless set), each delayed by
 up to `frame_jitter` s (its own stream, drawn only when above zero): the 2 Hz log then records
-frames of uneven age, as the real logger did (the real Head's speed alternates from row to row).
+frames of uneven age, and the logged speeds alternate from row to row (as the real Head's do).
 A `marker_offset` moves each robot's tracked point off its body's centre (drawn per episode,
 turning with the body): real markers are not stuck on exactly.
 
