@@ -432,6 +432,29 @@ def s2r_fits(folder: str) -> Table:
 
 
 @source
+def s2r_fit_runs(fit: str, *folders: str) -> Table:
+    """One `--fit` of several sim-to-real runs on the same folds and seeds (different lab
+    models): how many parameters it fitted, its sim-only Head error, its ratio to the run's
+    real-only arm, and on how many folds it beats the first run's."""
+    rows = [["run", "parameters fitted", "sim only, Head (cm)", "÷ real only (100 %)",
+             "folds better than the first"]]
+    first: dict = {}
+    for i, folder in enumerate(folders):
+        data = load(f"{folder}/results.json")
+        cell = data.get("sim_by_fit", {}).get(fit) or data["arms"]["sim"]["0"]  # type: ignore
+        fitted = next(v["fitted"] for k, v in data["fits"].items()  # type: ignore[index]
+                      if k.startswith(fit))
+        real = data["arms"]["real"]["1"]["head_cm"]["mean"]  # type: ignore[index]
+        by_seed = cell["head_cm_by_seed"]
+        first = first or by_seed
+        better = sum(by_seed[s] < first[s] for s in first)
+        rows.append([nodes.literal(text=folder), str(len(fitted)), _stat(cell["head_cm"], ".2f"),
+                     f"{cell['head_cm']['mean'] / real:.2f}x",
+                     f"{better} / {len(first)}" if i else ""])
+    return rows
+
+
+@source
 def gap_ranked(*files: str) -> Table:
     """Ranked sim-to-real gaps (`stats --compare --rank --json` files, one per lab): per
     statistic the worst robot's KS distance in each, in the first file's order."""
