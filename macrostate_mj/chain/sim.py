@@ -43,9 +43,11 @@ from macrostate_mj.core.errors import UserError
 class Hook(Protocol):
     """A participant of an episode. The names say when each is called (dm_control's lifecycle):
     `initialize_episode` once, after `reset` and before the first tick; `on_tick` on each of the
-    hook's ticks, every `period` s from `phase` after the episode starts; `finalize_episode` once
-    at the end, `keep=False` when the run was interrupted (partial outputs are removed) and True
-    otherwise, a physics failure included (what was simulated up to it is kept)."""
+    hook's ticks, every `period` s from `phase` after the episode starts (or, for a hook with a
+    `tick_time(count)` method, at the times it gives: the camera's jittered frames);
+    `finalize_episode` once at the end, `keep=False` when the run was interrupted (partial
+    outputs are removed) and True otherwise, a physics failure included (what was simulated up
+    to it is kept)."""
 
     period: float
     phase: float
