@@ -42,6 +42,7 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.core.frames import from_frame
 from macrostate_mj.vision import imaging
 from macrostate_mj.vision.camera import OverheadRenderer
 from macrostate_mj.vision.health import HealthMonitor
@@ -267,10 +268,7 @@ class CameraChain:
         if jitter is not None:
             self._latest[seen, :2] += jitter[seen]
         if self._offset is not None:     # the marker's offset, turning with the body
-            c, s = np.cos(truth[seen, 2]), np.sin(truth[seen, 2])
-            off = self._offset[seen]
-            self._latest[seen, :2] += np.stack([c * off[:, 0] - s * off[:, 1],
-                                                s * off[:, 0] + c * off[:, 1]], axis=1)
+            self._latest[seen, :2] += from_frame(self._offset[seen], np.zeros(2), truth[seen, 2])
         self._latest_time[seen] = t
         self._latest_truth[seen] = truth[seen]
         self._detected[:] = det.detected

@@ -8,6 +8,7 @@ from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world, marker_area
 from macrostate_mj.core.angles import wrap_angle
+from macrostate_mj.core.frames import to_frame
 from macrostate_mj.vision.camera import OverheadRenderer, PinholeCamera
 from macrostate_mj.vision.camera_chain import CameraChain
 from macrostate_mj.vision.imaging import NoiseConfig, degrade, draw_episode
@@ -301,9 +302,7 @@ def test_robots_that_differ_wheels_and_markers_drawn_per_episode_from_the_seed()
     sim.episode(10.0, [chain, Every(0.5, lambda s: seen.append(
         (chain.latest.copy(), chain.latest_truth.copy())), 0.3)])
     tracked, truth = (np.array(a)[4:] for a in zip(*seen, strict=True))
-    c, s = np.cos(truth[..., 2]), np.sin(truth[..., 2])
-    d = tracked[..., :2] - truth[..., :2]
-    body = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
+    body = to_frame(tracked[..., :2][..., None, :], truth[..., :2], truth[..., 2])[..., 0, :]
     offset = np.median(body, axis=0)                 # per robot, in its body frame
     assert np.all(np.abs(body - offset).max(axis=0) < 0.004)     # fixed on the body
     assert np.abs(offset).max() > 0.002
