@@ -119,3 +119,11 @@ def test_absolute_parameters_add_to_the_scenario_and_their_extremes_are_checked(
     profile.write_text(json.dumps({"k_f": [0.0, 1.2]}))
     with pytest.raises(UserError, match="positive factors with 0 < low"):
         Randomization.parse(str(profile))
+
+
+@pytest.mark.parametrize(("key", "value"), [("frame_jitter", 0.3), ("frame_hz", -1.0),
+                                            ("wheel_spread", float("nan")),
+                                            ("marker_offset", 0.5)])
+def test_the_new_keys_refuse_bad_values_from_python_in_one_line(key, value):
+    with pytest.raises(ValueError, match=f"{key} \\(.* in a scenario file\\) must be"):
+        get_scenario("lab").with_overrides(**{key: value})
