@@ -401,7 +401,8 @@ def s2r_sim(real: str, *folders: str) -> Table:
         profile, cell = run["profile"]["randomize"], run["arms"]["sim"]["0"]  # type: ignore[index]
         ms, by_seed = cell["head_cm"], cell["head_cm_by_seed"]
         better = sum(by_seed[s] < first[s] for s in first)
-        rows.append([nodes.literal(text=Path(profile).name if profile else "none"),
+        names = [profile] if isinstance(profile, str) else profile or []   # older runs: one
+        rows.append([nodes.literal(text=" or ".join(Path(p).name for p in names) or "none"),
                      f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
                      f"{better} / {len(first)}" if i else ""])
     return rows

@@ -95,7 +95,7 @@ def test_experiment_sim2real_quick(stand_in, tmp_path, monkeypatch):
     monkeypatch.setattr(sim2real, "collect", collect)
     config = replace(PROFILES["quick"], real=stand_in)
     with pytest.raises(Stop):
-        execute("sim2real", replace(config, randomize="wide"), out, overwrite=True)
+        execute("sim2real", replace(config, randomize=("wide",)), out, overwrite=True)
     refit = scenarios.SCENARIOS["lab"].with_overrides(marker_jitter=0.004)
     monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
     with pytest.raises(Stop):
@@ -201,7 +201,7 @@ def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, m
     monkeypatch.setattr(collectors.sysid, "fit", fit)
     monkeypatch.setattr(sim2real, "_collect", lab)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "real"),
-                     fits=("fold", "train"), randomize="wide")
+                     fits=("fold", "train"), randomize=("wide",))
     out = tmp_path / "nested"
     execute("sim2real", config, out)
     pooled = sim2real.read_real(stand_in)
@@ -230,3 +230,58 @@ def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, m
     bad = replace(config, fits=("fold", "fold"))
     with pytest.raises(UserError, match="at most once"):
         sim2real.validate(bad)
+
+
+def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(stand_in,
+                                                                              tmp_path,
+                                                                              monkeypatch):
+    """Several `--randomize` candidates: each seed's sim model is the candidate's whose Head
+    error on that fold's real validation block (never its test block) is lowest; the sim arm
+    reports it and the fine-tuned arm starts from it. The collections are stand-ins (`wide`'s
+    drops Train rows, so its models differ)."""
+    from estimators.retlo.files import pixels_to_world
+
+    def lab(config, out, progress, randomize):
+        out.mkdir(parents=True, exist_ok=True)
+        rows = (stand_in / "Train.csv").read_text().splitlines(keepends=True)
+        (out / "Train.csv").write_text("".join(rows[:-7] if randomize else rows))
+        shutil.copy(stand_in / "Val.csv", out / "Val.csv")
+        return out
+
+    made = []
+    original = sim2real.ModelTask.__init__
+
+    def record(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        made.append(self)
+
+    monkeypatch.setattr(sim2real, "_collect", lab)
+    monkeypatch.setattr(sim2real.ModelTask, "__init__", record)
+    config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "finetune"),
+                     fractions=(1.0,), randomize=("none", "wide"))
+    out = tmp_path / "chosen"
+    execute("sim2real", config, out)
+    results = json.loads((out / "results.json").read_text())
+    ranges = results["ranges"]["none"]
+    pooled = pixels_to_world(sim2real.read_real(stand_in), sim2real.DEFAULT_PX_PER_CM)
+    sims = [t for t in made if t.arm == "sim"]
+    assert len(sims) == 4
+    for s in ("0", "1"):
+        cands = ranges["candidates"]
+        pick = min(("none", "wide"), key=lambda r: cands[r]["select_head_cm_by_seed"][s])
+        assert ranges["chosen_by_seed"][s] == pick
+        assert results["arms"]["sim"]["0"]["head_cm_by_seed"][s] == \
+            cands[pick]["head_cm_by_seed"][s]
+        _, val, test = cv_blocks(len(pooled), config.folds, int(s), config.val_share)
+        for task in (t for t in sims if t.seed == int(s)):
+            assert np.array_equal(task.select, pooled[val])
+            assert np.array_equal(task.test, pooled[test])
+        chosen = next(t for t in sims if t.seed == int(s) and
+                      (t.train.parent.name == "sim-" + sim2real.task_key("sim2real-lab", 1,
+                                                                        "wide")[:12])
+                      == (pick == "wide"))
+        tuned = next(t for t in made if t.arm == "finetune" and t.seed == int(s))
+        assert tuned.init.parent.name == chosen.key()
+    assert "--randomize chosen per fold (none)" in "\n".join(sim2real.summary_lines(results))
+    with pytest.raises(UserError, match="each candidate once"):
+        sim2real.validate(replace(config, randomize=("wide", "wide")))

@@ -32,10 +32,13 @@ def experiment_sim2real(
     scenario: str = Scenario,
     sim: Path = InputDir(None, "A lab collection folder (Train.csv, Val.csv) to use instead of "
                          "collecting one (`collect --scenario lab --robots 3 --split 80/20/0`)."),
-    randomize: str = typer.Option(None, "--randomize", help="A domain-randomization profile or "
-                                  "JSON of factors for the lab collection (e.g. sysid's "
-                                  "fitted.json); none by default (`experiment all` runs "
-                                  "wider, as the docs' figure)."),
+    randomize: list[str] = typer.Option(None, "--randomize", help="A domain-randomization "
+                                        "profile or JSON of factors for the lab collection "
+                                        "(e.g. sysid's fitted.json); none by default "
+                                        "(`experiment all` runs wider, as the docs' figure). "
+                                        "Repeatable: each fold then picks the candidate "
+                                        "(`none` for no ranges) whose sim model does best on "
+                                        "its own real validation block."),
     sim_minutes: float = Positive(None, "Minutes of lab data to collect (default: the "
                                   "profile's, 100 for full).", "--sim-minutes",
                                   max=MAX_SECONDS / 60),
@@ -75,8 +78,8 @@ def experiment_sim2real(
     from macrostate_mj.core.errors import UserError
 
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
-                     scenario=scenario,
-                     randomize=randomize, seed=seed, mix_weight=mix_weight, chained=chained,
+                     scenario=scenario, randomize=tuple(randomize or ()), seed=seed,
+                     mix_weight=mix_weight, chained=chained,
                      precision=precision, fits=tuple(fit or ("none",)),
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if fraction:

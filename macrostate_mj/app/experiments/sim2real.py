@@ -17,7 +17,11 @@ Where the lab's factors come from (`fits`, `--fit`): the scenario as written; a 
 the real Train.csv (leaky under these folds, whose test blocks it has seen); or the nested
 protocol, one fit per fold on that fold's training and validation blocks alone, so the
 cross-validated ratio estimates what a held-out real test will show. Naming several trains
-each one's sim-only models on the same folds (`sim_by_fit`).
+each one's sim-only models on the same folds (`sim_by_fit`). The randomization ranges drawn
+around the factors (`randomize`, `--randomize`) can be chosen inside each fold as well: name
+several candidates (`none` for no ranges) and each seed's sim model is the candidate's whose
+Head error on that fold's real validation block is lowest (`ranges`); the test block never
+takes part.
 Every model is the LSTM of `train retlo --model lstm`, a cached task
 (`cache/sim2real-model/<key>/`: its report, and a sim model's checkpoint) keyed by its training
 settings and the bytes of its data (the lab CSVs, the real blocks, a fine-tuned model's sim
@@ -29,6 +33,7 @@ from __future__ import annotations
 
 import json
 import tempfile
+from collections import Counter
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
@@ -48,6 +53,7 @@ PRODUCTS = ["results.json", "sim2real.png"]
 ARMS = ("sim", "real", "finetune", "mixed")
 REAL_FILES = ("Train.csv", "Val.csv")
 FITS = ("none", "train", "fold")
+PLAIN = "none"      # a `randomize` candidate: no ranges (the fitted factors fixed, or the lab)
 
 
 @dataclass(frozen=True)
@@ -68,7 +74,9 @@ class Config:
                        / "3Robots")
     scenario: ScenarioRef = "lab"   # the lab the collection is made in
     sim: Path | None = None    # a lab collection's folder, instead of collecting one
-    randomize: str | None = None   # the lab collection's domain randomization
+    # the lab collection's domain randomization: none, one profile, or candidates (`PLAIN`
+    # among them for none) chosen per fold on its real validation block
+    randomize: tuple[str, ...] = ()
     arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
     chained: bool = True       # train on chained Followers too (`TrainConfig.chained`)
     precision: str = "fp32"    # the trainings' arithmetic (`estimators.precision`)
@@ -83,11 +91,16 @@ class Config:
     sysid_refine: int = 8
     sysid_minutes: float = 30.0
 
+    @property
+    def candidates(self) -> tuple[str, ...]:
+        """The `randomize` candidates (`PLAIN` alone where none is named)."""
+        return self.randomize or (PLAIN,)
+
 
 PROFILES = {
     # what `experiment all` runs: every arm on `wider` lab data (the committed
     # results/s2r_mixed); the command's own --randomize replaces it (none by default)
-    "full": Config(randomize="wider"),
+    "full": Config(randomize=("wider",)),
     "quick": Config(seeds=2, fractions=(0.5, 1.0), epochs=2, finetune_epochs=1,
                     sim_minutes=6.0, episode_minutes=3.0, sysid_first=2, sysid_refine=1,
                     sysid_minutes=1.0),
@@ -132,12 +145,14 @@ def validate(config: Config) -> np.ndarray:
                         f"{config.folds} folds")
     if config.sim is not None:
         _require_splits(config.sim, "--sim", "a `collect --split` folder")
-        if config.randomize is not None:
+        if config.randomize:
             raise UserError("--randomize applies to the lab collection this command makes; "
                             "drop it or --sim")
-
-    if config.randomize is not None:
-        Randomization.parse(config.randomize)
+    if len(set(config.randomize)) != len(config.randomize):
+        raise UserError(f"--randomize {', '.join(config.randomize)}: name each candidate once")
+    for profile in config.randomize:
+        if profile != PLAIN:
+            Randomization.parse(profile)
     bad = [f for f in config.fits if f not in FITS]
     if bad or not config.fits or len(set(config.fits)) != len(config.fits):
         raise UserError(f"--fit {', '.join(bad or config.fits) or '(none)'}: name each of "
@@ -162,12 +177,20 @@ def _collect(config: Config, out: Path, progress: Progress, randomize: str | Non
     return out
 
 
+def _ranges(randomize: str) -> dict | None:
+    """A `randomize` candidate's ranges (None for `PLAIN`)."""
+    from collectors.randomize import Randomization
+
+    return None if randomize == PLAIN else Randomization.parse(randomize).profile()
+
+
 def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, name: str,
-                progress: Progress) -> tuple[Path, dict]:
-    """`sysid` on real poses `train` (checked on `val`), then a lab collection drawn around the
-    fitted factors (`randomize`'s ranges times each factor) in `out / "data"`. The
-    candidates' collections are cached in `out / "sysid"`, shared by every fit of the run."""
-    from collectors.randomize import Randomization, around
+                progress: Progress) -> tuple[dict[str, Path], dict]:
+    """`sysid` on real poses `train` (checked on `val`), then per `randomize` candidate a lab
+    collection drawn around the fitted factors (its ranges times each factor) in
+    `out / "data"`. The candidates' collections of the fit are cached in `out / "sysid"`,
+    shared by every fit of the run."""
+    from collectors.randomize import around
     from collectors.sysid import SysidConfig, fit
 
     cfg = SysidConfig(scenario=config.scenario, robots=3, minutes=config.sysid_minutes,
@@ -176,41 +199,48 @@ def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, n
                       workers=progress.workers)
     report = fit(cfg, train, val, out / "sysid",
                  lambda done, total: progress.report(f"sysid {name}", done, total))
-    ranges = None if config.randomize is None else \
-        Randomization.parse(config.randomize).profile()
-    drawn = around(report["fitted"], ranges)
-    # folds whose fits agree share one collection: its folder is named by the profile
-    folder = out / "data" / f"fit-{task_key('sim2real-lab', 1, drawn)[:12]}"
-    folder.mkdir(parents=True, exist_ok=True)
-    profile = folder.parent / f"{folder.name}.profile.json"
-    write_json_atomic(profile, drawn)
+    folders = {}
+    for randomize in config.candidates:
+        drawn = around(report["fitted"], _ranges(randomize))
+        # folds whose fits agree share one collection: its folder is named by the profile
+        folder = out / "data" / f"fit-{task_key('sim2real-lab', 1, drawn)[:12]}"
+        folder.mkdir(parents=True, exist_ok=True)
+        profile = folder.parent / f"{folder.name}.profile.json"
+        write_json_atomic(profile, drawn)
+        folders[randomize] = _collect(config, folder, progress, str(profile))
+    names = {r: f.name for r, f in folders.items()}
     summary = {"fitted": report["fitted"], "train_ks": report["train"],
-               "val_ks": report["val"], "data": folder.name}
-    return _collect(config, folder, progress, str(profile)), summary
+               "val_ks": report["val"],
+               "data": next(iter(names.values())) if len(names) == 1 else names}
+    return folders, summary
 
 
 def lab_data(config: Config, fit: str, pooled: np.ndarray, folds: list[tuple], out: Path,
-             progress: Progress) -> tuple[list[Path], dict]:
-    """Each model seed's lab collection (Train.csv and Val.csv) and the fits made, by `fit`:
-    `--sim`, or one collection for every seed (the scenario as written, or fitted on the real
-    Train.csv), or one per fold fitted on that fold's training blocks only."""
+             progress: Progress) -> tuple[dict[str, list[Path]], dict]:
+    """Per `randomize` candidate, each model seed's lab collection (Train.csv and Val.csv),
+    and the fits made, by `fit`: `--sim`, or one collection for every seed (the scenario as
+    written, or fitted on the real Train.csv), or one per fold fitted on that fold's training
+    blocks only."""
     if config.sim is not None:
-        return [config.sim] * len(folds), {}
+        return {PLAIN: [config.sim] * len(folds)}, {}
     if fit == "none":
-        return [_collect(config, out / "data" / "sim", progress, config.randomize)] * \
-            len(folds), {}
+        several = len(config.randomize) > 1
+        return {r: [_collect(config, out / "data" / (
+            f"sim-{task_key('sim2real-lab', 1, r)[:12]}" if several else "sim"), progress,
+            None if r == PLAIN else r)] * len(folds)
+            for r in config.candidates}, {}
     if fit == "train":
         n_train = len(read_csv(config.real / REAL_FILES[0]).poses)
-        folder, fitted = _fitted_lab(config, pooled[:n_train], pooled[n_train:], out, "train",
-                                     progress)
-        return [folder] * len(folds), {"train": fitted}
-    made: dict[int, tuple[Path, dict]] = {}
+        folders, fitted = _fitted_lab(config, pooled[:n_train], pooled[n_train:], out,
+                                      "train", progress)
+        return {r: [f] * len(folds) for r, f in folders.items()}, {"train": fitted}
+    made: dict[int, tuple[dict[str, Path], dict]] = {}
     for fold, pool, val in folds:
         if fold not in made:
             made[fold] = _fitted_lab(config, pooled[pool], pooled[val], out, f"fold{fold}",
                                      progress)
-    return [made[fold][0] for fold, _, _ in folds], \
-        {f"fold{f}": fitted for f, (_, fitted) in sorted(made.items())}
+    return {r: [made[fold][0][r] for fold, _, _ in folds] for r in config.candidates
+            }, {f"fold{f}": fitted for f, (_, fitted) in sorted(made.items())}
 
 
 Data = Path | np.ndarray
@@ -228,10 +258,11 @@ class ModelTask:
     def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
                  test: np.ndarray, lr: float | None = None, init: Path | None = None,
                  mix: Data | None = None, mix_weight: float = 0.5, chained: bool = True,
-                 precision: str = "fp32"):
+                 precision: str = "fp32", select: np.ndarray | None = None):
         self.arm, self.seed, self.epochs, self.lr, self.chained = arm, seed, epochs, lr, chained
         self.precision = precision
         self.train, self.val, self.test, self.init = train, val, test, init
+        self.select = select            # real data it is also scored on, to choose among labs
         self.mix, self.mix_weight = mix, mix_weight
         self._key: str | None = None
 
@@ -246,7 +277,8 @@ class ModelTask:
     def key(self) -> str:
         if self._key is None:
             inputs = [self.train, self.val, self.test, *([self.init] if self.init else []),
-                      *([self.mix] if self.mix is not None else [])]
+                      *([self.mix] if self.mix is not None else []),
+                      *([self.select] if self.select is not None else [])]
             config = {"arm": self.arm, "train": self.train_config()}
             if self.mix is not None:        # keys of the other arms stay as they were
                 config["mix_weight"] = self.mix_weight
@@ -264,9 +296,12 @@ class ModelTask:
         net, info = fit([self.train], self.val, cfg, init=init, mix=mix,
                         mix_weight=self.mix_weight)
         report = evaluate(TorchPredictor(net), self.test)
-        files = {"report.json": json.dumps({
-            "head_cm": report["per_robot_cm"]["H"], "mean_cm": report["mean_error_cm"],
-            "best_val_cm": info["best_val_cm"], "epochs_run": info["epochs_run"]}).encode()}
+        scores = {"head_cm": report["per_robot_cm"]["H"], "mean_cm": report["mean_error_cm"],
+                  "best_val_cm": info["best_val_cm"], "epochs_run": info["epochs_run"]}
+        if self.select is not None:
+            scores["select_head_cm"] = evaluate(TorchPredictor(net),
+                                                self.select)["per_robot_cm"]["H"]
+        files = {"report.json": json.dumps(scores).encode()}
         if self.arm == "sim":            # fine-tuning starts from it
             with tempfile.TemporaryDirectory() as tmp:
                 path = save_checkpoint(Path(tmp) / "model.pt", net, DEFAULT_PX_PER_CM, cfg,
@@ -290,49 +325,67 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
             labs[fit], made = lab_data(config, fit, pixels, folds, out, progress)
             fits |= made
     pooled = pixels_to_world(pixels, DEFAULT_PX_PER_CM)
-    sims = labs.get(config.fits[0], [None] * config.seeds)
     later = [a for a in ARMS[1:] if a in config.arms]
-    sim_models = "sim" in config.arms or "finetune" in config.arms
-    total = config.seeds * (sim_models * len(labs) + len(later) * len(config.fractions))
+    choose = len(config.candidates) > 1
+    # the mixed arm alone trains sim models only to choose its lab data
+    sim_models = "sim" in config.arms or "finetune" in config.arms or choose
+    total = config.seeds * (sim_models * len(labs) * len(config.candidates)
+                            + len(later) * len(config.fractions))
     blocks, first = [], []
-    for i, sim in enumerate(sims):
+    for i in range(config.seeds):
         s = config.seed + i
         pool, val, test = cv_blocks(len(pooled), config.folds, i % config.folds,
                                     config.val_share)
-        blocks.append((s, pooled[pool], pooled[val], pooled[test], sim))
+        blocks.append((s, pooled[pool], pooled[val], pooled[test]))
         if sim_models:
-            first += [({"arm": "sim", "fit": fit, "fraction": 0.0, "count": 0, "seed": s},
+            first += [({"arm": "sim", "fit": fit, "randomize": r, "fraction": 0.0, "count": 0,
+                        "seed": s},
                        ModelTask("sim", s, config.epochs, lab[i] / "Train.csv",
                                  lab[i] / "Val.csv", pooled[test], chained=config.chained,
-                                 precision=config.precision))
-                      for fit, lab in labs.items()]
+                                 precision=config.precision,
+                                 select=pooled[val] if choose else None))
+                      for fit, by_range in labs.items() for r, lab in by_range.items()]
     with progress.stage("models"):
         done = _train(first, progress, total)
+        sims = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text()),
+                 "folder": done[id(task)].folder} for meta, task in first]
+        chosen: dict[tuple[str, int], dict] = {}
+        for r in sims:          # per fit and seed, the candidate best on the real validation
+            best = chosen.get((r["fit"], r["seed"]))     # block (the first of equals)
+            if best is None or r["select_head_cm"] < best["select_head_cm"]:
+                chosen[r["fit"], r["seed"]] = r
         second: list[tuple[dict, ModelTask]] = []
-        for i, (s, pool, val, test, sim) in enumerate(blocks):
-            checkpoint = done[id(first[i * len(labs)][1])].folder / "model.pt" \
-                if sim_models else None
+        for i, (s, pool, val, test) in enumerate(blocks):
+            sim = chosen.get((config.fits[0], s))
+            ranges = sim["randomize"] if sim else config.candidates[0]
+            lab = labs[config.fits[0]][ranges][i] if labs else None
+            checkpoint = sim["folder"] / "model.pt" if sim else None
             for f in config.fractions:
                 count = max(1, int(np.ceil(f * len(pool))))
                 second += [({"arm": arm, "fraction": f, "count": count, "seed": s},
-                            _arm_task(arm, config, s, pool[:count], val, test, checkpoint, sim))
+                            _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab))
                            for arm in later]
         done |= _train(second, progress, total, len(first))
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
-               for meta, task in [*first, *second] if meta["arm"] in config.arms]
-    # the first fit's sim models are the sim arm; the other fits' are kept apart
-    others = [r for r in reports if r.get("fit", config.fits[0]) != config.fits[0]]
-    reports = [r for r in reports if r not in others]
+               for meta, task in second]
+    # the first fit's chosen sim models are the sim arm; the other fits' are kept apart
+    picked = [{k: v for k, v in r.items() if k != "folder"} for r in chosen.values()]
+    others = [r for r in picked if r["fit"] != config.fits[0]]
+    if "sim" in config.arms:
+        reports += [r for r in picked if r["fit"] == config.fits[0]]
     results = summarize(reports, config, len(pooled))
     if len(labs) > 1:
         results["sim_by_fit"] = by_fit(reports, others, config, results)
+    if choose:
+        results["ranges"] = by_range(sims, chosen, config)
     if fits:
         results["fits"] = fits
     write_json_atomic(out / "results.json", results)
     plot_curve(results, out / "sim2real.png")
     hits = set(progress.cache.hits)
     progress.record(models=len(reports),
-                    sim_data=sorted({str(p) for lab in labs.values() for p in lab}),
+                    sim_data=sorted({str(p) for by_range in labs.values()
+                                     for lab in by_range.values() for p in lab}),
                     models_trained=len({t.key() for _, t in [*first, *second]} - hits))
     return summary_lines(results)
 
@@ -406,6 +459,26 @@ def by_fit(reports: list[dict], others: list[dict], config: Config, results: dic
     return out
 
 
+def by_range(sims: list[dict], chosen: dict[tuple[str, int], dict], config: Config) -> dict:
+    """Per fit, the `randomize` candidates' sim-only models: which each seed chose (on its
+    fold's real validation block) and each candidate's Head error there and on the test
+    block."""
+    out = {}
+    for fit in dict.fromkeys(r["fit"] for r in sims):
+        cells = {r: [o for o in sims if o["fit"] == fit and o["randomize"] == r]
+                 for r in config.candidates}
+        out[fit] = {
+            "chosen_by_seed": {str(s): c["randomize"] for (f, s), c in chosen.items()
+                               if f == fit},
+            "candidates": {r: {
+                "select_head_cm": mean_std([o["select_head_cm"] for o in c]),
+                "head_cm": mean_std([o["head_cm"] for o in c]),
+                "select_head_cm_by_seed": {str(o["seed"]): o["select_head_cm"] for o in c},
+                "head_cm_by_seed": {str(o["seed"]): o["head_cm"] for o in c}}
+                for r, c in cells.items()}}
+    return out
+
+
 def equivalent_fraction(error: float, fractions: tuple[float, ...], errors: list[float]
                         ) -> float | None:
     """The share of real data a real-only model needs to reach `error`: linear in log share
@@ -431,6 +504,10 @@ def summary_lines(results: dict) -> list[str]:
             share = "" if arm == "sim" else f" at {float(f) * 100:.0f} % real"
             lines.append(f"{arm:<9}{share:<14} Head {h['mean']:.2f} ± {h['std']:.2f} cm "
                          f"({h['n']} seeds)")
+    for fit, ranges in results.get("ranges", {}).items():
+        counts = Counter(ranges["chosen_by_seed"].values())
+        lines.append(f"--randomize chosen per fold ({fit}): " + ", ".join(
+            f"{Path(r).name} {n}x" for r, n in counts.most_common()))
     if "sim_over_real" in results:
         lines.append(f"sim only / real only (100 %): {results['sim_over_real']:.2f}x")
     for f, g in results.get("equivalent_real_fraction", {}).items():
