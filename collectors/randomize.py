@@ -5,7 +5,9 @@ A profile maps parameter names to (low, high) factors applied to the scenario's 
 profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by a uniform draw in
 [0.8, 1.2]. The `ABSOLUTE` parameters, whose scenario value is zero by default, are added in
 their own unit instead (`frame_jitter: (0, 0.1)` delays each frame by up to 0-0.1 s more,
-`follow_start: 0.01` lets a rear robot wait 1 cm more before it sets off). Draws come from
+`follow_start: 0.01` lets a rear robot wait 1 cm more before it sets off, `follow_hold: 0.3`
+makes one that is nearer the robot ahead than 0.3 m closer than d stop rather than back off).
+Draws come from
 the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized collection is still
 bit-identical for any worker count. A profile is a built-in name or a JSON
 file `{"k_f": [0.8, 1.2], ...}`; a bare number fixes a factor (`{"k_f": 1.1}`: what
@@ -30,14 +32,14 @@ from macrostate_mj.vision.imaging import NoiseConfig
 # Where each parameter lives: the scenario's rules, the compiled model, or the imaging chain.
 SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "marker_jitter",
             "head_jitter_scale")
-RULES = ("wait_slack", "follow_start")   # the lab Followers' wait rule (`WaitForBehind`)
+RULES = ("wait_slack", "follow_start", "follow_hold")   # the lab rule (`WaitForBehind`)
 MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
 TIMING = ("frame_hz", "frame_jitter")     # the camera's frames (`ScenarioConfig.camera_hz`)
 SPREAD = ("wheel_spread", "marker_offset")   # how the robots differ (`ScenarioConfig`)
 PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING, *SPREAD)
 # added in their unit (s, m, a share), not factors: zero by default
-ABSOLUTE = ("frame_jitter", "follow_start", *SPREAD)
+ABSOLUTE = ("frame_jitter", "follow_start", "follow_hold", *SPREAD)
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
@@ -162,10 +164,11 @@ def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> Scena
         cfg = replace(cfg, frame_hz=cfg.camera_hz * factors.get("frame_hz", 1.0),
                       frame_jitter=cfg.frame_jitter + factors.get("frame_jitter", 0.0))
     rule = cfg.followers
-    if isinstance(rule, WaitForBehind) and {"wait_slack", "follow_start"} & set(factors):
+    if isinstance(rule, WaitForBehind) and set(RULES) & set(factors):
         cfg = replace(cfg, followers=replace(
             rule, slack=rule.slack * factors.get("wait_slack", 1.0),
-            start=rule.start + factors.get("follow_start", 0.0)))
+            start=rule.start + factors.get("follow_start", 0.0),
+            hold=rule.hold + factors.get("follow_hold", 0.0)))
     return cfg
 
 

@@ -6,6 +6,10 @@ gains, the heading gain, the Head's and the chain's speed caps, the lab wait rul
 tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`),
 the camera's frame rate; and values added to the scenario's zero: the frames' timing jitter
 (s), the rear robots' start gap (m), the wheels' radius spread and the markers' offset (m).
+Not fitted but set in every candidate: rear robots that stop rather than back off from the
+robot ahead (`follow_hold` = the spacing; the real ones could not reverse, seed §2.6.2.1), so
+that a fitted lab's parked chain stands still (with stiff gains and wheels that differ, one
+that may back off turns on the spot).
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
@@ -172,10 +176,11 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
     real = motion_stats.features(train, DEFAULT_PX_PER_CM)
     held = motion_stats.features(val, DEFAULT_PX_PER_CM)
     total, tried = cfg.first + cfg.refine, []
+    rule = {"follow_hold": get_scenario(cfg.scenario).spacing}
 
     def run(points: np.ndarray) -> None:
         for x in points:
-            tried.append(evaluate(values(x), out, cfg, real, train))
+            tried.append(evaluate(values(x) | rule, out, cfg, real, train))
             if progress is not None:
                 progress(len(tried), total)
 

@@ -190,21 +190,21 @@ class ChainSim:
         self.monitor = PhysicsMonitor(world)
         # Health checks at least this often (physics steps); events bound the stretches too.
         self.check_steps = 10**9
-        self._wheels = np.array([self.model.geom(f"{nm}/wheel_{side}").id
-                                 for nm in world.names for side in ("left", "right")])
-        self._wheel_size = self.model.geom_size[self._wheels, 0].copy()
+        self._wheel_gain: np.ndarray | None = None     # (n, 2) per episode (`wheel_spread`)
         self._state_spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._saved = np.empty(mujoco.mj_stateSize(self.model, self._state_spec))
 
     def _spread_wheels(self, rng: np.random.Generator) -> None:
-        """Each wheel's radius this episode (`wheel_spread`): drawn from a child of the reset
-        stream only when the spread is above zero, so a lab without it keeps every draw."""
-        self.model.geom_size[self._wheels, 0] = self._wheel_size
+        """Each wheel's effective radius this episode (`wheel_spread`), as the speed factor its
+        commanded rate turns into: drawn from a child of the reset stream only when the spread
+        is above zero, so a lab without it keeps every draw. The wheels' shapes stay as built:
+        a wheel of another size would tilt the robot, which then creeps while parked."""
+        self._wheel_gain = None
         spread = self.cfg.wheel_spread
         if spread > 0:
             child = np.random.default_rng(rng.integers(2**63))
-            factor = 1 + spread * np.clip(child.standard_normal(len(self._wheels)), -3, 3)
-            self.model.geom_size[self._wheels, 0] = self._wheel_size * factor
+            draws = np.clip(child.standard_normal(2 * self.n), -3, 3)
+            self._wheel_gain = (1 + spread * draws).reshape(self.n, 2)
 
     # -- lifecycle ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator | int, start: np.ndarray | None = None) -> None:
@@ -258,6 +258,8 @@ class ChainSim:
             if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):
                 v[0] = 0.0     # a Head driven in (v, omega) waits rather than ram a robot
         left, right = wheel_commands(v, omega, w.wheel_radius, w.track, w.max_wheel_speed)
+        if self._wheel_gain is not None:
+            left, right = left * self._wheel_gain[:, 0], right * self._wheel_gain[:, 1]
         self.data.ctrl[w.ctrl_left] = left
         self.data.ctrl[w.ctrl_right] = right
 

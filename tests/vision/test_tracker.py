@@ -279,22 +279,23 @@ def test_frames_at_their_own_rate_with_a_timing_jitter_are_seeded_and_in_order()
 
 
 def test_robots_that_differ_wheels_and_markers_drawn_per_episode_from_the_seed():
-    """`wheel_spread`: each wheel's radius drawn per episode from a child of the reset stream
-    (the same seed, the same wheels; none without it); `marker_offset`: each robot's tracked
-    point sits off its centre by a fixed vector that turns with the body."""
+    """`wheel_spread`: each wheel's effective radius (the speed factor of its commanded rate)
+    drawn per episode from a child of the reset stream (the same seed, the same wheels; none
+    without it; the wheels' shapes untouched); `marker_offset`: each robot's tracked point sits
+    off its centre by a fixed vector that turns with the body."""
     cfg = get_scenario("lab").with_overrides(wheel_spread=0.03, marker_offset=0.005,
                                              marker_jitter=0.0)   # the offset alone
     sim = ChainSim(build_world(cfg, 3))
-    nominal = sim.model.geom_size[sim._wheels, 0].copy()
+    shapes = sim.model.geom_size.copy()
     sim.reset(7)
-    first = sim.model.geom_size[sim._wheels, 0].copy()
+    first = sim._wheel_gain.copy()
     sim.reset(7)
-    assert np.array_equal(first, sim.model.geom_size[sim._wheels, 0])
-    ratio = first / nominal
-    assert len(set(ratio.round(6))) == 6 and np.all(np.abs(ratio - 1) <= 0.09)
+    assert np.array_equal(first, sim._wheel_gain)
+    assert np.array_equal(shapes, sim.model.geom_size)
+    assert len(set(first.ravel().round(6))) == 6 and np.all(np.abs(first - 1) <= 0.09)
     plain = ChainSim(build_world(get_scenario("lab"), 3))
     plain.reset(7)
-    assert np.array_equal(plain.model.geom_size[plain._wheels, 0], nominal)
+    assert plain._wheel_gain is None
 
     chain = CameraChain(sim, rng=np.random.default_rng([7, 1]), lazy=False)
     seen = []
