@@ -87,7 +87,8 @@ MEANINGS = {
     "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
     "rates.frame_hz": "the camera's frame rate, Hz (auto: the command rate)",
     "rates.frame_jitter": "each frame's delay after its nominal instant, uniform up to it, s",
-    "robot.wheel_spread": "each wheel's radius factor 1 + N(0, spread), drawn per episode",
+    "robot.wheel_spread": "each wheel's effective radius factor 1 + N(0, spread), drawn per "
+                          "episode",
     "noise.marker_offset": "each robot's marker off its centre, m (σ per body axis, per "
                            "episode)",
     "noise.marker_jitter": "white noise added to every tracked position, m (σ)",
