@@ -22,7 +22,7 @@ from macrostate_mj.app.cli.app import app
 
 # Options of free text that their commands parse (and test) themselves.
 TEXT_OPTIONS = {"--overlays", "--ray", "--split", "--randomize", "--days", "--crop", "--splits",
-                "--ms", "--model", "--set"}
+                "--ms", "--model", "--set", "--ablate"}
 
 
 def _commands() -> dict[str, object]:

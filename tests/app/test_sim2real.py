@@ -285,3 +285,43 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
     assert "--randomize chosen per fold (none)" in "\n".join(sim2real.summary_lines(results))
     with pytest.raises(UserError, match="each candidate once"):
         sim2real.validate(replace(config, randomize=("wide", "wide")))
+
+
+def test_ablations_switch_parameters_off_in_each_seed_s_own_profile(stand_in, tmp_path,
+                                                                    monkeypatch):
+    """`--ablate`: per seed, a lab collected from the profile its sim model used with the
+    named parameters removed trains one more sim-only model, paired with the lab's own (mean
+    and 95 % interval of the difference). Collections are stand-ins (a profile with `k_f`
+    drops Train rows, so switching it off changes the data); bad names are one line."""
+    profiles = []
+
+    def lab(config, out, progress, randomize):
+        profile = json.loads(Path(randomize).read_text()) if randomize else {}
+        profiles.append(profile)
+        out.mkdir(parents=True, exist_ok=True)
+        rows = (stand_in / "Train.csv").read_text().splitlines(keepends=True)
+        (out / "Train.csv").write_text("".join(rows[:-7] if "k_f" in profile else rows))
+        shutil.copy(stand_in / "Val.csv", out / "Val.csv")
+        return out
+
+    ranges = tmp_path / "ranges.json"
+    ranges.write_text(json.dumps({"k_f": [0.9, 1.1], "k_t": 1.2}))
+    monkeypatch.setattr(sim2real, "_collect", lab)
+    config = replace(PROFILES["quick"], real=stand_in, arms=("sim",), randomize=(str(ranges),),
+                     ablate=(("k_f",), ("k_t", "k_omega")))
+    out = tmp_path / "ablate"
+    execute("sim2real", config, out)
+    assert profiles[1:] == [{"k_t": 1.2}, {"k_t": 1.2}, {"k_f": [0.9, 1.1]},
+                            {"k_f": [0.9, 1.1]}]
+    results = json.loads((out / "results.json").read_text())
+    lab_by_seed = results["arms"]["sim"]["0"]["head_cm_by_seed"]
+    without_kf = results["ablations"]["k_f"]
+    diffs = [without_kf["head_cm_by_seed"][s] - lab_by_seed[s] for s in ("0", "1")]
+    assert without_kf["minus_lab"]["mean"] == pytest.approx(np.mean(diffs))
+    assert without_kf["minus_lab"]["low"] < without_kf["minus_lab"]["mean"]
+    assert results["ablations"]["k_t,k_omega"]["head_cm_by_seed"] == lab_by_seed  # same data
+    assert "without k_f: Head" in "\n".join(sim2real.summary_lines(results))
+    with pytest.raises(UserError, match="--ablate k_x"):
+        sim2real.validate(replace(config, ablate=(("k_x",),)))
+    with pytest.raises(UserError, match="give --fit or --randomize"):
+        sim2real.validate(replace(config, randomize=()))

@@ -59,6 +59,11 @@ def experiment_sim2real(
                             "fold (one fit per fold on its training blocks only: the nested "
                             "protocol, what a held-out test will show). With a fit, "
                             "--randomize names the ranges drawn around it.", FITS, "--fit"),
+    ablate: list[str] = typer.Option(None, "--ablate", help="Switch these lab parameters "
+                                     "off (comma-separated, e.g. frame_hz,frame_jitter; "
+                                     "repeatable, one group each): each group trains sim-only "
+                                     "models on a lab collected without them, paired with the "
+                                     "lab's own over the seeds. Needs --fit or --randomize."),
     chained: bool = Chained,
     fraction: list[float] = Positive(None, "Train the real-data arms on this share of the real "
                                      "pool (repeatable; default: the profile's, 0.1, 0.25, 0.5 "
@@ -80,6 +85,8 @@ def experiment_sim2real(
     config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
                      scenario=scenario, randomize=tuple(randomize or ()), seed=seed,
                      mix_weight=mix_weight, chained=chained,
+                     ablate=tuple(tuple(n.strip() for n in g.split(",") if n.strip())
+                                  for g in ablate or ()),
                      precision=precision, fits=tuple(fit or ("none",)),
                      arms=tuple(a for a in ARMS if a in (arm or ARMS)))
     if fraction:

@@ -140,6 +140,21 @@ def wilcoxon_p(differences: list[float]) -> float | None:
     return float(wilcoxon(differences).pvalue)
 
 
+def paired_interval(differences: list[float]) -> dict[str, float | int | None]:
+    """Paired differences over seeds: their mean and its 95 % t interval (None under 2
+    pairs), so a difference whose interval holds 0 reads as inconclusive."""
+    import numpy as np
+    from scipy.stats import t
+
+    d = np.asarray(differences, float)
+    if len(d) < 2:
+        return {"mean": float(d.mean()) if len(d) else None, "low": None, "high": None,
+                "n": len(d)}
+    half = float(t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d)))
+    return {"mean": float(d.mean()), "low": float(d.mean()) - half,
+            "high": float(d.mean()) + half, "n": len(d)}
+
+
 def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any, Any]:
     """(train pool, validation, test) instance indices of cross-validation fold `fold`: test is
     contiguous block `fold` of `folds` (instances overlap in time, so a random split would

@@ -21,7 +21,10 @@ each one's sim-only models on the same folds (`sim_by_fit`). The randomization r
 around the factors (`randomize`, `--randomize`) can be chosen inside each fold as well: name
 several candidates (`none` for no ranges) and each seed's sim model is the candidate's whose
 Head error on that fold's real validation block is lowest (`ranges`); the test block never
-takes part.
+takes part. What each modelled difference is worth (`ablate`, `--ablate`): per seed, a lab
+collected from that seed's own profile with the named parameters switched off (their factor 1,
+or their value 0) trains one more sim-only model; its Head error minus the lab's, paired over
+the seeds with a 95 % interval (`ablations`).
 Every model is the LSTM of `train retlo --model lstm`, a cached task
 (`cache/sim2real-model/<key>/`: its report, and a sim model's checkpoint) keyed by its training
 settings and the bytes of its data (the lab CSVs, the real blocks, a fine-tuned model's sim
@@ -41,7 +44,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std
+from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std, paired_interval
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
@@ -90,6 +93,9 @@ class Config:
     sysid_first: int = 16
     sysid_refine: int = 8
     sysid_minutes: float = 30.0
+    # groups of lab parameters (`collectors.randomize.PARAMETERS`) switched off in turn, each
+    # group's sim-only models paired with the lab's (`ablations`)
+    ablate: tuple[tuple[str, ...], ...] = ()
 
     @property
     def candidates(self) -> tuple[str, ...]:
@@ -131,7 +137,7 @@ def read_real(folder: Path) -> np.ndarray:
 
 def validate(config: Config) -> np.ndarray:
     """Refuse bad inputs in one line before anything is written; the pooled real instances."""
-    from collectors.randomize import Randomization
+    from collectors.randomize import PARAMETERS, Randomization
 
     if config.sim is not None and get_scenario(config.scenario) != get_scenario("lab"):
         raise UserError("--scenario names the lab this command collects in; drop it or --sim")
@@ -159,6 +165,14 @@ def validate(config: Config) -> np.ndarray:
                         f"{', '.join(FITS)} at most once")
     if config.fits != ("none",) and config.sim is not None:
         raise UserError("--fit fits the lab collection this command makes; drop it or --sim")
+    if config.ablate and (config.sim is not None or
+                          config.fits[0] == "none" and config.candidates == (PLAIN,)):
+        raise UserError("--ablate switches off parameters of the lab's profile; give --fit or "
+                        "--randomize (and no --sim)")
+    unknown = [n for group in config.ablate for n in group if n not in PARAMETERS]
+    if unknown or any(not group for group in config.ablate):
+        raise UserError(f"--ablate {', '.join(unknown) or '(empty)'}: name parameters of "
+                        f"{', '.join(PARAMETERS)}, comma-separated")
     if not 0.0 < config.mix_weight < 1.0:
         raise UserError(f"--mix-weight {config.mix_weight:g}: the lab data's share of the "
                         "mixed arm's loss must be in (0, 1)")
@@ -327,10 +341,11 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     pooled = pixels_to_world(pixels, DEFAULT_PX_PER_CM)
     later = [a for a in ARMS[1:] if a in config.arms]
     choose = len(config.candidates) > 1
-    # the mixed arm alone trains sim models only to choose its lab data
-    sim_models = "sim" in config.arms or "finetune" in config.arms or choose
+    # the mixed arm alone trains sim models only to choose its lab data or to ablate it
+    sim_models = "sim" in config.arms or "finetune" in config.arms or choose or \
+        bool(config.ablate)
     total = config.seeds * (sim_models * len(labs) * len(config.candidates)
-                            + len(later) * len(config.fractions))
+                            + len(later) * len(config.fractions) + len(config.ablate))
     blocks, first = [], []
     for i in range(config.seeds):
         s = config.seed + i
@@ -366,6 +381,13 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                             _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab))
                            for arm in later]
         done |= _train(second, progress, total, len(first))
+        third = [({"ablate": group, "seed": s},
+                  ModelTask("sim", s, config.epochs, lab / "Train.csv", lab / "Val.csv",
+                            test, chained=config.chained, precision=config.precision))
+                 for group in config.ablate
+                 for (s, _, _, test), lab in zip(blocks, _ablated_labs(
+                     config, group, labs, chosen, out, progress), strict=True)]
+        done |= _train(third, progress, total, len(first) + len(second))
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
                for meta, task in second]
     # the first fit's chosen sim models are the sim arm; the other fits' are kept apart
@@ -378,6 +400,10 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         results["sim_by_fit"] = by_fit(reports, others, config, results)
     if choose:
         results["ranges"] = by_range(sims, chosen, config)
+    if third:
+        results["ablations"] = by_ablation(
+            [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
+             for meta, task in third], chosen, config)
     if fits:
         results["fits"] = fits
     write_json_atomic(out / "results.json", results)
@@ -386,8 +412,36 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     progress.record(models=len(reports),
                     sim_data=sorted({str(p) for by_range in labs.values()
                                      for lab in by_range.values() for p in lab}),
-                    models_trained=len({t.key() for _, t in [*first, *second]} - hits))
+                    models_trained=len({t.key() for _, t in [*first, *second, *third]}
+                                       - hits))
     return summary_lines(results)
+
+
+def _profile(config: Config, lab: Path, randomize: str) -> dict:
+    """The profile a lab collection was drawn from: the one written beside a fitted lab, or
+    the `randomize` candidate's."""
+    written = lab.parent / f"{lab.name}.profile.json"
+    if config.fits[0] != "none":
+        return json.loads(written.read_text())
+    return _ranges(randomize) or {}
+
+
+def _ablated_labs(config: Config, group: tuple[str, ...], labs: dict, chosen: dict,
+                  out: Path, progress: Progress) -> list[Path]:
+    """Each seed's lab collection with `group` switched off in the profile its sim model was
+    chosen with (seeds whose profiles agree share one collection)."""
+    folders = []
+    for i in range(config.seeds):
+        pick = chosen.get((config.fits[0], config.seed + i))
+        ranges = pick["randomize"] if pick else config.candidates[0]
+        lab = labs[config.fits[0]][ranges][i]
+        profile = {k: v for k, v in _profile(config, lab, ranges).items() if k not in group}
+        folder = out / "data" / f"ablate-{task_key('sim2real-lab', 1, profile)[:12]}"
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder.parent / f"{folder.name}.profile.json"
+        write_json_atomic(path, profile)
+        folders.append(_collect(config, folder, progress, str(path) if profile else None))
+    return folders
 
 
 def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.ndarray,
@@ -479,6 +533,21 @@ def by_range(sims: list[dict], chosen: dict[tuple[str, int], dict], config: Conf
     return out
 
 
+def by_ablation(reports: list[dict], chosen: dict[tuple[str, int], dict], config: Config
+                ) -> dict:
+    """Per switched-off group, the sim-only Head error and its difference to the lab's own
+    sim model on the same seed (mean and 95 % interval over the seeds)."""
+    lab = {s: r["head_cm"] for (f, s), r in chosen.items() if f == config.fits[0]}
+    out = {}
+    for group in config.ablate:
+        cell = [r for r in reports if r["ablate"] == group]
+        out[",".join(group)] = {
+            "head_cm": mean_std([r["head_cm"] for r in cell]),
+            "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in cell},
+            "minus_lab": paired_interval([r["head_cm"] - lab[r["seed"]] for r in cell])}
+    return out
+
+
 def equivalent_fraction(error: float, fractions: tuple[float, ...], errors: list[float]
                         ) -> float | None:
     """The share of real data a real-only model needs to reach `error`: linear in log share
@@ -508,6 +577,10 @@ def summary_lines(results: dict) -> list[str]:
         counts = Counter(ranges["chosen_by_seed"].values())
         lines.append(f"--randomize chosen per fold ({fit}): " + ", ".join(
             f"{Path(r).name} {n}x" for r, n in counts.most_common()))
+    for name, cell in results.get("ablations", {}).items():
+        d = cell["minus_lab"]
+        spread = "" if d["low"] is None else f" [{d['low']:+.2f}, {d['high']:+.2f}]"
+        lines.append(f"without {name}: Head {d['mean']:+.2f} cm{spread} against the lab's")
     if "sim_over_real" in results:
         lines.append(f"sim only / real only (100 %): {results['sim_over_real']:.2f}x")
     for f, g in results.get("equivalent_real_fraction", {}).items():
