@@ -38,7 +38,17 @@ SHAPED_BY: dict[str, tuple[str, ...]] = {
 assert all(set(v) <= set(PARAMETERS) for v in SHAPED_BY.values())
 
 
-def ranked_gap(rows: list[dict]) -> list[dict]:
-    """`motion_stats.rank` of compared rows, each with the lab parameters that shape it."""
-    return [{**r, "shaped_by": list(SHAPED_BY.get(r["statistic"], ()))}
-            for r in motion_stats.rank(rows)]
+def ranked_gap(rows: list[dict], effects: dict[str, dict] | None = None) -> list[dict]:
+    """`motion_stats.rank` of compared rows, each with the lab parameters that shape it and,
+    given `effects` (`experiment sim2real --ablate`'s `ablations`: a comma-joined group of
+    parameters -> its sim-only Head error minus the lab's), what switching off each group
+    that shapes the statistic does to the estimator."""
+    out = []
+    for r in motion_stats.rank(rows):
+        shaped = SHAPED_BY.get(r["statistic"], ())
+        row = {**r, "shaped_by": list(shaped)}
+        if effects is not None:
+            row["effects"] = {group: cell["minus_lab"] for group, cell in effects.items()
+                              if set(group.split(",")) & set(shaped)}
+        out.append(row)
+    return out

@@ -1,4 +1,4 @@
-"""System identification of a scenario against real ThymioLoc data (issue 13, item 2).
+"""System identification of a scenario against real ThymioLoc data.
 
 What is fitted: factors on the scenario's own values (`collectors.randomize` names, so a fit is
 a fixed-factor profile that `collect --randomize fitted.json` reads): the Follower and Tail

@@ -78,3 +78,30 @@ def test_the_ranked_gap_puts_the_statistic_that_differs_first(tmp_path, capsys):
     assert code == 0 and table.index("jitter_cm") < table.index("spacing_cm")
     code, _, err = _cli(capsys, "stats", str(clean), "--rank")
     assert code == 2 and "need --compare" in err and err.count("\n") == 1
+
+
+def test_the_ranked_gap_shows_what_each_modelled_difference_does_to_the_estimator(tmp_path,
+                                                                                    capsys):
+    """`--effects`: a sim2real run's ablations beside every statistic a switched-off group
+    shapes (a group shaping none is not shown); a file without ablations, or --effects
+    without --rank, is one line."""
+    clean, noisy = _file(tmp_path, "c.csv"), _file(tmp_path, "n.csv", jitter=0.01)
+    run = tmp_path / "results.json"
+    cell = {"mean": 0.4, "low": -0.1, "high": 0.9, "n": 5}
+    run.write_text(json.dumps({"ablations": {"frame_hz,frame_jitter": {"minus_lab": cell},
+                                             "follow_hold": {"minus_lab": cell}}}))
+    code, out, err = _cli(capsys, "stats", "--compare", str(clean), str(noisy), "--rank",
+                          "--json", "--effects", str(run))
+    assert code == 0, err
+    ranked = {r["statistic"]: r for r in map(json.loads, out.splitlines())}
+    assert ranked["jitter_cm"]["effects"] == {"frame_hz,frame_jitter": cell}
+    assert ranked["spacing_cm"]["effects"] == {}
+    code, table, _ = _cli(capsys, "stats", "--compare", str(clean), str(noisy), "--rank",
+                          "--effects", str(run))
+    assert code == 0 and "+0.40 [-0.10, +0.90]" in table
+    bare = tmp_path / "bare.json"
+    bare.write_text("{}")
+    for args, words in ((["--rank", "--effects", str(bare)], "no ablations"),
+                        (["--effects", str(run)], "add --rank")):
+        code, _, err = _cli(capsys, "stats", "--compare", str(clean), str(noisy), *args)
+        assert code == 2 and words in err and err.count("\n") == 1, err

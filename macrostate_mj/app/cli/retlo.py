@@ -56,6 +56,10 @@ def stats(
                         "with the lab parameters that shape each."),
     plot: Path = OutputFile(None, "With --compare: histograms side by side to this PNG.",
                             (".png",)),
+    effects: Path = InputFile(None, "With --rank: an `experiment sim2real --ablate` run's "
+                              "results.json; beside each statistic, what switching off each "
+                              "parameter group that shapes it does to the sim-only Head error.",
+                              (".json",)),
     overwrite: bool = Switch(False, "Replace an existing --plot."),
 ) -> None:
     """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side;
@@ -69,11 +73,15 @@ def stats(
     from macrostate_mj.core.errors import UserError
     from macrostate_mj.formats.thymioloc import chain_stats, read_csv
 
-    if compare or plot is not None or rank:
+    if compare or plot is not None or rank or effects is not None:
         if not compare or len(csv) != 2:
             raise UserError("--compare takes exactly two files (SIM.csv REAL.csv), and --plot "
                             "and --rank need --compare")
-        _compare(csv, px_per_cm, plot, overwrite, as_json, rank)
+        if effects is not None and not rank:
+            raise UserError("--effects puts the estimator's sensitivity beside the ranked "
+                            "gap; add --rank")
+        _compare(csv, px_per_cm, plot, overwrite, as_json, rank,
+                 None if effects is None else _ablations(effects))
         return
     found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
     if as_json:
@@ -369,7 +377,7 @@ def _load_one(model: str) -> tuple[Module, str]:
 
 
 def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bool,
-             as_json: bool, rank: bool = False) -> None:
+             as_json: bool, rank: bool = False, effects: dict | None = None) -> None:
     import json
 
     from rich.console import Console
@@ -390,7 +398,7 @@ def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bo
 
         compare_figure(plot, *feats, rows, (csv[0].name, csv[1].name))
     if rank:
-        _ranked(csv, rows, as_json)
+        _ranked(csv, rows, as_json, effects)
         return
     if as_json:
         for row in rows:
@@ -411,7 +419,24 @@ def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bo
 
 
 
-def _ranked(csv: list[Path], rows: list[dict], as_json: bool) -> None:
+def _ablations(path: Path) -> dict:
+    """The `ablations` of a sim2real results.json; one-line errors otherwise."""
+    import json
+
+    from macrostate_mj.core.errors import UserError
+
+    try:
+        found = json.loads(path.read_text()).get("ablations")
+    except (ValueError, AttributeError):
+        found = None
+    if not isinstance(found, dict) or not found:
+        raise UserError(f"--effects {path}: no ablations in it; pass the results.json of an "
+                        "`experiment sim2real --ablate ...` run")
+    return found
+
+
+def _ranked(csv: list[Path], rows: list[dict], as_json: bool,
+            effects: dict | None = None) -> None:
     """`stats --compare --rank`: the gap between two files, its largest statistic first."""
     import json
 
@@ -420,17 +445,22 @@ def _ranked(csv: list[Path], rows: list[dict], as_json: bool) -> None:
 
     from collectors.gap import ranked_gap
 
-    ranked = ranked_gap(rows)
+    ranked = ranked_gap(rows, effects)
     if as_json:
         for row in ranked:
             print(json.dumps({"files": [str(p) for p in csv], **row}))
         return
     table = Table(title=f"{csv[0].name} vs {csv[1].name}: statistics ranked by the worst "
                   "robot's KS distance")
-    for col in ("#", "statistic", "worst", "each robot (pair)", "sum", "shaped in the lab by"):
+    columns = ["#", "statistic", "worst", "each robot (pair)", "sum", "shaped in the lab by"]
+    for col in columns + (["Head error without it (cm)"] if effects is not None else []):
         table.add_column(col, justify="right" if col in ("#", "sum") else "left")
     for i, r in enumerate(ranked, 1):
-        table.add_row(str(i), r["statistic"], f"{r['worst']} {r['ks'][r['worst']]:.3f}",
-                      "  ".join(f"{who} {ks:.3f}" for who, ks in r["ks"].items()),
-                      f"{r['sum']:.2f}", ", ".join(r["shaped_by"]) or "-")
-    Console(width=150).print(table)
+        cells = [str(i), r["statistic"], f"{r['worst']} {r['ks'][r['worst']]:.3f}",
+                 "  ".join(f"{who} {ks:.3f}" for who, ks in r["ks"].items()),
+                 f"{r['sum']:.2f}", ", ".join(r["shaped_by"]) or "-"]
+        if effects is not None:
+            cells.append("; ".join(f"{g} {d['mean']:+.2f} [{d['low']:+.2f}, {d['high']:+.2f}]"
+                                   for g, d in r["effects"].items()) or "-")
+        table.add_row(*cells)
+    Console(width=150 if effects is None else 210).print(table)

@@ -1,5 +1,5 @@
 """`experiment sim2real`: how far lab data carries a ReTLo model on real data, and how much real
-data sim pre-training saves (issue 13's data-efficiency curve).
+data sim pre-training saves (a data-efficiency curve).
 
 Real data: a folder of ThymioLoc 3-robot files, `Train.csv` then `Val.csv`, pooled in that order
 and cut into `folds` contiguous blocks (instances overlap in time, so a random split would leak).
