@@ -27,14 +27,19 @@ CHECKOUT = _checkout()
 
 def reference_data() -> Path:
     """The dissertation's real data (never part of the project): `$MACROSTATE_REFERENCE_DATA`;
-    else `../shared/reference-data` beside the checkout when run from one; else, installed,
-    `reference-data` in the working directory. A missing folder is reported where it is read,
-    with the variable to set."""
+    else the copy `macrostate-mj data fetch` made (`core.datasets.cache_root`) once it holds
+    one; else, run from a checkout, `../shared/reference-data` beside it where that exists;
+    else the fetch cache. A missing dataset is reported where it is read, naming the fetch."""
+    from macrostate_mj.core.datasets import DATASETS, cache_root
+
     if env := os.environ.get("MACROSTATE_REFERENCE_DATA"):
         return Path(env)
-    if CHECKOUT is not None:
+    cache = cache_root()
+    if any((cache / d.folder).is_dir() for d in DATASETS.values()):
+        return cache
+    if CHECKOUT is not None and (CHECKOUT.parent / "shared" / "reference-data").is_dir():
         return CHECKOUT.parent / "shared" / "reference-data"
-    return Path.cwd() / "reference-data"
+    return cache
 
 
 def real_thymioloc(name: str) -> Path:

@@ -27,6 +27,11 @@ def set_quiet(quiet: bool) -> None:
     _quiet = quiet
 
 
+def live() -> bool:
+    """Whether long work may draw live bars: stderr is a terminal and `--quiet` is off."""
+    return not _quiet and Console(stderr=True).is_terminal
+
+
 class LoggedProgress(Progress):
     """rich's Progress on stderr (stdout stays for results such as `bench --json`).
 

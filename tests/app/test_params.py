@@ -22,7 +22,7 @@ from macrostate_mj.app.cli.app import app
 
 # Options of free text that their commands parse (and test) themselves.
 TEXT_OPTIONS = {"--overlays", "--ray", "--split", "--randomize", "--days", "--crop", "--splits",
-                "--ms", "--model", "--set", "--ablate"}
+                "--ms", "--model", "--set", "--ablate", "--mirror"}
 
 
 def _commands() -> dict[str, object]:
@@ -64,6 +64,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "collect": ["--minutes", "1", "--out", str(out)],
         "soak": ["--out", str(out)],
         "stats": [c],
+        "data fetch": ["retlo", "--dir", str(out), "--mirror", "http://127.0.0.1:9/"],
         "train retlo": ["--model", "fc", "--train", c, "--val", c, "--out", f"{out}.pt"],
         "evaluate retlo": ["--model", "heuristic2x", "--data", c, "--out", f"{out}.json"],
         "calibrate retlo": ["--model", f"{tmp}/m.pt", "--val", c, "--out", f"{out}.pt"],

@@ -17,11 +17,19 @@ def test_a_user_error_is_a_value_error_with_a_one_line_message():
     assert "nope" in message and "\n" not in message
 
 
-def test_reference_data_defaults_beside_the_checkout_and_follows_the_variable(monkeypatch,
-                                                                              tmp_path):
+def test_reference_data_follows_the_variable_then_a_fetched_copy_then_the_checkout(
+        monkeypatch, tmp_path):
+    """`$MACROSTATE_REFERENCE_DATA`; else the fetch cache once it holds a dataset; else the
+    checkout's `../shared/reference-data` where it exists; else the (empty) fetch cache, where
+    a missing file names `data fetch`."""
     monkeypatch.delenv("MACROSTATE_REFERENCE_DATA", raising=False)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("MACROSTATE_DATA_CACHE", str(cache))
     assert paths.CHECKOUT is not None and (paths.CHECKOUT / "macrostate_mj").is_dir()
-    assert paths.reference_data() == paths.CHECKOUT.parent / "shared" / "reference-data"
+    shared = paths.CHECKOUT.parent / "shared" / "reference-data"
+    assert paths.reference_data() == (shared if shared.is_dir() else cache)
+    (cache / "ReTLo").mkdir(parents=True)
+    assert paths.reference_data() == cache
     monkeypatch.setenv("MACROSTATE_REFERENCE_DATA", str(tmp_path))
     assert paths.real_thymioloc("Train.csv") == tmp_path / "ReTLo" / "Datasets" / "3Robots" / (
         "Train.csv")

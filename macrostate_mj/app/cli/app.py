@@ -20,6 +20,8 @@ calibrate_app = typer.Typer(help="Refit a trained estimator's uncertainty on oth
                             no_args_is_help=True)
 oc_app = typer.Typer(help="One-class models on optical flows (IO-GEN and baselines).",
                      no_args_is_help=True)
+data_app = typer.Typer(help="The published real datasets: fetch and verify them.",
+                       no_args_is_help=True)
 
 app.add_typer(train_app, name="train")
 app.add_typer(evaluate_app, name="evaluate")
@@ -27,6 +29,7 @@ app.add_typer(calibrate_app, name="calibrate")
 app.add_typer(experiment_app, name="experiment")
 app.add_typer(ants_app, name="ants")
 app.add_typer(oc_app, name="oc")
+app.add_typer(data_app, name="data")
 
 
 def _print_version(value: bool) -> None:

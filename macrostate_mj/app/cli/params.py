@@ -156,6 +156,17 @@ def _resolve_scenario() -> Callable[[Any], Any]:
     return resolve
 
 
+def DatasetNames() -> Any:  # noqa: N802
+    """Published datasets as a command's arguments, by name (`all` for every one)."""
+    def check(v: str) -> None:
+        from macrostate_mj.core.datasets import named
+
+        named([v])
+
+    return typer.Argument(..., help="The datasets: retlo (the ThymioLoc poses), or all.",
+                          callback=_checked(check, "choice"))
+
+
 def ScenarioArg() -> Any:  # noqa: N802
     """A scenario as a command's argument (`scenario show lab`)."""
     return typer.Argument(..., help="A built-in scenario's name or a scenario file (.toml).",
@@ -251,10 +262,11 @@ def _output_dir(p: Path) -> None:
     _outputs.append((p, p.exists()))
 
 
-def OutputDir(default: Any, help: str, **kw: Any) -> Any:  # noqa: N802
+def OutputDir(default: Any, help: str, flag: str | None = None, **kw: Any) -> Any:  # noqa: N802
     """A folder to write into; removed if a failed command created it and left it empty (or if
     the failure was bad input)."""
-    return typer.Option(default, help=help, callback=_checked(_output_dir, "output_dir"), **kw)
+    return typer.Option(default, *_flags(flag), help=help,
+                        callback=_checked(_output_dir, "output_dir"), **kw)
 
 
 def begin() -> None:
