@@ -228,8 +228,9 @@ def _read(cfg: Config) -> tuple[list[Fold], list[dict]]:
     files."""
     for path in (*cfg.train, cfg.val, *cfg.test):
         if not Path(path).is_file():
-            raise UserError(f"no file {path}; pass --train/--val/--test, or set "
-                            "MACROSTATE_REFERENCE_DATA to the folder holding ReTLo/")
+            raise UserError(f"no file {path}; run `macrostate-mj data fetch retlo`, pass "
+                            "--train/--val/--test, or set MACROSTATE_REFERENCE_DATA to the "
+                            "folder holding ReTLo/")
     shared = []
     worlds = [read_world(p, cfg.px_per_cm) for p in (*cfg.train, cfg.val)]
     if cfg.folds:

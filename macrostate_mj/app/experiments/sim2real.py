@@ -115,7 +115,8 @@ PROFILES = {
 
 def missing(config: Config) -> str | None:
     """The input this run cannot start without, if it is absent (`experiment all` skips it)."""
-    return None if Path(config.real).is_dir() else f"the real ThymioLoc folder {config.real}"
+    return None if Path(config.real).is_dir() else \
+        f"the real ThymioLoc folder {config.real} (`macrostate-mj data fetch retlo`)"
 
 
 def _require_splits(folder: Path, flag: str, hint: str) -> None:
@@ -127,7 +128,8 @@ def _require_splits(folder: Path, flag: str, hint: str) -> None:
 
 def read_real(folder: Path) -> np.ndarray:
     """The pooled real instances (px, degrees), Train then Val; one-line errors otherwise."""
-    _require_splits(folder, "--real", "the folder of the real ThymioLoc Train.csv and Val.csv")
+    _require_splits(folder, "--real", "the folder of the real ThymioLoc Train.csv and Val.csv "
+                    "(`macrostate-mj data fetch retlo` gets them)")
     parts = [read_csv(folder / f).poses for f in REAL_FILES]
     if len({p.shape[1:] for p in parts}) != 1 or parts[0].shape[2] != 3:
         raise UserError(f"--real {folder}: Train.csv and Val.csv must both hold 3-robot "
