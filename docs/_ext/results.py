@@ -456,6 +456,36 @@ def s2r_fit_runs(fit: str, *folders: str) -> Table:
 
 
 @source
+def s2r_ranges(folder: str) -> Table:
+    """The `--randomize` candidates of a sim-to-real run, chosen per fold on its real
+    validation block: each candidate's Head error there and on the test blocks (mean ± std
+    over the seeds) and on how many folds it was chosen."""
+    data = load(f"{folder}/results.json")
+    rows = [["fit", "ranges (--randomize)", "validation block, Head (cm)", "test block, Head (cm)",
+             "chosen on"]]
+    for fit, ranges in data["ranges"].items():  # type: ignore[index,union-attr]
+        chosen = list(ranges["chosen_by_seed"].values())
+        for name, cell in ranges["candidates"].items():
+            rows.append([fit, nodes.literal(text=Path(name).name),
+                         _stat(cell["select_head_cm"], ".2f"), _stat(cell["head_cm"], ".2f"),
+                         f"{chosen.count(name)} / {len(chosen)}"])
+    return rows
+
+
+@source
+def s2r_ablations(folder: str) -> Table:
+    """Each group of lab parameters switched off (`--ablate`): the sim-only Head error and
+    its difference to the lab's own on the same seeds, with the 95 % interval."""
+    data = load(f"{folder}/results.json")
+    rows = [["switched off", "sim only, Head (cm)", "minus the lab's (cm)", "95 % interval"]]
+    for group, cell in data["ablations"].items():  # type: ignore[index,union-attr]
+        d = cell["minus_lab"]
+        rows.append([nodes.literal(text=group), _stat(cell["head_cm"], ".2f"),
+                     f"{d['mean']:+.2f}", f"[{d['low']:+.2f}, {d['high']:+.2f}]"])
+    return rows
+
+
+@source
 def gap_ranked(*files: str) -> Table:
     """Ranked sim-to-real gaps (`stats --compare --rank --json` files, one per lab): per
     statistic the worst robot's KS distance in each, in the first file's order."""
