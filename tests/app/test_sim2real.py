@@ -323,5 +323,29 @@ def test_ablations_switch_parameters_off_in_each_seed_s_own_profile(stand_in, tm
     assert "without k_f: Head" in "\n".join(sim2real.summary_lines(results))
     with pytest.raises(UserError, match="--ablate k_x"):
         sim2real.validate(replace(config, ablate=(("k_x",),)))
-    with pytest.raises(UserError, match="give --fit or --randomize"):
+    with pytest.raises(UserError, match="make the first --fit"):
         sim2real.validate(replace(config, randomize=()))
+
+
+def test_ablations_that_cannot_be_measured_are_refused_or_said(stand_in, tmp_path, monkeypatch):
+    """A group the lab's profile does not hold trains nothing and says so; a repeated group,
+    or an ablation with no sim models to train, is refused in one line."""
+    def lab(config, out, progress, randomize):
+        out.mkdir(parents=True, exist_ok=True)
+        for name in ("Train.csv", "Val.csv"):
+            shutil.copy(stand_in / name, out / name)
+        return out
+
+    ranges = tmp_path / "ranges.json"
+    ranges.write_text(json.dumps({"k_f": [0.9, 1.1]}))
+    monkeypatch.setattr(sim2real, "_collect", lab)
+    config = replace(PROFILES["quick"], real=stand_in, arms=("sim",), randomize=(str(ranges),),
+                     ablate=(("frame_hz",),))
+    execute("sim2real", config, tmp_path / "absent")
+    results = json.loads((tmp_path / "absent" / "results.json").read_text())
+    assert results["ablations"]["frame_hz"]["minus_lab"]["n"] == 0
+    assert "not in the lab's profile" in "\n".join(sim2real.summary_lines(results))
+    for bad, words in (({"ablate": (("k_f", "k_t"), ("k_t", "k_f"))}, "each group once"),
+                       ({"arms": ("real",)}, "add --arm sim")):
+        with pytest.raises(UserError, match=words):
+            sim2real.validate(replace(config, **bad))

@@ -169,8 +169,13 @@ def validate(config: Config) -> np.ndarray:
         raise UserError("--fit fits the lab collection this command makes; drop it or --sim")
     if config.ablate and (config.sim is not None or
                           config.fits[0] == "none" and config.candidates == (PLAIN,)):
-        raise UserError("--ablate switches off parameters of the lab's profile; give --fit or "
-                        "--randomize (and no --sim)")
+        raise UserError("--ablate switches off parameters of the lab's profile; make the first "
+                        "--fit train or fold, or give --randomize (and no --sim)")
+    if config.ablate and config.arms == ("real",):
+        raise UserError("--ablate trains sim-only models; add --arm sim")
+    groups = [tuple(sorted(g)) for g in config.ablate]
+    if len(set(groups)) != len(groups):
+        raise UserError("--ablate: name each group once")
     unknown = [n for group in config.ablate for n in group if n not in PARAMETERS]
     if unknown or any(not group for group in config.ablate):
         raise UserError(f"--ablate {', '.join(unknown) or '(empty)'}: name parameters of "
@@ -388,7 +393,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                             test, chained=config.chained, precision=config.precision))
                  for group in config.ablate
                  for (s, _, _, test), lab in zip(blocks, _ablated_labs(
-                     config, group, labs, chosen, out, progress), strict=True)]
+                     config, group, labs, chosen, out, progress), strict=True)
+                 if lab is not None]
         done |= _train(third, progress, total, len(first) + len(second))
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
                for meta, task in second]
@@ -402,7 +408,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         results["sim_by_fit"] = by_fit(reports, others, config, results)
     if choose:
         results["ranges"] = by_range(sims, chosen, config)
-    if third:
+    if config.ablate:
         results["ablations"] = by_ablation(
             [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
              for meta, task in third], chosen, config)
@@ -429,15 +435,21 @@ def _profile(config: Config, lab: Path, randomize: str) -> dict:
 
 
 def _ablated_labs(config: Config, group: tuple[str, ...], labs: dict, chosen: dict,
-                  out: Path, progress: Progress) -> list[Path]:
+                  out: Path, progress: Progress) -> list[Path | None]:
     """Each seed's lab collection with `group` switched off in the profile its sim model was
-    chosen with (seeds whose profiles agree share one collection)."""
-    folders = []
+    chosen with (seeds whose profiles agree share one collection); None for a seed whose
+    profile holds none of the group (nothing to switch off). The ablated lab draws its other
+    parameters afresh: an episode's draws come in the profile's order, one per range."""
+    folders: list[Path | None] = []
     for i in range(config.seeds):
         pick = chosen.get((config.fits[0], config.seed + i))
         ranges = pick["randomize"] if pick else config.candidates[0]
         lab = labs[config.fits[0]][ranges][i]
-        profile = {k: v for k, v in _profile(config, lab, ranges).items() if k not in group}
+        own = _profile(config, lab, ranges)
+        if not set(group) & set(own):
+            folders.append(None)
+            continue
+        profile = {k: v for k, v in own.items() if k not in group}
         folder = out / "data" / f"ablate-{task_key('sim2real-lab', 1, profile)[:12]}"
         folder.mkdir(parents=True, exist_ok=True)
         path = folder.parent / f"{folder.name}.profile.json"
@@ -538,7 +550,8 @@ def by_range(sims: list[dict], chosen: dict[tuple[str, int], dict], config: Conf
 def by_ablation(reports: list[dict], chosen: dict[tuple[str, int], dict], config: Config
                 ) -> dict:
     """Per switched-off group, the sim-only Head error and its difference to the lab's own
-    sim model on the same seed (mean and 95 % interval over the seeds)."""
+    sim model on the same seed (mean and 95 % interval over the seeds whose profile held the
+    group; none where no seed's did)."""
     lab = {s: r["head_cm"] for (f, s), r in chosen.items() if f == config.fits[0]}
     out = {}
     for group in config.ablate:
@@ -581,8 +594,12 @@ def summary_lines(results: dict) -> list[str]:
             f"{Path(r).name} {n}x" for r, n in counts.most_common()))
     for name, cell in results.get("ablations", {}).items():
         d = cell["minus_lab"]
+        if d["mean"] is None:
+            lines.append(f"without {name}: not in the lab's profile, nothing switched off")
+            continue
         spread = "" if d["low"] is None else f" [{d['low']:+.2f}, {d['high']:+.2f}]"
-        lines.append(f"without {name}: Head {d['mean']:+.2f} cm{spread} against the lab's")
+        lines.append(f"without {name}: Head {d['mean']:+.2f} cm{spread} against the lab's "
+                     f"({d['n']} seeds)")
     if "sim_over_real" in results:
         lines.append(f"sim only / real only (100 %): {results['sim_over_real']:.2f}x")
     for f, g in results.get("equivalent_real_fraction", {}).items():
