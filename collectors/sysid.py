@@ -118,8 +118,9 @@ def point(fitted: dict[str, float]) -> np.ndarray:
 
 
 def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray:
-    """Points of the box (k, len(FITTED)): stage 1 over the whole box (point 0 = no change),
-    or stage 2 around `centre`."""
+    """Points of the box (k, len(FITTED)): stage 1 over the whole box (point 0 = no change to
+    the fitted values; every candidate, point 0 too, has the hold rule), or stage 2 around
+    `centre`."""
     lo, hi = box()
     if centre is None:
         pts = _sobol(cfg.first - 1, cfg.seed)

@@ -13,8 +13,14 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 REPO = Path(__file__).resolve().parents[1]
-REFERENCE = Path(os.environ.get("MACROSTATE_REFERENCE_DATA",
-                               REPO.parent / "shared" / "reference-data"))
+def _reference() -> Path:
+    """Where the package finds the ThymioLoc files (a fetched copy included)."""
+    from macrostate_mj.core.paths import reference_data
+
+    return reference_data("ReTLo")
+
+
+REFERENCE = _reference()
 
 
 @pytest.fixture

@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.io import write_json_atomic
 
 CACHE_ENV = "MACROSTATE_DATA_CACHE"       # where `data fetch` puts files by default
+VERIFIED = ".verified.json"      # written in a dataset's folder once all its files are verified
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,12 @@ def cache_root() -> Path:
     return user_cache_path("macrostate-mj")
 
 
+def fetched(root: Path, folder: str) -> bool:
+    """Whether `data fetch` verified every file of the dataset in `root / folder` (a fetch
+    that stopped half way, or found the mirror unreachable, leaves no such mark)."""
+    return (root / folder / VERIFIED).is_file()
+
+
 def named(names: list[str]) -> list[Dataset]:
     """The datasets `names` call for (`all` for every one); one-line errors otherwise."""
     unknown = [n for n in names if n != "all" and n not in DATASETS]
@@ -83,15 +91,18 @@ def fetch(dataset: Dataset, root: Path, mirror: str | None = None, progress: boo
     import pooch
     import requests
 
+    pooch.get_logger().setLevel("WARNING")      # its "Downloading ..." lines: the bar says it
     base = dataset.base_url if mirror is None else mirror.rstrip("/") + "/"
     store = pooch.create(path=root / dataset.folder, base_url=base,
                          registry={f: f"sha256:{h}" for f, h in dataset.files.items()})
     where = f"--mirror {mirror}" if mirror else f"{dataset.repo}@{dataset.commit[:7]}"
-    fetched = []
+    got = []
     for name in dataset.files:
         try:
             path = Path(store.fetch(name, progressbar=progress))
-        except ValueError as err:             # pooch: the download's hash is not the pinned one
+        except ValueError as err:
+            if "hash" not in str(err):
+                raise
             raise UserError(f"{where}: {name} is not the published file ({str(err).split('.')[0]}"
                             "); nothing was kept. Check the mirror's copy") from None
         except requests.RequestException as err:
@@ -102,7 +113,9 @@ def fetch(dataset: Dataset, root: Path, mirror: str | None = None, progress: boo
                                 f"{dataset.repo}") from None
             raise RunFailure(f"{dataset.repo}: {name} could not be fetched ({reason}); retry, "
                              "or pass --mirror URL") from None
-        fetched.append(path)
+        got.append(path)
         if on_file is not None:
             on_file(name, path)
-    return fetched
+    write_json_atomic(root / dataset.folder / VERIFIED,
+                      {"repo": dataset.repo, "commit": dataset.commit, "files": dataset.files})
+    return got

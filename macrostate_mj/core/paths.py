@@ -25,23 +25,33 @@ def _checkout() -> Path | None:
 CHECKOUT = _checkout()
 
 
-def reference_data() -> Path:
-    """The dissertation's real data (never part of the project): `$MACROSTATE_REFERENCE_DATA`;
-    else the copy `macrostate-mj data fetch` made (`core.datasets.cache_root`) once it holds
-    one; else, run from a checkout, `../shared/reference-data` beside it where that exists;
-    else the fetch cache. A missing dataset is reported where it is read, naming the fetch."""
-    from macrostate_mj.core.datasets import DATASETS, cache_root
+def reference_data(folder: str | None = None) -> Path:
+    """The root of the dissertation's real data (never part of the project), for the dataset
+    in `folder` under it (`ReTLo`, `OpticalFlows_HsAnts`): `$MACROSTATE_REFERENCE_DATA`; else
+    the copy `macrostate-mj data fetch` verified (`core.datasets.cache_root`); else, run from a
+    checkout, `../shared/reference-data` beside it where it holds that folder; else the fetch
+    cache. A missing dataset is reported where it is read, naming the fetch. Without `folder`,
+    the fetch cache once it holds any verified dataset."""
+    from macrostate_mj.core.datasets import DATASETS, cache_root, fetched
 
     if env := os.environ.get("MACROSTATE_REFERENCE_DATA"):
         return Path(env)
     cache = cache_root()
-    if any((cache / d.folder).is_dir() for d in DATASETS.values()):
+    names = [folder] if folder else [d.folder for d in DATASETS.values()]
+    if any(fetched(cache, n) for n in names):
         return cache
-    if CHECKOUT is not None and (CHECKOUT.parent / "shared" / "reference-data").is_dir():
-        return CHECKOUT.parent / "shared" / "reference-data"
+    shared = None if CHECKOUT is None else CHECKOUT.parent / "shared" / "reference-data"
+    if shared is not None and (shared / (folder or "")).is_dir():
+        return shared
     return cache
+
+
+def real_dataset(folder: str) -> Path:
+    """A real dataset's folder (`ReTLo`, `OpticalFlows_HsAnts`) where `reference_data` finds
+    it."""
+    return reference_data(folder) / folder
 
 
 def real_thymioloc(name: str) -> Path:
     """A published ThymioLoc 3-robot file (Train.csv, Val.csv)."""
-    return reference_data() / "ReTLo" / "Datasets" / "3Robots" / name
+    return real_dataset("ReTLo") / "Datasets" / "3Robots" / name

@@ -49,6 +49,7 @@ def test_a_fetch_verifies_every_file_and_a_second_is_a_no_op(served, tmp_path):
     paths = fetch(toy(), out, url)
     assert [p.read_bytes() for p in paths] == list(FILES.values())
     assert paths[1] == out / "Toy" / "Datasets" / "sub" / "b.csv"
+    assert datasets.fetched(out, "Toy")
     before, start = len(asked), time.perf_counter()
     fetch(toy(), out, url)
     assert len(asked) == before and time.perf_counter() - start < 1.0
@@ -66,6 +67,7 @@ def test_a_download_that_is_not_the_published_file_is_refused_and_removed(served
         fetch(toy(), out, url)
     left = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
     assert left == ["Toy/Datasets/a.csv"]          # the verified one stays, nothing else
+    assert not datasets.fetched(out, "Toy")
 
 
 def test_the_command_fetches_by_name_and_refuses_bad_input_in_one_line(served, tmp_path,
@@ -83,6 +85,9 @@ def test_the_command_fetches_by_name_and_refuses_bad_input_in_one_line(served, t
         code, _, err = cli_inprocess(capsys, "data", "fetch", *args, "--dir",
                                      str(tmp_path / "other"))
         assert code == 2 and words in err and err.count("\n") == 1, err
+    import pooch
+
+    assert pooch.get_logger().level >= 30         # pooch's own INFO lines stay quiet
     assert not (tmp_path / "other" / "Toy" / "Datasets" / "a.csv").exists()
 
 

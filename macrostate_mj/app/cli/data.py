@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import typer
@@ -37,3 +38,5 @@ def data_fetch(
               f"({dataset.repo}@{dataset.commit[:7]})")
     if folder is not None:
         print(f"read them with MACROSTATE_REFERENCE_DATA={root}")
+    elif os.environ.get("MACROSTATE_REFERENCE_DATA"):
+        print("MACROSTATE_REFERENCE_DATA is set, so commands read that folder, not these")

@@ -23,7 +23,7 @@ from estimators.oneclass.train import OCConfig
 from macrostate_mj.app.experiments import Progress, mean_std
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
-from macrostate_mj.core.paths import reference_data
+from macrostate_mj.core.paths import real_dataset
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
 PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",
@@ -34,7 +34,7 @@ PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.
 
 @dataclass(frozen=True)
 class Config:
-    data: Path = field(default_factory=lambda: reference_data() / "OpticalFlows_HsAnts")
+    data: Path = field(default_factory=lambda: real_dataset("OpticalFlows_HsAnts"))
     splits: tuple[int, ...] = (1, 2, 3)
     ms: tuple[int, ...] = (1, 2, 4)
     config: OCConfig = OCConfig()
@@ -53,7 +53,7 @@ PROFILES = {
     # what `experiment all` runs: Table 4.1 (m = 1, 2, 4) and Table 4.2 / Fig 4.8 (m = 2) on
     # the dev set of real unstable flows, seed 1: the committed results/oc_dev_table41, whose
     # m = 2 runs are results/oc_dev_dsvdd160_3x3's seed-1 third
-    "full": Config(unstable=reference_data() / "OpticalFlows_HsAnts-dev" / "Unstable",
+    "full": Config(unstable=real_dataset("OpticalFlows_HsAnts-dev") / "Unstable",
                    config=OCConfig(seed=1)),
     "quick": Config(config=OCConfig().scaled(0.03), max_train=200)}
 RUN_VERSION = 1    # bump when a run's report changes for the same inputs

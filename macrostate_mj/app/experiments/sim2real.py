@@ -49,7 +49,7 @@ from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
-from macrostate_mj.core.paths import reference_data
+from macrostate_mj.core.paths import real_dataset
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png"]
@@ -73,8 +73,7 @@ class Config:
     sim_seed: int = 31
     episode_minutes: float = 5.0
     seed: int = 0              # model i trains with seed + i
-    real: Path = field(default_factory=lambda: reference_data() / "ReTLo" / "Datasets"
-                       / "3Robots")
+    real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots")
     scenario: ScenarioRef = "lab"   # the lab the collection is made in
     sim: Path | None = None    # a lab collection's folder, instead of collecting one
     # the lab collection's domain randomization: none, one profile, or candidates (`PLAIN`
