@@ -491,14 +491,20 @@ def gap_ranked(*files: str) -> Table:
     statistic the worst robot's KS distance in each, in the first file's order."""
     runs = [[json.loads(line) for line in (RESULTS / f).read_text().splitlines()]
             for f in files]
-    rows = [["statistic", *(Path(f).stem for f in files), "shaped in the lab by"]]
+    effects = "effects" in runs[0][0]     # `--effects`: the first file's, beside each row
+    rows = [["statistic", *(Path(f).stem for f in files), "shaped in the lab by",
+             *(["Head error without it (cm)"] if effects else [])]]
     for r in runs[0]:
         cells = []
         for run in runs:
             other = next(x for x in run if x["statistic"] == r["statistic"])
             cells.append(f"{other['ks'][other['worst']]:.2f} ({other['worst']})")
-        rows.append([r["statistic"], *cells, ", ".join(r["shaped_by"])])
-    rows.append(["summed", *(f"{sum(x['sum'] for x in run):.2f}" for run in runs), ""])
+        shown = [f"{g} {d['mean']:+.2f} [{d['low']:+.2f}, {d['high']:+.2f}]"
+                 for g, d in r.get("effects", {}).items()]
+        rows.append([r["statistic"], *cells, ", ".join(r["shaped_by"]),
+                     *(["; ".join(shown)] if effects else [])])
+    rows.append(["summed", *(f"{sum(x['sum'] for x in run):.2f}" for run in runs), "",
+                 *([""] if effects else [])])
     return rows
 
 
