@@ -69,6 +69,7 @@ def test_the_wheel_carries_every_asset_and_only_the_packages(installed):
 def test_the_installed_copy_simulates_from_outside_the_checkout(installed, tmp_path):
     _, site = installed
     env, cwd = _installed_env(site), tmp_path / "elsewhere"
+    env["MACROSTATE_DATA_CACHE"] = str(tmp_path / "cache")
     cwd.mkdir()
     probe = subprocess.run(
         [sys.executable, "-c", "import json, collectors, estimators, viz, macrostate_mj\n"
@@ -82,7 +83,7 @@ def test_the_installed_copy_simulates_from_outside_the_checkout(installed, tmp_p
     for file in seen["files"]:
         assert Path(file).is_relative_to(site), file
     assert Path(seen["assets"]).is_relative_to(site) and seen["checkout"] is None
-    assert seen["reference"] == str(cwd / "reference-data")   # not beside site-packages
+    assert seen["reference"] == str(tmp_path / "cache")   # the fetch cache, not site-packages
 
     out = tmp_path / "out"
     run = subprocess.run([sys.executable, "-v", "-m", "macrostate_mj", "simulate", "--robots",
