@@ -130,7 +130,12 @@ class EpisodeTask:
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec
         cfg = scenario_for(spec.scenario, spec.head_speed).as_made()
-        self._key = task_key(self.stage, self.version, {"spec": spec, "scenario": cfg})
+        made = {"spec": spec, "scenario": cfg}
+        spread = cfg.wheel_spread > 0 or spec.randomize is not None and any(
+            name == "wheel_spread" and high > 0 for name, _, high in spec.randomize.ranges)
+        if spread:     # wheels that differ turn their commanded rate, not their shape, since
+            made["wheel_spread"] = "rate"     # (episodes made before are not taken)
+        self._key = task_key(self.stage, self.version, made)
 
     def key(self) -> str:
         """Hashed once: the runner, the resume count and the assembly all ask for it."""

@@ -191,6 +191,7 @@ class ChainSim:
         # Health checks at least this often (physics steps); events bound the stretches too.
         self.check_steps = 10**9
         self._wheel_gain: np.ndarray | None = None     # (n, 2) per episode (`wheel_spread`)
+        self._ctrlrange = self.model.actuator_ctrlrange.copy()
         self._state_spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._saved = np.empty(mujoco.mj_stateSize(self.model, self._state_spec))
 
@@ -200,11 +201,15 @@ class ChainSim:
         is above zero, so a lab without it keeps every draw. The wheels' shapes stay as built:
         a wheel of another size would tilt the robot, which then creeps while parked."""
         self._wheel_gain = None
+        self.model.actuator_ctrlrange[:] = self._ctrlrange
         spread = self.cfg.wheel_spread
         if spread > 0:
             child = np.random.default_rng(rng.integers(2**63))
             draws = np.clip(child.standard_normal(2 * self.n), -3, 3)
             self._wheel_gain = (1 + spread * draws).reshape(self.n, 2)
+            # a larger wheel is faster at the motor's top rate too
+            for side, ids in enumerate((self.world.ctrl_left, self.world.ctrl_right)):
+                self.model.actuator_ctrlrange[ids] *= self._wheel_gain[:, side, None]
 
     # -- lifecycle ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator | int, start: np.ndarray | None = None) -> None:

@@ -127,3 +127,22 @@ def test_absolute_parameters_add_to_the_scenario_and_their_extremes_are_checked(
 def test_the_new_keys_refuse_bad_values_from_python_in_one_line(key, value):
     with pytest.raises(ValueError, match=f"{key} \\(.* in a scenario file\\) must be"):
         get_scenario("lab").with_overrides(**{key: value})
+
+
+def test_episodes_with_wheels_that_differ_are_keyed_apart_from_those_made_before():
+    """An episode whose wheels may differ (the scenario's `wheel_spread` or a profile that
+    draws it) has a key of its own since the spread turns the commanded rate instead of the
+    wheels' shape; every other episode keeps its key (its cached data stays valid)."""
+    from collectors.episodes import EpisodeSpec
+    from collectors.runner import EpisodeTask
+    from macrostate_mj.core.cache import task_key
+
+    def key(spec):
+        made = {"spec": spec, "scenario": get_scenario(spec.scenario).as_made()}
+        return task_key(EpisodeTask.stage, EpisodeTask.version, made)
+
+    plain = EpisodeSpec("lab", 3, 60.0, 5.0, 1, 0)
+    assert EpisodeTask(plain).key() == key(plain)
+    drawn = EpisodeSpec("lab", 3, 60.0, 5.0, 1, 0,
+                        randomize=Randomization(name="x", ranges=(("wheel_spread", 0.0, 0.02),)))
+    assert EpisodeTask(drawn).key() != key(drawn)

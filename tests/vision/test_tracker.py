@@ -293,9 +293,12 @@ def test_robots_that_differ_wheels_and_markers_drawn_per_episode_from_the_seed()
     assert np.array_equal(first, sim._wheel_gain)
     assert np.array_equal(shapes, sim.model.geom_size)
     assert len(set(first.ravel().round(6))) == 6 and np.all(np.abs(first - 1) <= 0.09)
+    top = sim.model.actuator_ctrlrange[sim.world.ctrl_left, 1] / first[:, 0]
+    assert np.allclose(top, sim.world.max_wheel_speed)     # a larger wheel is faster at full
     plain = ChainSim(build_world(get_scenario("lab"), 3))
     plain.reset(7)
     assert plain._wheel_gain is None
+    assert np.all(plain.model.actuator_ctrlrange[:, 1] == plain.world.max_wheel_speed)
 
     chain = CameraChain(sim, rng=np.random.default_rng([7, 1]), lazy=False)
     seen = []
