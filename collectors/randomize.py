@@ -7,9 +7,8 @@ profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by
 their own unit instead (`frame_jitter: (0, 0.1)` delays each frame by up to 0-0.1 s more,
 `follow_start: 0.01` lets a rear robot wait 1 cm more before it sets off, `follow_hold: 0.3`
 makes one that is nearer the robot ahead than 0.3 m closer than d stop rather than back off).
-Draws come from
-the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized collection is still
-bit-identical for any worker count. A profile is a built-in name or a JSON
+Draws come from the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized collection is
+still bit-identical for any worker count. A profile is a built-in name or a JSON
 file `{"k_f": [0.8, 1.2], ...}`; a bare number fixes a factor (`{"k_f": 1.1}`: what
 `sysid` writes). The collection's manifest records it.
 """

@@ -13,7 +13,7 @@ rest: the project never trains, tunes or reports on them.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,12 +82,14 @@ def named(names: list[str]) -> list[Dataset]:
     return list(DATASETS.values()) if "all" in names else [DATASETS[n] for n in names]
 
 
-def fetch(dataset: Dataset, root: Path, mirror: str | None = None, progress: bool = False,
-          on_file: Callable[[str, Path], None] | None = None) -> list[Path]:
+def fetch(dataset: Dataset, root: Path, mirror: str | None = None, progress: bool = False
+          ) -> list[Path]:
     """Every file of `dataset` under `root / dataset.folder`, downloaded from the commit's raw
     files (or `mirror`, under which they sit at the same relative paths) unless present with
     the pinned hash; each verified. Bad mirrors and hashes are `UserError`s, an unreachable
     default source a `RunFailure`; nothing unverified is left behind."""
+    if mirror is not None and not mirror.startswith(("http://", "https://")):
+        raise UserError(f"--mirror {mirror}: give a URL (http:// or https://)")
     import pooch
     import requests
 
@@ -114,8 +116,6 @@ def fetch(dataset: Dataset, root: Path, mirror: str | None = None, progress: boo
             raise RunFailure(f"{dataset.repo}: {name} could not be fetched ({reason}); retry, "
                              "or pass --mirror URL") from None
         got.append(path)
-        if on_file is not None:
-            on_file(name, path)
     write_json_atomic(root / dataset.folder / VERIFIED,
                       {"repo": dataset.repo, "commit": dataset.commit, "files": dataset.files})
     return got

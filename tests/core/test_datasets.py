@@ -95,3 +95,9 @@ def test_the_published_files_are_pinned_to_a_commit():
     for d in datasets.DATASETS.values():
         assert len(d.commit) == 40 and all(len(h) == 64 for h in d.files.values())
         assert d.held_out <= set(d.files) and d.base_url.endswith(f"/{d.commit}/")
+
+
+def test_a_mirror_that_is_no_url_is_refused_from_python_too(tmp_path):
+    with pytest.raises(UserError, match="give a URL"):
+        fetch(toy(), tmp_path, "127.0.0.1:9")
+    assert not (tmp_path / "Toy").exists()

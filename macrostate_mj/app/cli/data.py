@@ -25,12 +25,9 @@ def data_fetch(
     the pinned one, and say where they are. The held-out test files come too: never train,
     tune or report on them."""
     from macrostate_mj.core.datasets import cache_root, fetch, named
-    from macrostate_mj.core.errors import UserError
     from macrostate_mj.core.progress import live
 
     chosen = named(names)
-    if mirror is not None and not mirror.startswith(("http://", "https://")):
-        raise UserError(f"--mirror {mirror}: give a URL (http:// or https://)")
     root = folder if folder is not None else cache_root()
     for dataset in chosen:
         paths = fetch(dataset, root, mirror, progress=live())

@@ -144,15 +144,14 @@ def paired_interval(differences: list[float]) -> dict[str, float | int | None]:
     """Paired differences over seeds: their mean and its 95 % t interval (None under 2
     pairs), so a difference whose interval holds 0 reads as inconclusive."""
     import numpy as np
-    from scipy.stats import t
+    from scipy.stats import ttest_1samp
 
     d = np.asarray(differences, float)
     if len(d) < 2:
         return {"mean": float(d.mean()) if len(d) else None, "low": None, "high": None,
                 "n": len(d)}
-    half = float(t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d)))
-    return {"mean": float(d.mean()), "low": float(d.mean()) - half,
-            "high": float(d.mean()) + half, "n": len(d)}
+    ci = ttest_1samp(d, 0.0).confidence_interval(0.95)
+    return {"mean": float(d.mean()), "low": float(ci.low), "high": float(ci.high), "n": len(d)}
 
 
 def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any, Any]:
