@@ -197,6 +197,17 @@ def _collect(config: Config, out: Path, progress: Progress, randomize: str | Non
     return out
 
 
+def _drawn_lab(config: Config, profile: dict, kind: str, out: Path, progress: Progress
+               ) -> Path:
+    """A lab collection drawn from `profile`, in `out / "data"` under a folder named by the
+    profile (runs and folds that draw the same share it), the profile written beside it."""
+    folder = out / "data" / f"{kind}-{task_key('sim2real-lab', 1, profile)[:12]}"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder.parent / f"{folder.name}.profile.json"
+    write_json_atomic(path, profile)
+    return _collect(config, folder, progress, str(path) if profile else None)
+
+
 def _ranges(randomize: str) -> dict | None:
     """A `randomize` candidate's ranges (None for `PLAIN`)."""
     from collectors.randomize import Randomization
@@ -221,13 +232,9 @@ def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, n
                  lambda done, total: progress.report(f"sysid {name}", done, total))
     folders = {}
     for randomize in config.candidates:
-        drawn = around(report["fitted"], _ranges(randomize))
-        # folds whose fits agree share one collection: its folder is named by the profile
-        folder = out / "data" / f"fit-{task_key('sim2real-lab', 1, drawn)[:12]}"
-        folder.mkdir(parents=True, exist_ok=True)
-        profile = folder.parent / f"{folder.name}.profile.json"
-        write_json_atomic(profile, drawn)
-        folders[randomize] = _collect(config, folder, progress, str(profile))
+        # folds whose fits agree share one collection
+        folders[randomize] = _drawn_lab(config, around(report["fitted"], _ranges(randomize)),
+                                        "fit", out, progress)
     names = {r: f.name for r, f in folders.items()}
     summary = {"fitted": report["fitted"], "train_ks": report["train"],
                "val_ks": report["val"],
@@ -427,9 +434,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 def _profile(config: Config, lab: Path, randomize: str) -> dict:
     """The profile a lab collection was drawn from: the one written beside a fitted lab, or
     the `randomize` candidate's."""
-    written = lab.parent / f"{lab.name}.profile.json"
     if config.fits[0] != "none":
-        return json.loads(written.read_text())
+        return json.loads((lab.parent / f"{lab.name}.profile.json").read_text())
     return _ranges(randomize) or {}
 
 
@@ -449,11 +455,7 @@ def _ablated_labs(config: Config, group: tuple[str, ...], labs: dict, chosen: di
             folders.append(None)
             continue
         profile = {k: v for k, v in own.items() if k not in group}
-        folder = out / "data" / f"ablate-{task_key('sim2real-lab', 1, profile)[:12]}"
-        folder.mkdir(parents=True, exist_ok=True)
-        path = folder.parent / f"{folder.name}.profile.json"
-        write_json_atomic(path, profile)
-        folders.append(_collect(config, folder, progress, str(path) if profile else None))
+        folders.append(_drawn_lab(config, profile, "ablate", out, progress))
     return folders
 
 
