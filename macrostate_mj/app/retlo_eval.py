@@ -12,6 +12,7 @@ from estimators.retlo.gaussian import GAUSSIAN_REGIONS
 from estimators.retlo.propagate import require_uncertain
 from estimators.retlo.report import chain_positions
 from macrostate_mj.core.io import check_writable_file, write_json_atomic
+from macrostate_mj.core.run import Run
 
 SHOWN = 3    # instances in the video and the recording
 
@@ -27,14 +28,32 @@ def outputs_checked(out: Path, video: Path | None, rerun: Path | None, overwrite
 def evaluate_request(loaded: tuple[Module, str], data: Path, out: Path, px_per_cm: float,
                      calibration: bool | None, particles: int, seed: int,
                      video: Path | None = None, rerun: Path | None = None) -> dict:
-    """The report written to `out` (and returned). `calibration` None: on exactly when the
-    module has uncertainty; True on a point module is refused before anything is written. An
-    uncertain module's estimates are then its Monte Carlo mixtures' means (`propagate`)."""
+    """The report written to `out` (and returned), its manifest beside it
+    (`<out>.manifest.json`). `calibration` None: on exactly when the module has uncertainty;
+    True on a point module is refused before anything is written. An uncertain module's
+    estimates are then its Monte Carlo mixtures' means (`propagate`)."""
     module, name = loaded
     uncertain = bool(getattr(module, "uncertain", False))
     calibrate = uncertain if calibration is None else calibration
     if calibrate:
         require_uncertain(module)
+    config = {"model": name, "data": str(data), "px_per_cm": px_per_cm,
+              "calibration": calibrate, "particles": particles,
+              "video": None if video is None else str(video),
+              "rerun": None if rerun is None else str(rerun)}
+    # the outputs were checked (`outputs_checked`), so the run claims the folder as is
+    with Run(out.parent, "evaluate retlo", config, seed, [out.name], overwrite=True,
+             manifest=out.name + ".manifest.json") as run:
+        with run.stage("evaluate"):
+            result = _evaluate(module, name, data, out, px_per_cm, calibrate, uncertain,
+                               particles, seed, video, rerun)
+        run.record(mean_error_cm=result["mean_error_cm"], n_instances=result["n_instances"])
+    return result
+
+
+def _evaluate(module: Module, name: str, data: Path, out: Path, px_per_cm: float,
+              calibrate: bool, uncertain: bool, particles: int, seed: int,
+              video: Path | None, rerun: Path | None) -> dict:
     world = as_world(data, px_per_cm)
     drawn = uncertain and (video is not None or rerun is not None)   # ellipses need Σ
     est, cov = predict(module, world, gaussian=calibrate or drawn, particles=particles,

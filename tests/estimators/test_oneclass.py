@@ -203,6 +203,9 @@ def test_cli_train_evaluate_and_bad_input(tmp_path):
     # n_stable = 20: ids 1333, 2000, 3000, 9500 sit at positions 1313, 1980, 2980, 9480
     assert rep["n_unstable_bins"]["D+3-6"] == 2 and rep["auc_bins"]["D+1"] is None
     assert rep["auc_all"] > 0.9  # 4 px of motion against 0: any sane model separates them
+    manifest = json.loads((tmp_path / "report.json.manifest.json").read_text())
+    assert manifest["command"] == "oc evaluate" and manifest["status"] == "finished"
+    assert manifest["config"]["split"] == 2 and "evaluate" in manifest["timings_s"]
 
     for args, words in ((("oc", "train", "--method", "svm", "--data", str(data), "--out",
                           str(tmp_path / "m2")), "'--method': 'svm' is not one of"),

@@ -340,6 +340,10 @@ def test_train_and_evaluate_with_uncertainty_from_the_command_line(tmp_path, cap
     assert set(report["calibration"]) == {"F2", "F3", "H", "pooled", "nll_unit"}
     assert {"coverage_50", "coverage_90", "nll"} <= set(report["calibration"]["pooled"])
     assert report["particles"] == 8
+    manifest = json.loads((tmp_path / "r.json.manifest.json").read_text())
+    assert manifest["status"] == "finished" and manifest["command"] == "evaluate retlo"
+    assert manifest["config"]["particles"] == 8 and manifest["seed"] == 0
+    assert manifest["mean_error_cm"] == report["mean_error_cm"]
     capture = cv2.VideoCapture(str(video))
     assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == 3 * 26
     capture.release()

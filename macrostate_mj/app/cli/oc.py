@@ -169,6 +169,7 @@ def oc_evaluate(
     """AUC of stable test vs unstable samples (unstable = positive), overall and per time bin,
     with bootstrap intervals and, against a baseline, paired p-values."""
     from macrostate_mj.core.io import check_writable_file, write_json_atomic
+    from macrostate_mj.core.run import Run
 
     check_writable_file(out, overwrite, "--out")
     from estimators.oneclass import OCModel
@@ -193,19 +194,25 @@ def oc_evaluate(
     if min(len(test), n_unstable) < FEW_AUC_SAMPLES:
         typer.echo(f"note: an AUC from {len(test)} stable and {n_unstable} unstable samples is "
                    "a smoke test, not a measurement", err=True)
-    x_stable, x_unstable = d.load("Stable", test, m), d.load("Unstable", d.unstable_ids, m)
-    s_stable, s_unstable = oc.score(meth, x_stable), oc.score(meth, x_unstable)
-    bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
-    report = auc_report(s_stable, s_unstable, bins, names)
-    if intervals:
-        report["auc_ci95"] = interval_report(s_stable, s_unstable, bins, names)
-    if baseline is not None:
-        report["vs_baseline"] = {"baseline": baseline, **paired_report(
-            s_stable, s_unstable, oc.score(baseline, x_stable), oc.score(baseline, x_unstable),
-            bins, names)}
-    report.update(method=meth, split=split, m=m, model=str(model), data=str(data),
-                  unstable=str(unstable or d.root / "Unstable"))
-    write_json_atomic(out, report)
+    config = {"model": str(model), "data": str(data), "split": split, "method": meth,
+              "unstable": None if unstable is None else str(unstable), "baseline": baseline,
+              "intervals": intervals}
+    # the report was checked writable above, so the run claims the folder as is
+    with Run(out.parent, "oc evaluate", config, None, [out.name], overwrite=True,
+             manifest=out.name + ".manifest.json") as run, run.stage("evaluate"):
+        x_stable, x_unstable = d.load("Stable", test, m), d.load("Unstable", d.unstable_ids, m)
+        s_stable, s_unstable = oc.score(meth, x_stable), oc.score(meth, x_unstable)
+        bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
+        report = auc_report(s_stable, s_unstable, bins, names)
+        if intervals:
+            report["auc_ci95"] = interval_report(s_stable, s_unstable, bins, names)
+        if baseline is not None:
+            report["vs_baseline"] = {"baseline": baseline, **paired_report(
+                s_stable, s_unstable, oc.score(baseline, x_stable),
+                oc.score(baseline, x_unstable), bins, names)}
+        report.update(method=meth, split=split, m=m, model=str(model), data=str(data),
+                      unstable=str(unstable or d.root / "Unstable"))
+        write_json_atomic(out, report)
     ci = report.get("auc_ci95", {}).get("all")
     band = f" [{ci[0]:.3f}, {ci[1]:.3f}]" if ci else ""
     bins_text = ", ".join(f"{k} {v:.3f}" for k, v in report["auc_bins"].items() if v is not None)

@@ -163,7 +163,9 @@ def DatasetNames() -> Any:  # noqa: N802
 
         named([v])
 
-    return typer.Argument(..., help="The datasets: retlo (the ThymioLoc poses), or all.",
+    return typer.Argument(..., help="The datasets: retlo (the ThymioLoc poses), hsants (the ant "
+                          "flows), hsants-dev (the dev set of unstable flows, picked from "
+                          "hsants), or all.",
                           callback=_checked(check, "choice"))
 
 
