@@ -185,9 +185,10 @@ def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
 
-def collect(req: CollectRequest, progress: Callable[[int, float], None] | None = None
+def collect(req: CollectRequest, progress: Callable[[int, float, float], None] | None = None
             ) -> dict[str, Path]:
-    """Run (or resume) a collection and write its datasets; returns the written paths."""
+    """Run (or resume) a collection and write its datasets; returns the written paths.
+    `progress(episodes, sim minutes, sim minutes resumed)` follows the episodes."""
     specs = plan(req)
     fractions = parse_split(req.split)
     runner_for(req.ray)                                  # an unreachable cluster: bad input now
@@ -204,9 +205,9 @@ def collect(req: CollectRequest, progress: Callable[[int, float], None] | None =
                     failures[outcome.task.spec.index] = outcome.failure or "failed"
                     continue
                 done += 1
-                resumed += outcome.task.key() in cache.hits
+                resumed += outcome.cached
                 if progress:
-                    progress(done, done * specs[0].seconds / 60)
+                    progress(done, done * specs[0].seconds / 60, resumed * specs[0].seconds / 60)
         if failures:
             index = min(failures)
             raise RunFailure(

@@ -112,21 +112,23 @@ class SoakRunTask:
 
 
 def soak(tasks: list[SoakTask], workers: int = 1, ray: str | None = None,
-         progress: Callable[[int], None] | None = None, cache: TaskCache | None = None,
+         progress: Callable[[int, int], None] | None = None, cache: TaskCache | None = None,
          kind: type = SoakRunTask) -> list:
     """Run every task as a `kind` (the physics soak's `SoakRunTask`, or another seed's task
     with a `result` type: the tracked soak's); results in seed order whatever the number of
     workers. With `cache`, each finished run is kept there and a rerun skips the seeds it holds
-    (an interrupted soak resumes); without, the runs are kept in a temporary folder."""
+    (an interrupted soak resumes); without, the runs are kept in a temporary folder.
+    `progress(runs done, of them resumed)` follows the runs."""
     if workers < 1:
         raise UserError(f"workers must be at least 1, got {workers}", "workers")
     with tempfile.TemporaryDirectory() as tmp:
-        runs = []
+        runs, resumed = [], 0
         for outcome in run_tasks(cache or TaskCache(tmp), [kind(t) for t in tasks],
                                  workers, ray):
             runs.append(kind.result(**json.loads((outcome.folder / "run.json").read_text())))
+            resumed += outcome.cached
             if progress:
-                progress(len(runs))
+                progress(len(runs), resumed)
     return sorted(runs, key=lambda r: r.seed)
 
 

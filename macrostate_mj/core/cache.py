@@ -133,6 +133,7 @@ class Outcome:
     task: Any
     folder: Path | None       # None: failed
     failure: str | None = None
+    cached: bool = False      # found in the cache (a resumed run's), not computed now
 
 
 def _compute(task: Task) -> tuple[dict[str, bytes] | None, str | None]:
@@ -191,7 +192,7 @@ def run_tasks(cache: TaskCache, tasks: Sequence[Task], workers: int = 1,
         if all(f is not None for f in folders):
             for (i, _), folder in zip(unit, folders, strict=True):
                 for task in waiting[keys[i]]:
-                    yield Outcome(task, folder)
+                    yield Outcome(task, folder, cached=True)
         else:
             units.append(unit)
     for results in runner_for(ray)(_unit, units, workers):

@@ -89,7 +89,7 @@ def collect(
                          keep_unhealthy=keep_unhealthy)
     episodes = len(plan(req))
     with sim_progress(minutes, f"collecting {episodes} episodes", unit="sim min") as bar:
-        written = run_collect(req, lambda done, sim_minutes: bar(sim_minutes))
+        written = run_collect(req, lambda _, minutes, resumed: bar(minutes, resumed))
     for kind, path in written.items():
         typer.echo(f"{kind:<16} {path}")
     _tracking_line(written)
@@ -112,7 +112,9 @@ def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
         task = bar.add_task("collect srs", total=None)
 
         def progress(stage: str, done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total, description=stage)
+            if bar.tasks[0].description != stage:       # a new stage: its own rate and clock
+                bar.reset(task, total=total, description=stage)
+            bar.update(task, completed=done, total=total)
 
         written = collect_srs(SRSRequest(req, pick, instances, ro_instances, k, track),
                               NoveltyTraining(), progress)

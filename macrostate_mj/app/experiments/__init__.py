@@ -38,7 +38,7 @@ class Progress:
     terminal, the task cache of its folder, and where its tasks run."""
 
     run: Run
-    report: Callable[..., None] = lambda stage, done, total=1.0: None
+    report: Callable[..., None] = lambda stage, done, total=1.0, cached=0.0: None
     workers: int = 1
     ray: str | None = None
     overwrite: bool = False     # the command's --overwrite (`experiment all` passes it on)

@@ -184,10 +184,12 @@ def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     tasks = [RunTask(exp, m, split, seed, main_m, progress.cache.root)
              for m in exp.ms for split in exp.splits for seed in seeds]
     runs: dict[str, dict] = {}
+    cached = 0
     with progress.stage("runs"):
         for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray):
             runs[outcome.task.name] = json.loads((outcome.folder / "report.json").read_text())
-            progress.report("runs", len(runs), len(tasks))
+            cached += outcome.cached
+            progress.report("runs", len(runs), len(tasks), cached)
     runs = {t.name: runs[t.name] for t in tasks}           # in task order, whatever finished first
     with progress.stage("figures_model"):  # the first run's model, from its cached stages
         first = next(t for t in tasks if t.m == main_m)

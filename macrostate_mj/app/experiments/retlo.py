@@ -121,11 +121,13 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
              for kind in LEARNED
              for chained in ((cfg.chained, False) if cfg.split else (cfg.chained,))]
     folders: dict[int, Path] = {}
+    cached = 0
     with progress.stage("train"):
         for outcome in run_tasks(progress.cache, tasks, progress.workers, progress.ray,
                                  cfg.group):
             folders[tasks.index(outcome.task)] = outcome.folder
-            progress.report("train", len(folders), len(tasks))
+            cached += outcome.cached
+            progress.report("train", len(folders), len(tasks), cached)
     train_s: dict[str, list[float]] = {kind: [] for kind in LEARNED}
     per_model = 2 if cfg.split else 1
     for i in range(0, len(tasks), per_model):   # in task order: the same file for any workers

@@ -393,7 +393,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                 second += [({"arm": arm, "fraction": f, "count": count, "seed": s},
                             _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab))
                            for arm in later]
-        done |= _train(second, progress, total, len(first))
+        done |= _train(second, progress, total, done)
         third = [({"ablate": group, "seed": s},
                   ModelTask("sim", s, config.epochs, lab / "Train.csv", lab / "Val.csv",
                             test, chained=config.chained, precision=config.precision))
@@ -401,7 +401,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                  for (s, _, _, test), lab in zip(blocks, _ablated_labs(
                      config, group, labs, chosen, out, progress), strict=True)
                  if lab is not None]
-        done |= _train(third, progress, total, len(first) + len(second))
+        done |= _train(third, progress, total, done)
     reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
                for meta, task in second]
     # the first fit's chosen sim models are the sim arm; the other fits' are kept apart
@@ -474,15 +474,16 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
 
 
 def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
-           before: int = 0) -> dict[int, Outcome]:
-    """Run the tasks (cached ones are read back); their outcomes by id(task)."""
-    done: dict[int, Outcome] = {}
+           earlier: dict[int, Outcome] | None = None) -> dict[int, Outcome]:
+    """Run the tasks (cached ones are read back); their outcomes by id(task). The bar counts
+    the `earlier` outcomes of the same stage too."""
+    done: dict[int, Outcome] = dict(earlier or {})
     for outcome in run_tasks(progress.cache, [t for _, t in tasks], progress.workers,
                              progress.ray):
         if outcome.folder is None:
             raise RunFailure(f"a {outcome.task.arm} model failed: {outcome.failure}")
         done[id(outcome.task)] = outcome
-        progress.report("models", before + len(done), total)
+        progress.report("models", len(done), total, sum(o.cached for o in done.values()))
     return done
 
 

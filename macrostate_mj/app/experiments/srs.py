@@ -229,6 +229,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     cells: list[_Cell] = []
     distances: dict[str, dict] = {}
     trained: set[str] = set()
+    resumed = 0
     total = sum(len(sets) * config.models * len(_budgets(config, name))
                 for name, sets in configs.items())
     for name, sets in configs.items():       # one configuration at a time: see the docstring
@@ -245,11 +246,12 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                                      progress.ray, config.group):
                 if outcome.folder is None:
                     raise RunFailure(f"a model of {name} failed: {outcome.failure}")
-                if outcome.task.key() not in progress.cache.hits:
+                if not outcome.cached:
                     trained.add(outcome.task.key())
+                resumed += outcome.cached
                 reports[id(outcome.task)] = json.loads(
                     (outcome.folder / "report.json").read_text())
-                progress.report("models", len(cells) + len(reports), total)
+                progress.report("models", len(cells) + len(reports), total, resumed)
         cells += [_Cell(name, b, t.key(), reports[id(t)]) for b, t in mine]   # in task order
         if name in shown:
             distances[name] = _distances(sets, config)
