@@ -28,8 +28,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from macrostate_mj.app.envs import ID as ENV_ID
-from macrostate_mj.app.experiments import wilcoxon_p
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.stats import wilcoxon_p
 
 
 class Tail(Protocol):

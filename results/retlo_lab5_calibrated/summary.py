@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from macrostate_mj.app.experiments import mean_std
+from macrostate_mj.core.stats import mean_std
 
 KEYS = ("coverage_50", "coverage_90", "gaussian_coverage_50", "gaussian_coverage_90", "nll")
 

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 from clitools import assert_clean_error, cli
 
-from macrostate_mj.app.experiments import cv_blocks, execute, sim2real
+from macrostate_mj.app.experiments import execute, sim2real
 from macrostate_mj.app.experiments.sim2real import PROFILES, equivalent_fraction
 from macrostate_mj.chain import scenarios
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.stats import cv_blocks
 
 
 @pytest.fixture(scope="module")

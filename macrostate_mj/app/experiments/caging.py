@@ -28,9 +28,10 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress, show
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.stats import show
 
 if TYPE_CHECKING:
     import gymnasium

@@ -30,9 +30,10 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress, caging, mean_std, show, wilcoxon_p
+from macrostate_mj.app.experiments import Progress, caging
 from macrostate_mj.core.cache import run_tasks
 from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.stats import mean_std, show, wilcoxon_p
 
 if TYPE_CHECKING:
     from estimators.retlo.mlp import ChainedMLP

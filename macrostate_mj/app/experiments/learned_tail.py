@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 
 from macrostate_mj.app.envs import HEURISTIC
-from macrostate_mj.app.experiments import Progress, mean_std, show
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.stats import mean_std, show
 
 POLICIES = ("passive", "random", "srs_med", "chain_offset", "learned")
 PRODUCTS = ["results.json", "learning_curve.png", "episodes"]

@@ -20,10 +20,11 @@ import numpy as np
 from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
 from estimators.oneclass.train import OCConfig
-from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import real_dataset
+from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
 PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",

@@ -31,11 +31,12 @@ from estimators.retlo.heads import POINT, Head
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
-from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic
 from macrostate_mj.core.paths import real_thymioloc
+from macrostate_mj.core.stats import cv_blocks, mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models"]

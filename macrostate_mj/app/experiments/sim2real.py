@@ -44,12 +44,13 @@ from typing import Any, ClassVar
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.app.experiments import Progress, cv_blocks, mean_std, paired_interval
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import real_dataset
+from macrostate_mj.core.stats import cv_blocks, mean_std, paired_interval
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png"]

@@ -28,10 +28,11 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
-from macrostate_mj.app.experiments import Progress, mean_std
+from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
 from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
 PRODUCTS = ["results.json", "fig3_4.png", "fig3_5a.png", "fig3_5b.png", "fig3_6.png",
