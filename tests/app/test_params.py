@@ -226,3 +226,16 @@ def test_library_checks_after_parsing_leave_nothing_behind(tmp_path, args):
     assert not out.exists()
     if "--episode-minutes" in args:
         assert err.startswith("error: --episode-minutes 0.1"), err
+
+
+def test_the_command_line_starts_without_torch():
+    """Every command imports its heavy dependencies lazily: `--help` or a fetch that has
+    nothing to do should not pay torch's two seconds of import."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom macrostate_mj.app.cli import app  # noqa: F401\n"
+            "print(sorted(m for m in ('torch', 'mujoco', 'cv2') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "torch" not in out, out

@@ -40,10 +40,10 @@ class Config:
 
     def __post_init__(self) -> None:
         precision_named(self.precision)
-        unknown = sorted(set(self.only) - set(_members()))
+        unknown = sorted(set(self.only) - set(MEMBERS))
         if unknown:
             raise UserError(f"only names {', '.join(unknown)}, not an experiment; choose from "
-                            f"{', '.join(_members())}", "only")
+                            f"{', '.join(MEMBERS)}", "only")
 
 
 PROFILES = {"full": Config("full"), "quick": Config("quick")}
