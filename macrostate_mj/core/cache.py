@@ -128,6 +128,51 @@ class TaskFailed(Exception):
     """A task that could not produce its outputs (the physics left its valid regime)."""
 
 
+class ShipsFiles:
+    """A task whose input files travel with it, so that a Ray node (or a worker process) never
+    reads the driver's files by path: pickled, each attribute named in `shipped` that holds a
+    file's path carries the file's bytes instead, written on arrival into a folder of the
+    receiving process's own and named there. Keys are taken on the driver, from the files."""
+
+    shipped: ClassVar[tuple[str, ...]] = ()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        for name in self.shipped:
+            value = state.get(name)
+            if isinstance(value, str | os.PathLike) and Path(value).is_file():
+                state[name] = _Shipped(Path(value).name, Path(value).read_bytes())
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for name in self.shipped:
+            value = state.get(name)
+            if isinstance(value, _Shipped):
+                folder = Path(tempfile.mkdtemp(prefix=f"{name}-", dir=_landing()))
+                (folder / value.name).write_bytes(value.data)
+                state[name] = folder / value.name
+        self.__dict__.update(state)
+
+
+@dataclass(frozen=True)
+class _Shipped:
+    name: str
+    data: bytes
+
+
+_landed: list[Path] = []
+
+
+def _landing() -> Path:
+    """This process's folder for shipped files, removed when it exits."""
+    if not _landed:
+        import atexit
+
+        _landed.append(Path(tempfile.mkdtemp(prefix="macrostate-shipped-")))
+        atexit.register(shutil.rmtree, _landed[0], True)
+    return _landed[0]
+
+
 @dataclass(frozen=True)
 class Outcome:
     task: Any

@@ -6,7 +6,9 @@ computed it; callers order results themselves where order matters.
 
 from __future__ import annotations
 
+import logging
 import os
+import re
 import socket
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -55,22 +57,22 @@ def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
 
 
 def ray_runner(address: str) -> Runner:
-    """Connect to Ray (`local` starts one in-process, `auto` finds this machine's cluster)."""
+    """Connect to Ray: `local` starts an instance in this process (never joining a cluster
+    already running here), `auto` finds this machine's cluster, HOST:PORT is a cluster's head
+    (`ray start --head`). Every node needs this package installed (no runtime_env ships it: its
+    native dependencies could not travel). A task travels pickled and returns its outputs as
+    bytes, which the driver writes; a task that names an input file by path reads it on its
+    node, so such runs need the file at that path on every node."""
     try:
         import ray
     except ImportError:
         raise UserError("--ray needs Ray: pip install 'macrostate-mj[ray]' (or pip install ray)"
                         ) from None
     if address not in ("local", "auto"):
-        host, _, port = address.removeprefix("ray://").rpartition(":")
-        try:
-            socket.create_connection((host or "127.0.0.1", int(port)), timeout=3).close()
-        except (OSError, ValueError):
-            raise UserError(f"cannot reach a Ray cluster at {address}; start one with "
-                            "`ray start --head` or pass --ray local") from None
+        _check_head(address)
     try:
-        ray.init(address=None if address == "local" else address, ignore_reinit_error=True,
-                 log_to_driver=False, include_dashboard=False)
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False,
+                 include_dashboard=False, logging_level=logging.WARNING)
     except (ConnectionError, RuntimeError) as err:
         raise UserError(f"cannot connect to Ray at {address}: {err}".splitlines()[0]) from None
 
@@ -79,9 +81,92 @@ def ray_runner(address: str) -> Runner:
         pending = [remote.remote(t) for t in tasks]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(ready[0])
+            try:
+                yield ray.get(ready[0])
+            except ray.exceptions.RayTaskError as err:
+                # the first failure is the one reported: the rest, dropped, are not printed
+                os.environ.setdefault("RAY_IGNORE_UNHANDLED_ERRORS", "1")
+                raise _task_error(err, address) from None
 
     return results
+
+
+def _check_head(address: str) -> None:
+    """Fail in one line, before `ray.init` retries for minutes, where no Ray head of ours
+    answers at `address`: nothing listening, a head that wants a token this process lacks (one
+    started where a Ray token exists, ~/.ray/auth_token), or a port that is not a head's. Ray
+    connects to this machine's address for a loopback host (its head does not listen on
+    127.0.0.1 alone), so that is where we look too."""
+    target = _bootstrap(address)
+    host, _, port = target.removeprefix("ray://").rpartition(":")
+    try:
+        socket.create_connection((host or "127.0.0.1", int(port)), timeout=3).close()
+    except (OSError, ValueError):
+        where = address if target == address else f"{address} (Ray connects to {target})"
+        raise UserError(f"cannot reach a Ray cluster at {where}; start one with "
+                        "`ray start --head` or pass --ray local") from None
+    if address.startswith("ray://"):
+        return
+    try:
+        from ray._raylet import GcsClient
+        from ray.exceptions import AuthenticationError, RpcError
+    except ImportError:         # another Ray: ray.init reports what it finds
+        return
+    saved = os.dup(2)           # the refusal is logged by Ray's C++ core, straight to fd 2
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            GcsClient(address=target)
+    except AuthenticationError:
+        raise UserError(f"the Ray cluster at {address} wants its token: export "
+                        "RAY_AUTH_MODE=token and RAY_AUTH_TOKEN=<the token> (`ray get-auth-token` "
+                        "on the head prints it), as on every node") from None
+    except RpcError:
+        raise UserError(f"no Ray head answers at {address}: give the port its `ray start "
+                        "--head` printed (--port, 6379 by default)") from None
+    except Exception:           # anything else: ray.init says what
+        return
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _bootstrap(address: str) -> str:
+    """The address `ray.init(address)` connects to (`localhost:P` becomes this machine's)."""
+    if address.startswith("ray://"):
+        return address
+    try:
+        from ray._private.services import canonicalize_bootstrap_address
+        return canonicalize_bootstrap_address(address) or address
+    except Exception:           # a Ray without it, or an address it cannot parse: as given
+        return address
+
+
+def _task_error(err: Exception, address: str) -> Exception:
+    """A task's failure as the CLI reports it: a node without this package as a one-line
+    `UserError` naming the fix; our own errors as themselves (as from local workers)."""
+    cause = getattr(err, "cause", None)
+    if isinstance(cause, UserError | RunFailure):
+        return cause
+    missing = _missing_module(err)
+    if missing is not None:
+        return UserError(f"a node of the Ray cluster at {address} cannot import {missing}: "
+                         "install macrostate-mj there, in the environment its `ray start` runs "
+                         "from (pip install 'macrostate-mj[ray]')")
+    return err
+
+
+def _missing_module(err: Exception) -> str | None:
+    """The module a task's worker could not import, if that is why it failed: Ray wraps the
+    `ModuleNotFoundError` (in a `RaySystemError` when it was the task's arguments that could
+    not be unpickled), so its text is the last resort."""
+    seen: Any = err
+    for _ in range(4):
+        if isinstance(seen, ModuleNotFoundError):
+            return seen.name
+        seen = getattr(seen, "cause", None) or getattr(seen, "client_exc", None)
+    found = re.search(r"ModuleNotFoundError: No module named '([\w.]+)'", str(err))
+    return found.group(1) if found else None
 
 
 def runner_for(ray_address: str | None) -> Runner:

@@ -2,13 +2,15 @@
 outputs, one computation per key whatever the worker count."""
 
 import json
+import pickle
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 import pytest
 
-from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
+from macrostate_mj.core.cache import ShipsFiles, TaskCache, TaskFailed, run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.run import Run, run_finished
 
@@ -133,3 +135,32 @@ def test_grouped_tasks_are_computed_in_fixed_groups_and_cached_whole(tmp_path, w
                    2: [2, 4, 6], 4: [2, 4, 6], 6: [2, 4, 6]}
     assert len(list(run_tasks(cache, tasks, workers, group_size=3))) == 7
     assert len(cache.hits) == 7                    # a rerun computes nothing
+
+
+class _Reads(ShipsFiles):
+    stage: ClassVar[str] = "reads"
+    version: ClassVar[int] = 1
+    shipped: ClassVar[tuple[str, ...]] = ("data", "absent")
+
+    def __init__(self, data: Path, absent: Path, kept: Path):
+        self.data, self.absent, self.kept = data, absent, kept
+
+    def key(self) -> str:
+        return task_key(self.stage, self.version, {}, [self.data])
+
+    def compute(self) -> dict[str, bytes]:
+        return {"out": self.data.read_bytes()[::-1]}
+
+
+def test_a_task_ships_its_input_files_so_no_node_reads_the_drivers_by_path(tmp_path):
+    data = tmp_path / "Train.csv"
+    data.write_bytes(b"1,2,3\n")
+    task = _Reads(data, tmp_path / "never.csv", tmp_path / "kept.csv")
+    key = task.key()
+    wire = pickle.dumps(task)
+    data.unlink()                                  # the driver's file is not on the node
+    landed = pickle.loads(wire)
+    assert landed.data.name == "Train.csv" and landed.data.parent != tmp_path
+    assert landed.compute() == {"out": b"\n3,2,1"} and landed.key() == key
+    assert landed.absent == tmp_path / "never.csv"          # no file there: a path as it was
+    assert landed.kept == tmp_path / "kept.csv"             # not shipped: a path as it was

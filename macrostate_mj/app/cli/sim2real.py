@@ -28,7 +28,8 @@ from macrostate_mj.app.experiments.sim2real import ARMS, FITS
 
 @experiment_app.command("sim2real")
 def experiment_sim2real(
-    real: Path = InputDir(..., "Folder of the real ThymioLoc 3-robot Train.csv and Val.csv."),
+    real: Path = InputDir(None, "Folder of the real ThymioLoc 3-robot Train.csv and Val.csv; "
+                          "default: the published ones (`data fetch retlo`)."),
     scenario: str = Scenario,
     sim: Path = InputDir(None, "A lab collection folder (Train.csv, Val.csv) to use instead of "
                          "collecting one (`collect --scenario lab --robots 3 --split 80/20/0`)."),
@@ -82,7 +83,8 @@ def experiment_sim2real(
     from macrostate_mj.app.experiments.sim2real import validate
     from macrostate_mj.core.errors import UserError
 
-    config = replace(chosen("sim2real", "quick" if quick else profile), real=real, sim=sim,
+    base = chosen("sim2real", "quick" if quick else profile)
+    config = replace(base, real=real or base.real, sim=sim,
                      scenario=scenario, randomize=tuple(randomize or ()), seed=seed,
                      mix_weight=mix_weight, chained=chained,
                      ablate=tuple(tuple(n.strip() for n in g.split(",") if n.strip())

@@ -46,7 +46,7 @@ import numpy as np
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import Progress
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
-from macrostate_mj.core.cache import Outcome, run_tasks, task_key
+from macrostate_mj.core.cache import Outcome, ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import real_dataset
@@ -274,7 +274,7 @@ def lab_data(config: Config, fit: str, pooled: np.ndarray, folds: list[tuple], o
 Data = Path | np.ndarray
 
 
-class ModelTask:
+class ModelTask(ShipsFiles):
     """One model of one arm: trained on `train` (fine-tuned from the sim checkpoint `init`, or
     with the sim data `mix` weighing `mix_weight` of the loss), selected on `val`, tested on
     the real block `test`. Keyed by its training settings and the bytes of its data; a sim
@@ -282,6 +282,7 @@ class ModelTask:
 
     stage: ClassVar[str] = "sim2real-model"
     version: ClassVar[int] = 1
+    shipped: ClassVar[tuple[str, ...]] = ("train", "val", "mix", "init")   # lab CSVs, checkpoint
 
     def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
                  test: np.ndarray, lr: float | None = None, init: Path | None = None,

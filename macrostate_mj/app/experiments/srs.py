@@ -29,7 +29,7 @@ import numpy as np
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
 from macrostate_mj.app.experiments import Progress
-from macrostate_mj.core.cache import run_tasks, task_key
+from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import mean_std
@@ -143,7 +143,7 @@ def _datasets(config: Config, data: Path) -> dict[str, list[_Dataset]]:
     return configs
 
 
-class ModelTask:
+class ModelTask(ShipsFiles):
     """One model: chapter 3's predictor trained on `train` (the first instances of a dataset,
     metres), selected on `val`, tested on `test`. Keyed by its training settings and the content
     of its data (the instances it trains on, the bytes of the two CSVs), not by their names:
@@ -152,6 +152,7 @@ class ModelTask:
 
     stage: ClassVar[str] = "srs-model"
     version: ClassVar[int] = 1
+    shipped: ClassVar[tuple[str, ...]] = ("val", "test")
 
     def __init__(self, train: np.ndarray, val: Path, test: Path, epochs: int, seed: int,
                  precision: str = "fp32"):
