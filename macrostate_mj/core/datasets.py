@@ -256,8 +256,9 @@ def _mark(folder: Path) -> dict[str, Any]:
 def _not_published(dataset: Dataset, mirror: str | None, name: str, why: str) -> UserError:
     where = (f"--mirror {mirror.rstrip('/')}" if mirror
              else f"{dataset.repo}@{dataset.commit[:7]}")
+    fix = "Check the mirror's copy" if mirror else "Retry, or fetch from a copy with --mirror"
     return UserError(f"{where}: {name} is not the published file ({why}); nothing was kept. "
-                     "Check the mirror's copy")
+                     f"{fix}")
 
 
 def _check(dataset: Dataset, folder: Path, trees: Mapping[str, str], mirror: str | None

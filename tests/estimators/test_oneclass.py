@@ -482,3 +482,20 @@ def test_experiment_oc_shares_the_cores_among_its_workers(monkeypatch, cores, wo
 
     monkeypatch.setattr(oc.os, "cpu_count", lambda: cores)
     assert oc._default_threads(workers) == threads
+
+
+def test_a_worker_that_does_not_see_the_drivers_folders_is_refused_in_one_line(tmp_path):
+    """On a Ray node without the shared file system the oc runs need, a run fails in one line
+    rather than training on what it finds there and caching stages the driver never sees."""
+    from macrostate_mj.app.experiments.oc import DRIVER_MARK, Config, RunTask
+
+    stages = tmp_path / "cache"
+    stages.mkdir()
+    task = RunTask(Config(data=tmp_path), 2, 1, 0, 2, stages, mark="abc")
+    with pytest.raises(UserError, match="a file system every node shares"):
+        task.seen()
+    (stages / DRIVER_MARK).write_text("another run's")
+    with pytest.raises(UserError, match="does not see"):
+        task.seen()
+    (stages / DRIVER_MARK).write_text("abc")
+    task.seen()                                        # the driver's own folder: on it goes

@@ -10,6 +10,7 @@ with more seeds or splits trains only the new runs."""
 from __future__ import annotations
 
 import json
+import secrets
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -22,6 +23,7 @@ from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
 from estimators.oneclass.train import OCConfig
 from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.cache import run_tasks, task_key
+from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import real_dataset
 from macrostate_mj.core.stats import mean_std
@@ -58,6 +60,7 @@ PROFILES = {
                    config=OCConfig(seed=1)),
     "quick": Config(config=OCConfig().scaled(0.03), max_train=200)}
 RUN_VERSION = 1    # bump when a run's report changes for the same inputs
+DRIVER_MARK = ".driver"   # in the stages folder: proves a worker sees the driver's
 
 
 def missing(exp: Config) -> str | None:
@@ -103,16 +106,26 @@ class RunTask:
     """One (m, split, seed) as a cached task: its AUC reports (all a rerun needs), keyed by the
     config, the run's coordinates and the bytes of its inputs. It trains in a worker with its
     stages cached in `stages` (where the figures' model is reloaded from), and loads its
-    inputs there again rather than carrying them."""
+    inputs there again rather than carrying them (150 MB of flows): on a Ray node, the data and
+    `stages` must be the driver's own folders, on a shared file system, which `seen` checks by
+    a mark the driver leaves in `stages`."""
 
     stage: ClassVar[str] = "oc-run"
     version: ClassVar[int] = RUN_VERSION
 
     def __init__(self, exp: Config, m: int, split: int, seed: int, main_m: int,
-                 stages: Path):
+                 stages: Path, mark: str = ""):
         self.exp, self.m, self.split, self.seed, self.main_m = exp, m, split, seed, main_m
-        self.stages = stages
+        self.stages, self.mark = stages, mark
         self._key: str | None = None
+
+    def seen(self) -> None:
+        """Refuse, in one line, a node that does not see the driver's folders."""
+        path = self.stages / DRIVER_MARK
+        if self.mark and (not path.is_file() or path.read_text() != self.mark):
+            raise UserError(f"experiment oc: a worker does not see {self.stages} (or the flows "
+                            f"in {self.exp.data}): on a Ray cluster, --out and the data must sit "
+                            "on a file system every node shares, at the same paths")
 
     @property
     def name(self) -> str:
@@ -130,6 +143,7 @@ class RunTask:
         return self._key
 
     def compute(self) -> dict[str, bytes]:
+        self.seen()
         report, _ = _train(_dataset(self.exp), self.exp, self.inputs(), self.m, self.split,
                            self.seed, self.main_m, self.stages)
         return {"report.json": json.dumps(report).encode()}
@@ -182,7 +196,10 @@ def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
-    tasks = [RunTask(exp, m, split, seed, main_m, progress.cache.root)
+    mark = secrets.token_hex(8)         # what a worker must find in the stages folder
+    progress.cache.root.mkdir(parents=True, exist_ok=True)
+    (progress.cache.root / DRIVER_MARK).write_text(mark)
+    tasks = [RunTask(exp, m, split, seed, main_m, progress.cache.root, mark)
              for m in exp.ms for split in exp.splits for seed in seeds]
     runs: dict[str, dict] = {}
     cached = 0
