@@ -220,7 +220,7 @@ def _reporter(progress: Callable[[str, int, int], None] | None, stage: str, tota
               ) -> Callable[[int, float], None] | None:
     if progress is None:
         return None
-    return lambda done, _minutes: progress(stage, done, total)
+    return lambda done, _minutes, _resumed: progress(stage, done, total)
 
 
 def _tracks(path: Path, req: CollectRequest, count: int) -> np.ndarray:

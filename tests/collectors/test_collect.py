@@ -186,3 +186,13 @@ def _episodes(out):
     `TaskCache.put` writes into a hidden `.part` folder, which pathlib's glob also matches)."""
     return sorted(p for p in (out / "cache" / "collect-episode").glob("*/episode.parquet")
                   if not p.parent.name.startswith("."))
+
+
+def test_the_srs_phases_follow_collect_s_progress_callback():
+    """`collect` reports (episodes, sim minutes, of them resumed); each SRS phase's reporter
+    takes the same three (the CLI's `collect --policy srs` drives a bar with them)."""
+    from collectors.srs import _reporter
+
+    seen = []
+    _reporter(lambda *args: seen.append(args), "RO phase", 4)(2, 1.0, 0.5)
+    assert seen == [("RO phase", 2, 4)]

@@ -494,8 +494,9 @@ def test_a_worker_that_does_not_see_the_drivers_folders_is_refused_in_one_line(t
     task = RunTask(Config(data=tmp_path), 2, 1, 0, 2, stages, mark="abc")
     with pytest.raises(UserError, match="a file system every node shares"):
         task.seen()
-    (stages / DRIVER_MARK).write_text("another run's")
+    (stages / DRIVER_MARK).mkdir()
+    (stages / DRIVER_MARK / "another run's").touch()
     with pytest.raises(UserError, match="does not see"):
         task.seen()
-    (stages / DRIVER_MARK).write_text("abc")
+    (stages / DRIVER_MARK / "abc").touch()
     task.seen()                                        # the driver's own folder: on it goes

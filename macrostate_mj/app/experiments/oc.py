@@ -60,7 +60,7 @@ PROFILES = {
                    config=OCConfig(seed=1)),
     "quick": Config(config=OCConfig().scaled(0.03), max_train=200)}
 RUN_VERSION = 1    # bump when a run's report changes for the same inputs
-DRIVER_MARK = ".driver"   # in the stages folder: proves a worker sees the driver's
+DRIVER_MARK = ".driver"   # a folder in the stages folder: its file proves a worker sees it
 
 
 def missing(exp: Config) -> str | None:
@@ -121,8 +121,7 @@ class RunTask:
 
     def seen(self) -> None:
         """Refuse, in one line, a node that does not see the driver's folders."""
-        path = self.stages / DRIVER_MARK
-        if self.mark and (not path.is_file() or path.read_text() != self.mark):
+        if self.mark and not (self.stages / DRIVER_MARK / self.mark).is_file():
             raise UserError(f"experiment oc: a worker does not see {self.stages} (or the flows "
                             f"in {self.exp.data}): on a Ray cluster, --out and the data must sit "
                             "on a file system every node shares, at the same paths")
@@ -197,8 +196,8 @@ def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     main_m = 2 if 2 in exp.ms else exp.ms[0]
     seeds = range(exp.config.seed, exp.config.seed + exp.seeds)
     mark = secrets.token_hex(8)         # what a worker must find in the stages folder
-    progress.cache.root.mkdir(parents=True, exist_ok=True)
-    (progress.cache.root / DRIVER_MARK).write_text(mark)
+    (progress.cache.root / DRIVER_MARK).mkdir(parents=True, exist_ok=True)
+    (progress.cache.root / DRIVER_MARK / mark).touch()
     tasks = [RunTask(exp, m, split, seed, main_m, progress.cache.root, mark)
              for m in exp.ms for split in exp.splits for seed in seeds]
     runs: dict[str, dict] = {}
