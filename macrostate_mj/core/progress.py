@@ -173,21 +173,21 @@ def sim_progress(total: float, label: str, unit: str = "sim s"
 
 
 @contextlib.contextmanager
-def stage_progress() -> Iterator[Callable[..., None]]:
+def stage_progress(**kwargs: Any) -> Iterator[Callable[..., None]]:
     """Yield `report(stage, done, total=1.0, cached=0)`: one bar per pipeline stage, kept when
-    done; `cached` of `done` found done by a resumed run."""
+    done; `cached` of `done` found done by a resumed run. `kwargs` go to `LoggedProgress`."""
     with LoggedProgress(TextColumn("{task.description:<28}"), BarColumn(), TaskProgressColumn(),
-                        TimeElapsedColumn(), RemainingColumn()) as bar:
+                        TimeElapsedColumn(), RemainingColumn(), **kwargs) as bar:
         tasks: dict[str, TaskID] = {}
-
-        first: dict[str, float] = {}
+        last = [bar.get_time()]            # when the latest report (of any stage) came
 
         def report(stage: str, done: float, total: float = 1.0, cached: float = 0.0) -> None:
             if stage not in tasks:
-                # a stage's bar begins at its first report: what it says done took unknown time
-                first[stage] = done
-                tasks[stage] = bar.add_task(stage, total=total, cached=done)
-            bar.update(tasks[stage], completed=done, total=total,
-                       cached=max(cached, first[stage]))
+                tasks[stage] = bar.add_task(stage, total=total, cached=cached)
+                # a stage reports first when its first unit is done: its work began when
+                # the work before it last reported (or when the run began)
+                next(t for t in bar.tasks if t.id == tasks[stage]).start_time = last[0]
+            bar.update(tasks[stage], completed=done, total=total, cached=cached)
+            last[0] = bar.get_time()
 
         yield report
