@@ -460,6 +460,8 @@ def test_ctrl_c_during_training_keeps_the_best_checkpoint(tmp_path, capsys, monk
         "interrupted")
     net, meta = load_checkpoint(model)
     assert meta["train_info"]["interrupted"] and meta["train_info"]["epochs_run"] == 2
+    manifest = json.loads((tmp_path / "fc.pt.manifest.json").read_text())
+    assert manifest["status"] == "interrupted"
 
 
 def test_chapter_three_predictor_from_the_command_line(tmp_path, capsys):

@@ -148,59 +148,30 @@ def train_retlo(
     """Train a ReTLo module on 3-robot (or longer) chains; keep the best validation checkpoint.
     Sim-to-real: pre-train on testbed data, then fine-tune on your own (--init), or train on
     both at once (--mix)."""
-    from estimators.retlo.api import fit
-    from estimators.retlo.files import read_world
-    from estimators.retlo.heads import head_named
     from estimators.retlo.models import ModelConfig
-    from estimators.retlo.train import ENCODER, TrainConfig, load_checkpoint, save_checkpoint
-    from macrostate_mj.core.errors import UserError
-    from macrostate_mj.core.io import check_writable_file
-    from macrostate_mj.core.run import Run
+    from estimators.retlo.train import ENCODER, TrainConfig
+    from macrostate_mj.app.retlo_train import TrainingInterrupted, TrainRequest
+    from macrostate_mj.app.retlo_train import train as run_train
 
-    if freeze_encoder and init is None:
-        raise UserError("--freeze-encoder fine-tunes a model: pass --init MODEL.pt too")
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained, lr=lr,
                       frozen=ENCODER if freeze_encoder else (), precision=precision,
                       model=ModelConfig(kind=model, bidirectional=not unidirectional,
                                         cos_sin=cos_sin, rotate=not compass_frame,
                                         history=history))
-    head = head_named(uncertainty)     # the one place the name becomes an object
-    start = None
-    if init is not None:
-        start, _ = load_checkpoint(init)
-        if start.cfg != cfg.model:
-            raise UserError(f"--init {init} is a different model from the one the flags ask "
-                            f"for ({_differences(start.cfg, cfg.model)}); pass its settings")
-        if start.head != head:
-            raise UserError(f"--init {init} has uncertainty {start.head.name}, not "
-                            f"{head.name}; pass --uncertainty {start.head.name}")
-    check_writable_file(out, overwrite, "--out")
-    with Run(out.parent, "train retlo", cfg, seed, [out.name], overwrite,
-             manifest=out.name + ".manifest.json") as run:
-        worlds = [read_world(p, px_per_cm) for p in train]
-        val_world = read_world(val, px_per_cm)
-        with run.stage("train"):
-            net, info = fit(worlds, val_world, cfg, progress=True, init=start,
-                            mix=[read_world(p, px_per_cm) for p in mix or ()],
-                            mix_weight=mix_weight, head=head)
-        save_checkpoint(out, net, px_per_cm, cfg, info)
-        run.record(inputs=[str(p) for p in [*train, val]], init=str(init) if init else None,
-                   mix=[str(p) for p in mix or ()], mix_weight=mix_weight if mix else None,
-                   **({"uncertainty": head.name} if head.uncertain else {}))
-        typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
-                   f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
-        if info["interrupted"]:  # the best checkpoint so far is saved; say so and stop as Ctrl-C
-            typer.echo(f"interrupted after epoch {info['epochs_run']}; kept the best checkpoint",
-                       err=True)
-            raise KeyboardInterrupt
+    try:
+        info = run_train(TrainRequest(cfg, uncertainty, tuple(train), val, out, px_per_cm,
+                                      init, tuple(mix or ()), mix_weight, overwrite))
+    except TrainingInterrupted as stop:      # the best checkpoint so far is saved: say so
+        _trained(out, stop.info)
+        typer.echo(f"interrupted after epoch {stop.info['epochs_run']}; kept the best "
+                   "checkpoint", err=True)
+        raise KeyboardInterrupt from None
+    _trained(out, info)
 
 
-def _differences(have: object, want: object) -> str:
-    """`name: have -> want` of every field two model configs disagree on."""
-    from dataclasses import fields
-
-    return ", ".join(f"{f.name}: it has {getattr(have, f.name)!r}, not {getattr(want, f.name)!r}"
-                     for f in fields(have) if getattr(have, f.name) != getattr(want, f.name))
+def _trained(out: Path, info: dict) -> None:
+    typer.echo(f"checkpoint {out}  best validation {info['best_val_cm']:.2f} cm at epoch "
+               f"{info['best_epoch']} of {info['epochs_run']} ({info['train_seconds']:.0f} s)")
 
 
 @evaluate_app.command("retlo")
@@ -265,20 +236,9 @@ def calibrate_retlo(
     """Refit a Gaussian ReTLo model's uncertainty (its covariance scale and the radii of its
     50 %/90 % regions) on other chains, as training does on its validation file: for chains
     unlike that file (longer, another lab) without retraining."""
-    from estimators.retlo.files import read_world
-    from estimators.retlo.train import load_checkpoint, save_recalibrated
-    from macrostate_mj.core.io import check_writable_file
-    from macrostate_mj.core.run import Run
+    from macrostate_mj.app.retlo_train import calibrate
 
-    check_writable_file(out, overwrite, "--out")
-    net, ckpt = load_checkpoint(model)
-    with Run(out.parent, "calibrate retlo", {"model": str(model), "val": str(val),
-                                             "px_per_cm": px_per_cm}, seed, [out.name],
-             overwrite, manifest=out.name + ".manifest.json") as run:
-        with run.stage("calibrate"):
-            record = save_recalibrated(out, net, ckpt, read_world(val, px_per_cm), seed,
-                                       {"file": str(val)})
-        run.record(inputs=[str(model), str(val)])
+    record = calibrate(model, val, out, seed, px_per_cm, overwrite)
     radii = "; ".join(f"{r['50%']:.3g} / {r['90%']:.3g}" for r in record["region_radius2"])
     typer.echo(f"checkpoint {out}  covariance scale {record['cov_scale']:.3g}, region radii² "
                f"(50 % / 90 %, per chain position from the Tail's side) {radii}; fitted on "
