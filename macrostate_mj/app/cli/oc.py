@@ -27,8 +27,6 @@ from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.progress import stage_progress
 from macrostate_mj.vision.flow import METHODS as FLOW_METHODS
 
-MIN_AUC_SAMPLES = 2     # fewer and the AUC is 0, 1 or undefined
-FEW_AUC_SAMPLES = 30    # fewer and one sample moves the AUC by several hundredths
 
 def _crop(text: str | None) -> tuple[int, int, int, int] | None:
     if text is None:
@@ -63,47 +61,10 @@ def flow(
     overwrite: bool = Switch(False, "Replace samples already there."),
 ) -> None:
     """Video or frames -> optical-flow samples (flow_x/flow_y/img JPEGs, 64 × 64, 128 = still)."""
-    if (video is None) == (frames is None):
-        raise UserError("give exactly one of --video FILE or --frames DIR")
-    box = _crop(crop)
-    from macrostate_mj.core.io import check_writable_dir
-    from macrostate_mj.core.progress import LoggedProgress
-    from macrostate_mj.core.run import Run
-    from macrostate_mj.formats.hsants import SAMPLE_NAME
-    from macrostate_mj.vision.flow import (
-        FlowComputer,
-        extract_flow_samples,
-        read_frame_folder,
-        read_video_frames,
-    )
+    from macrostate_mj.app.oneclass import flow as run_flow
 
-    FlowComputer(method)  # fail on a bad --method before reading anything
-    target = out / label if label else out
-    check_writable_dir(out, create=False)
-    if target.is_dir() and not overwrite:
-        taken = [p.name for p in target.iterdir()
-                 if (hit := SAMPLE_NAME.match(p.name)) and
-                 int(hit.group(1)) >= start_id]
-        if taken:
-            raise UserError(f"{target / sorted(taken)[0]} already exists; pass --overwrite or a "
-                            "larger --start-id")
-    config = {"video": video, "frames": frames, "every": every, "gap": gap, "m": m,
-              "method": method, "label": label, "start_id": start_id, "crop": box, "fps": fps}
-    # samples are added by id: a later call may add another label or ids to the same folder
-    with Run(target, "flow", config, None, overwrite=True) as run:
-        stream, rate = (read_video_frames(video, fps) if video
-                        else read_frame_folder(frames, fps))
-        with LoggedProgress(transient=True) as bar:
-            task = bar.add_task("reading frames", total=None)
-
-            def counted():
-                for f in stream:
-                    bar.advance(task)
-                    yield f
-
-            ids = extract_flow_samples(counted(), rate, out, every=every, gap=gap, m=m,
-                                       method=method, label=label, start_id=start_id, crop=box)
-        run.record(fps=rate, samples=[ids[0], ids[-1]], n_samples=len(ids))
+    target, ids = run_flow(out, video, frames, every, gap, m, method, label, start_id,
+                           _crop(crop), fps, overwrite)
     typer.echo(f"wrote {len(ids)} samples ({ids[0]:05d}..{ids[-1]:05d}) to {target}")
 
 
@@ -132,24 +93,15 @@ def oc_train(
     overwrite: bool = Switch(False, "Replace an earlier model."),
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
-    methods = tuple(METHODS) if "all" in method else tuple(dict.fromkeys(method))
-    from estimators.oneclass import OCConfig, fit
-    from macrostate_mj.core.run import Run
-    from macrostate_mj.formats.hsants import open_dataset
+    from estimators.oneclass import OCConfig
+    from macrostate_mj.app.oneclass import train
 
+    methods = tuple(METHODS) if "all" in method else tuple(dict.fromkeys(method))
     cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device,
                           precision=precision).scaled(epoch_scale).overridden(settings)
-    config = {"oc": cfg, "methods": list(methods), "data": data, "split": split,
-              "recipe": recipe}
-    with Run(out, "oc train", config, seed, ["weights.pt", "model.json"], overwrite) as run:
-        d = open_dataset(data)
-        train, _ = d.split(split)
-        x = d.load("Stable", train, m)
-        with run.stage("train"), stage_progress() as tick:  # stages wait in OUT/stages
-            model = fit(x, methods, cfg, tick, stages_dir=out / "stages")
-        model.save(out)
-        run.record(n_train=len(x), resumed_stages=model.resumed)
-    typer.echo(f"trained {', '.join(methods)} on {len(x)} stable samples -> {out}")
+    with stage_progress() as tick:                      # stages wait in OUT/stages
+        n = train(data, out, methods, cfg, split, recipe, overwrite, tick)
+    typer.echo(f"trained {', '.join(methods)} on {n} stable samples -> {out}")
 
 
 @oc_app.command("evaluate")
@@ -168,51 +120,11 @@ def oc_evaluate(
 ) -> None:
     """AUC of stable test vs unstable samples (unstable = positive), overall and per time bin,
     with bootstrap intervals and, against a baseline, paired p-values."""
-    from macrostate_mj.core.io import check_writable_file, write_json_atomic
-    from macrostate_mj.core.run import Run
+    from macrostate_mj.app.oneclass import evaluate
 
-    check_writable_file(out, overwrite, "--out")
-    from estimators.oneclass import OCModel
-    from estimators.oneclass.metrics import auc_report, interval_report, paired_report
-    from macrostate_mj.formats.hsants import open_dataset
-
-    oc = OCModel.load(model)
-    meth = method or oc.methods[-1]
-    for name in (meth, baseline):
-        if name is not None and name not in oc.methods:
-            raise UserError(f"{model} holds {', '.join(oc.methods)}, not {name}; train it with "
-                            f"`oc train --method {name}` or choose another")
-    d = open_dataset(data)
-    if unstable is not None:
-        d = d.with_unstable(unstable)
-    _, test = d.split(split)
-    m = oc.channels // 2
-    n_unstable = len(d.unstable_ids)
-    if min(len(test), n_unstable) < MIN_AUC_SAMPLES:
-        raise UserError(f"split {split} has {len(test)} stable test and {n_unstable} unstable "
-                        f"samples; an AUC needs at least {MIN_AUC_SAMPLES} of each")
-    if min(len(test), n_unstable) < FEW_AUC_SAMPLES:
-        typer.echo(f"note: an AUC from {len(test)} stable and {n_unstable} unstable samples is "
-                   "a smoke test, not a measurement", err=True)
-    config = {"model": str(model), "data": str(data), "split": split, "method": meth,
-              "unstable": None if unstable is None else str(unstable), "baseline": baseline,
-              "intervals": intervals}
-    # the report was checked writable above, so the run claims the folder as is
-    with Run(out.parent, "oc evaluate", config, None, [out.name], overwrite=True,
-             manifest=out.name + ".manifest.json") as run, run.stage("evaluate"):
-        x_stable, x_unstable = d.load("Stable", test, m), d.load("Unstable", d.unstable_ids, m)
-        s_stable, s_unstable = oc.score(meth, x_stable), oc.score(meth, x_unstable)
-        bins, names = d.time_bin(d.unstable_ids), tuple(d.bins)
-        report = auc_report(s_stable, s_unstable, bins, names)
-        if intervals:
-            report["auc_ci95"] = interval_report(s_stable, s_unstable, bins, names)
-        if baseline is not None:
-            report["vs_baseline"] = {"baseline": baseline, **paired_report(
-                s_stable, s_unstable, oc.score(baseline, x_stable),
-                oc.score(baseline, x_unstable), bins, names)}
-        report.update(method=meth, split=split, m=m, model=str(model), data=str(data),
-                      unstable=str(unstable or d.root / "Unstable"))
-        write_json_atomic(out, report)
+    report = evaluate(model, data, out, split, method, unstable, baseline, intervals, overwrite,
+                      lambda line: typer.echo(line, err=True))
+    meth = report["method"]
     ci = report.get("auc_ci95", {}).get("all")
     band = f" [{ci[0]:.3f}, {ci[1]:.3f}]" if ci else ""
     bins_text = ", ".join(f"{k} {v:.3f}" for k, v in report["auc_bins"].items() if v is not None)
