@@ -206,3 +206,20 @@ def write(report: dict, out: Path) -> None:
     write_json_atomic(out / "fit.json", report)
     write_text_atomic(out / "fitted.json",
                       json.dumps(report["fitted"], indent=1, sort_keys=True))
+
+
+def sysid(cfg: SysidConfig, train: Path, val: Path, out: Path, overwrite: bool = False,
+          progress: Callable[[int, int], None] | None = None) -> dict:
+    """`macrostate-mj sysid` as one call: the real files checked (before the folder is
+    touched), the fit under its run in `out` (candidates cached there), fit.json and
+    fitted.json written; the report."""
+    from macrostate_mj.core.run import Run
+
+    made_of = {**identity(cfg), "train": str(train), "val": str(val)}
+    real = real_poses(train, cfg.robots), real_poses(val, cfg.robots)
+    with Run(out, "sysid", made_of, cfg.seed, ["fit.json", "fitted.json"], overwrite) as run:
+        with run.stage("fit"):
+            report = fit(cfg, *real, out, progress)
+            write(report, out)
+        run.record(workers=cfg.workers)
+    return report

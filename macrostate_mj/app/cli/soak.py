@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 from pathlib import Path
 
@@ -53,60 +52,22 @@ def soak(
 ) -> None:
     """Run many seeds and count tips, NaNs, escapes, climbing and obstacle intrusions; exit 1
     if any run faulted. With --track, judge every run's tracking health instead."""
-    from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
-    from macrostate_mj.chain.soak import run_records, soak_tasks, summary
-    from macrostate_mj.chain.soak import soak as run_soak
-    from macrostate_mj.core.cache import TaskCache
-    from macrostate_mj.core.errors import RunFailure
-    from macrostate_mj.core.io import write_json_atomic
+    from macrostate_mj.app.soak import check
+    from macrostate_mj.app.soak import soak as run_soak
     from macrostate_mj.core.progress import sim_progress
-    from macrostate_mj.core.run import Run
 
-    tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
-    name = scenario.name
-    if track:
-        from collectors.track_soak import TrackSoakTask, track_summary
-        from macrostate_mj.chain.rendered import check_rendered_colours
-
-        check_rendered_colours(scenario, robots)    # refused before any run, as simulate does
-
-        kind, columns, tabulate = TrackSoakTask, TRACK_COLUMNS, track_summary
-    else:
-        kind, columns, tabulate = None, COLUMNS, lambda runs: summary(runs, workers)
-    with contextlib.ExitStack() as stack:
-        config = {"tasks": tasks[0], "seeds": seeds, **({"track": True} if track else {})}
-        run = None if out is None else stack.enter_context(
-            Run(out, "soak", config, first_seed, ["soak.json"], overwrite))
-        bar = stack.enter_context(sim_progress(seeds, f"soak {name} {robots} robots",
-                                               unit="runs"))
-        runs = run_soak(tasks, workers, ray, bar, None if out is None
-                        else TaskCache(out / "cache"), **({"kind": kind} if kind else {}))
-        row = {"scenario": name, "robots": robots, "seconds": seconds, **tabulate(runs)}
-        if run is not None:
-            write_json_atomic(out / "soak.json", {"summary": row, "runs": run_records(runs)})
-            run.record(workers=workers, outputs={"soak": str(out / "soak.json")})
+    with sim_progress(seeds, f"soak {scenario.name} {robots} robots", unit="runs") as bar:
+        row, runs = run_soak(scenario, robots, seeds, seconds, first_seed, workers, ray,
+                             check_hz, out, track, overwrite, bar)
+    columns = TRACK_COLUMNS if track else COLUMNS
     if as_json:
         print(json.dumps(row), flush=True)
     else:
-        typer.echo(f"{name} x {robots} robots, {seconds:g} s each, seeds "
+        typer.echo(f"{scenario.name} x {robots} robots, {seconds:g} s each, seeds "
                    f"{first_seed}..{first_seed + seeds - 1}")
         typer.echo("  ".join(f"{head:>{max(len(head), 6)}}" for _, head, _ in columns))
         typer.echo("  ".join(f"{row[key]:>{max(len(head), 6)}{fmt}}" if row[key] is not None
                              else f"{'n/a':>{max(len(head), 6)}}" for key, head, fmt in columns))
         if row.get("warnings"):
             typer.echo(f"MuJoCo warnings: {row['warning_kinds']}")
-    if track:
-        sick = [r for r in runs if r.findings]
-        if sick:
-            first = sick[0].seed
-            again = SimulateRequest(scenario, robots, seconds, first, Path(f"soak_seed{first}"),
-                                    track=True)
-            raise RunFailure(f"{len(sick)} of {len(runs)} runs tracked unhealthily; first: seed "
-                             f"{first}: {sick[0].findings[0]}; reproduce: "
-                             f"{reproduce_command(again)}")
-    bad = [r for r in runs if r.fault is not None]
-    if bad:
-        first = bad[0].seed
-        again = SimulateRequest(scenario, robots, seconds, first, Path(f"soak_seed{first}"))
-        raise RunFailure(f"{len(bad)} of {len(runs)} runs faulted; first: seed {first}: "
-                         f"{bad[0].reason}; reproduce: {reproduce_command(again)}")
+    check(runs, scenario, robots, seconds, track)

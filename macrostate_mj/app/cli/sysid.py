@@ -39,22 +39,15 @@ def sysid(
     """System identification of a scenario (`lab` unless named): gains, speed caps, the wait
     rule's slack and the tracker's noise that make the motion distributions match the real
     Train file (checked on Val)."""
-    from collectors.sysid import SysidConfig, fit, identity, real_poses, write
+    from collectors.sysid import SysidConfig, sysid
     from macrostate_mj.core.progress import LoggedProgress
-    from macrostate_mj.core.run import Run
 
     cfg = SysidConfig(scenario=scenario, robots=robots, minutes=minutes, seed=seed, first=first,
                       refine=refine, workers=workers)
-    made_of = {**identity(cfg), "train": str(train), "val": str(val)}
-    real = real_poses(train, robots), real_poses(val, robots)   # refused before the folder
-    with Run(out, "sysid", made_of, seed, ["fit.json", "fitted.json"], overwrite) as run, \
-            LoggedProgress(transient=True) as bar:
+    with LoggedProgress(transient=True) as bar:
         task = bar.add_task("sysid", total=first + refine)
-        with run.stage("fit"):
-            report = fit(cfg, *real, out,
-                         lambda done, total: bar.update(task, completed=done))
-            write(report, out)
-        run.record(workers=workers)
+        report = sysid(cfg, train, val, out, overwrite,
+                       lambda done, total: bar.update(task, completed=done))
     typer.echo(f"summed KS on {train.name}: {report['train']['before']:.3f} -> "
                f"{report['train']['after']:.3f}; on {val.name}: {report['val']['before']:.3f} "
                f"-> {report['val']['after']:.3f}")
