@@ -19,14 +19,14 @@ from collectors.randomize import (
     randomized_noise,
     randomized_scenario,
 )
-from macrostate_mj.chain.scenarios import ScenarioRef
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.formats.poses import poses_table
 from macrostate_mj.vision.imaging import NoiseConfig
 
 
 @dataclass(frozen=True)
 class EpisodeSpec:
-    scenario: ScenarioRef        # a built-in name, a scenario file, or the resolved config
+    scenario: ScenarioConfig     # resolved where the command or API call began
     robots: int
     seconds: float              # driving time logged after the warm-up
     warmup: float               # settling time at the start (s), logged but never cut
@@ -34,7 +34,6 @@ class EpisodeSpec:
     index: int
     policy: PolicySpec = field(default_factory=PolicyConfig)
     noise: NoiseConfig | None = None      # None: the scenario's imaging noise
-    head_speed: float | None = None
     randomize: Randomization | None = None
 
     def rng(self, stream: int) -> np.random.Generator:
@@ -47,13 +46,12 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     column and timing figures, or no table and `{"failure": ...}` when its physics failed.
     Runs anywhere: a local process or a Ray worker."""
     from macrostate_mj.chain.health import PhysicsError
-    from macrostate_mj.chain.scenarios import scenario_for
     from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
     from macrostate_mj.chain.world import build_world
     from macrostate_mj.vision.camera_chain import CameraChain
 
     t0 = time.perf_counter()
-    cfg, factors = scenario_for(spec.scenario, spec.head_speed), {}
+    cfg, factors = spec.scenario, {}
     noise = spec.noise or cfg.imaging
     if spec.randomize is not None:
         factors = spec.randomize.draw(spec.rng(3))

@@ -25,7 +25,8 @@ from collectors.episodes import EpisodeSpec, run_episode
 from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import Randomization, check_fits
 from macrostate_mj.chain.rendered import check_rendered_colours
-from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
+from macrostate_mj.chain.scenario import ScenarioConfig
+from macrostate_mj.chain.scenarios import ResolvesScenario
 from macrostate_mj.chain.world import robot_names, validate_chain
 from macrostate_mj.core.cache import TaskCache, TaskFailed, run_tasks, task_key
 from macrostate_mj.core.checks import check_positive, check_seed
@@ -54,8 +55,8 @@ PRODUCTS = ["instances.csv", "instances_truth.csv", "poses.parquet", "manifest.j
 
 
 @dataclass(frozen=True)
-class CollectRequest:
-    scenario: ScenarioRef        # a built-in name, a scenario file, or the resolved config
+class CollectRequest(ResolvesScenario):
+    scenario: ScenarioConfig     # a name or a file is resolved on construction
     robots: int
     minutes: float
     seed: int
@@ -69,7 +70,6 @@ class CollectRequest:
     episode_minutes: float = 5.0
     warmup: float = 10.0
     px_per_cm: float = DEFAULT_PX_PER_CM
-    head_speed: float | None = None
     first_episode: int = 0      # index of the first episode (a later phase of one collection)
     policy_spec: PolicySpec | None = None   # overrides policy/sigma (the SR phase's Tail)
     randomize: str | None = None    # a domain-randomization profile (`collectors.randomize`)
@@ -91,9 +91,14 @@ def parse_split(text: str | None) -> tuple[float, float, float] | None:
     return parts
 
 
+def episode_count(req: CollectRequest) -> int:
+    """How many equal episodes the driving time is cut into (`plan` checks the request)."""
+    return max(1, math.ceil(req.minutes / req.episode_minutes - 1e-9))
+
+
 def plan(req: CollectRequest) -> list[EpisodeSpec]:
     """Validate the request and cut the driving time into equal episodes."""
-    cfg = scenario_for(req.scenario, req.head_speed)
+    cfg = req.scenario
     check_positive(req.minutes, "minutes")
     check_seed(req.seed)
     validate_chain(cfg, req.robots, req.minutes)
@@ -102,7 +107,7 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
         raise UserError(f"--workers must be at least 1, got {req.workers}")
     if req.px_per_cm <= 0:
         raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
-    n = max(1, math.ceil(req.minutes / req.episode_minutes - 1e-9))
+    n = episode_count(req)
     seconds = req.minutes * 60 / n
     shortest = INSTANCE_STEPS / cfg.log_hz / 60
     if seconds * cfg.log_hz < INSTANCE_STEPS:
@@ -114,8 +119,8 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
     randomize = None if req.randomize is None else Randomization.parse(req.randomize)
     if randomize is not None:
         check_fits(randomize, cfg)
-    return [EpisodeSpec(req.scenario, req.robots, seconds, req.warmup, req.seed, i, policy,
-                        head_speed=req.head_speed, randomize=randomize)
+    return [EpisodeSpec(cfg, req.robots, seconds, req.warmup, req.seed, i, policy,
+                        randomize=randomize)
             for i in range(req.first_episode, req.first_episode + n)]
 
 
@@ -129,8 +134,9 @@ class EpisodeTask:
 
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec
-        cfg = scenario_for(spec.scenario, spec.head_speed).as_made()
-        made = {"spec": spec, "scenario": cfg}
+        cfg = spec.scenario.as_made()
+        made = {"spec": {k: v for k, v in asdict(spec).items() if k != "scenario"},
+                "scenario": cfg}
         spread = cfg.wheel_spread > 0 or spec.randomize is not None and any(
             name == "wheel_spread" and high > 0 for name, _, high in spec.randomize.ranges)
         if spread:     # wheels that differ turn their commanded rate, not their shape, since
@@ -159,7 +165,7 @@ def tracking_verdict(req: CollectRequest, stats: dict[int, dict]) -> dict:
     whether unhealthy episodes were kept."""
     from macrostate_mj.vision.health import TrackingHealth, worst_of
 
-    cfg = scenario_for(req.scenario, req.head_speed)
+    cfg = req.scenario
     names = robot_names(req.robots)
     reports = {i: TrackingHealth.from_dict(s["health"], names)
                for i, s in sorted(stats.items())}
@@ -181,7 +187,7 @@ def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
     identity, so a resumed run may change --workers but not the collection."""
     identity = {k: v for k, v in asdict(req).items() if k not in (*NOT_IDENTITY, "scenario")}
     return {"request": identity,
-            "scenario": asdict(scenario_for(req.scenario, req.head_speed).as_made()),
+            "scenario": asdict(req.scenario.as_made()),
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
 
@@ -231,7 +237,7 @@ def collect(req: CollectRequest, progress: Callable[[int, float, float], None] |
             written = assemble(req, specs, folders, fractions)
         written["manifest"] = run.path
         run.record(px_per_cm=req.px_per_cm, workers=req.workers, ray=req.ray,
-                   scenario_hash=config_hash(scenario_for(req.scenario, req.head_speed)),
+                   scenario_hash=config_hash(req.scenario),
                    resumed_episodes=resumed, damaged_shards_rerun=damaged,
                    randomization=None if specs[0].randomize is None
                    else asdict(specs[0].randomize),
@@ -259,7 +265,7 @@ def assemble(req: CollectRequest, specs: list[EpisodeSpec], folders: list[Path],
              fractions: tuple[float, ...] | None) -> dict[str, Path]:
     """Episodes (in episode order) -> full log + ThymioLoc instances (tracked and truth) +
     optional splits."""
-    cfg = scenario_for(req.scenario, req.head_speed)
+    cfg = req.scenario
     out = Path(req.out)
     tables, tracked, truth = [], [], []
     for spec, folder in zip(specs, folders, strict=True):

@@ -42,7 +42,6 @@ from collectors.runner import (
     plan,
 )
 from collectors.srs_policy import SRSConfig, check_srs
-from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
@@ -93,7 +92,7 @@ class NoveltyTrainer(Protocol):
 def episodes_for(req: CollectRequest, instances: int) -> int:
     """Episodes of `req.episode_minutes` that yield at least `instances` instances (the log's
     first step may come up to one period late: counted without it)."""
-    cfg = scenario_for(req.scenario, req.head_speed)
+    cfg = req.scenario
     steps = int(math.floor((req.warmup + req.episode_minutes * 60) * cfg.log_hz)) - 1
     per = len(instance_starts(steps, cfg.log_hz, first=int(round(req.warmup * cfg.log_hz))))
     if per < 1:
@@ -128,7 +127,7 @@ def run_config(req: SRSRequest, novelty: NoveltyTrainer) -> dict:
     base = {k: v for k, v in asdict(req.base).items() if k not in NOT_IDENTITY}
     return {"request": base, "pick": req.pick, "instances": req.instances,
             "ro_instances": req.ro_instances, "k": req.k, "track": req.track,
-            "scenario": asdict(scenario_for(req.base.scenario, req.base.head_speed).as_made()),
+            "scenario": asdict(req.base.scenario.as_made()),
             "novelty": repr(novelty.config(req.base.seed))}
 
 
@@ -195,7 +194,7 @@ def _novelty(req: SRSRequest, ro_req: CollectRequest, novelty: NoveltyTrainer,
     (so an unchanged model keeps its file, and the SR episodes their keys)."""
     cfg = novelty.config(req.base.seed)
     data = ro_req.out / ("instances.csv" if req.track else "instances_truth.csv")
-    scenario = scenario_for(req.base.scenario, req.base.head_speed)
+    scenario = req.base.scenario
     key = task_key(NOVELTY_STAGE, NOVELTY_VERSION,
                    {"config": repr(cfg), "ro_instances": req.ro_instances,
                     "scenario": scenario.name, "constants": scenario,
@@ -225,7 +224,7 @@ def _reporter(progress: Callable[[str, int, int], None] | None, stage: str, tota
 
 def _tracks(path: Path, req: CollectRequest, count: int) -> np.ndarray:
     """The first `count` instances of a collection's truth CSV as world tracks (m, rad)."""
-    cfg = scenario_for(req.scenario, req.head_speed)
+    cfg = req.scenario
     px = read_csv(path).poses[:count].astype(float)
     return from_thymioloc_pixels(px, cfg.arena, req.px_per_cm)
 

@@ -27,14 +27,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from collectors.randomize import ABSOLUTE
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
+from macrostate_mj.chain.scenario import ScenarioConfig
+from macrostate_mj.chain.scenarios import SCENARIOS, ResolvesScenario
 from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.io import write_json_atomic, write_text_atomic
 from macrostate_mj.core.run import config_hash
@@ -64,8 +65,8 @@ SCORE_VERSION = 1          # bump when the motion features or the score change
 
 
 @dataclass(frozen=True)
-class SysidConfig:
-    scenario: ScenarioRef = "lab"    # a built-in's name, a scenario file, or its config
+class SysidConfig(ResolvesScenario):
+    scenario: ScenarioConfig = field(default_factory=lambda: SCENARIOS["lab"])  # or a name, a file
     robots: int = 3
     minutes: float = 30.0      # simulated driving per candidate
     seed: int = 1
@@ -79,7 +80,7 @@ class SysidConfig:
 def identity(cfg: SysidConfig) -> dict:
     """What a fit is made from: its settings, the scenario by name and by content (a cache
     keyed by the name alone would keep scoring a lab file that has since changed)."""
-    scenario = get_scenario(cfg.scenario)
+    scenario = cfg.scenario
     return {**{k: v for k, v in asdict(cfg).items() if k not in ("workers", "scenario")},
             "scenario": scenario.name, "scenario_hash": config_hash(scenario)}
 
@@ -177,7 +178,7 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
     real = motion_stats.features(train, DEFAULT_PX_PER_CM)
     held = motion_stats.features(val, DEFAULT_PX_PER_CM)
     total, tried = cfg.first + cfg.refine, []
-    rule = {"follow_hold": get_scenario(cfg.scenario).spacing}
+    rule = {"follow_hold": cfg.scenario.spacing}
 
     def run(points: np.ndarray) -> None:
         for x in points:

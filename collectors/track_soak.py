@@ -14,7 +14,7 @@ import time
 from dataclasses import asdict, dataclass
 from typing import ClassVar
 
-from macrostate_mj.chain.soak import SoakRunTask, SoakTask, config_of
+from macrostate_mj.chain.soak import SoakRunTask, SoakTask
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class TrackedRun:
 def track_one(task: SoakTask) -> TrackedRun:
     from collectors.simulate import simulate_chain
 
-    cfg = config_of(task.scenario)
+    cfg = task.scenario
     t0 = time.perf_counter()
     ran = simulate_chain(cfg, task.robots, task.seconds, task.seed, track=True)
     report = ran.tracker.health.report()

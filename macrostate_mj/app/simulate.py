@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from macrostate_mj.chain.scenario import ScenarioConfig
-from macrostate_mj.chain.scenarios import SCENARIOS, ScenarioRef, scenario_for
+from macrostate_mj.chain.scenarios import SCENARIOS, ResolvesScenario
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import check_writable_file
@@ -24,8 +24,8 @@ if TYPE_CHECKING:
 
 
 @dataclass(frozen=True)
-class SimulateRequest:
-    scenario: ScenarioRef        # a built-in name, a scenario file, or the resolved config
+class SimulateRequest(ResolvesScenario):
+    scenario: ScenarioConfig     # a name or a file is resolved on construction
     robots: int
     seconds: float
     seed: int
@@ -34,7 +34,6 @@ class SimulateRequest:
     rerun: Path | None = None
     overwrite: bool = False
     video_fps: float = 10.0
-    head_speed: float | None = None
     track: bool = False
     overlays: str = "all"
     video_view: str = "camera"           # viz.video.VIEWS: through the lens, or undistorted
@@ -56,7 +55,7 @@ def parse_overlays(text: str) -> tuple[str, ...]:
 
 def check_request(req: SimulateRequest) -> ScenarioConfig:
     """Every check of a simulate request, before anything is built or written."""
-    cfg = scenario_for(req.scenario, req.head_speed)
+    cfg = req.scenario
     parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
     if req.track:                   # a robot part the tracker would take for a marker
@@ -183,13 +182,16 @@ def _recorders(req: SimulateRequest, cfg: ScenarioConfig, sim: ChainSim,
     return hooks
 
 
-def scenario_arg(ref: str | ScenarioConfig) -> str:
-    """How a command line names a scenario: a built-in's name, else a file holding it (the
-    run's manifest has it whole: `macrostate-mj scenario show` writes one from a name)."""
-    if isinstance(ref, str):
-        return ref
-    builtin = SCENARIOS.get(ref.name)
-    return ref.name if builtin == ref else f"{ref.name}.toml"
+def scenario_arg(cfg: ScenarioConfig) -> str:
+    """How a command line names a scenario: a built-in's name (with `--head-speed` where only
+    that differs), else a file holding it (the run's manifest has it whole: `macrostate-mj
+    scenario show` writes one from a name)."""
+    builtin = SCENARIOS.get(cfg.name)
+    if builtin == cfg:
+        return cfg.name
+    if builtin is not None and builtin.with_overrides(head_speed=cfg.head_speed) == cfg:
+        return f"{cfg.name} --head-speed {cfg.head_speed:g}"
+    return f"{cfg.name}.toml"
 
 
 def reproduce_command(req: SimulateRequest) -> str:
@@ -197,8 +199,6 @@ def reproduce_command(req: SimulateRequest) -> str:
     parts = ["macrostate-mj simulate", f"--scenario {scenario_arg(req.scenario)}",
              f"--robots {req.robots}",
              f"--seconds {req.seconds:g}", f"--seed {req.seed}"]
-    if req.head_speed is not None:
-        parts.append(f"--head-speed {req.head_speed:g}")
     if req.track:
         parts.append("--track")
     return " ".join([*parts, f"--out {req.out}", "--overwrite"])

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from macrostate_mj.chain.scenario import ScenarioConfig
-from macrostate_mj.chain.scenarios import ScenarioRef, scenario_for
+from macrostate_mj.chain.scenarios import ResolvesScenario
 from macrostate_mj.chain.world import validate_chain
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import check_writable_dir
@@ -34,9 +34,9 @@ PRODUCTS = ["poses.parquet", "instances.csv"]
 
 
 @dataclass(frozen=True)
-class TrackRequest:
+class TrackRequest(ResolvesScenario):
     video: Path
-    scenario: ScenarioRef
+    scenario: ScenarioConfig     # a name or a file is resolved on construction
     robots: int
     out: Path
     overwrite: bool = False
@@ -57,7 +57,7 @@ def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
     """Every check of a track request, before anything is built or written."""
     from macrostate_mj.chain.rendered import check_rendered_colours
 
-    cfg = scenario_for(req.scenario)
+    cfg = req.scenario
     validate_chain(cfg, req.robots, 1.0)
     check_rendered_colours(cfg, req.robots)      # markers the tracker can tell apart
     if req.px_per_cm <= 0:

@@ -64,7 +64,7 @@ class ColourMarkers:
         if n > SEPARABLE_COLOURS:
             raise UserError(f"{n} colour markers are more than the tracker can tell apart under "
                             f"imaging noise (at most {SEPARABLE_COLOURS}); use [markers] kind = "
-                            f'"aruco" for teams over {SEPARABLE_COLOURS}', "n")
+                            f'"aruco" for teams over {SEPARABLE_COLOURS}', "robots")
 
     def colours(self, n: int) -> np.ndarray:
         return marker_colours(n)

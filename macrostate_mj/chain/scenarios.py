@@ -32,3 +32,12 @@ def scenario_for(ref: ScenarioRef, head_speed: float | None = None) -> ScenarioC
     if head_speed is not None:
         cfg = cfg.with_overrides(head_speed=head_speed)
     return cfg
+
+
+class ResolvesScenario:
+    """For a request or config dataclass with a `scenario` field: a built-in's name or a
+    scenario file given there is resolved once, on construction, so that everything below
+    takes the `ScenarioConfig` itself."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "scenario", get_scenario(self.scenario))  # type: ignore[attr-defined]

@@ -11,7 +11,7 @@ import json
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -23,14 +23,15 @@ from macrostate_mj.core.errors import UserError
 
 if TYPE_CHECKING:
     from macrostate_mj.chain.scenario import ScenarioConfig
+    from macrostate_mj.chain.scenarios import ScenarioRef
 
 
 @dataclass(frozen=True)
 class SoakTask:
-    """One seed's soak. `scenario` is a scenario's name or a config of its own (a variant that
-    no embedded scenario holds: another robot, say)."""
+    """One seed's soak of a resolved scenario (a built-in, a file, or a variant that no file
+    holds: another robot, say)."""
 
-    scenario: str | ScenarioConfig
+    scenario: ScenarioConfig
     robots: int
     seconds: float
     seed: int
@@ -56,7 +57,7 @@ def soak_one(task: SoakTask) -> SoakRun:
     from macrostate_mj.chain.sim import ChainSim
     from macrostate_mj.chain.world import build_world
 
-    world = build_world(config_of(task.scenario), task.robots)
+    world = build_world(task.scenario, task.robots)
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(task.seed))
     dt = world.model.opt.timestep
@@ -73,18 +74,14 @@ def soak_one(task: SoakTask) -> SoakRun:
                    s.max_penetration_mm, s.warnings, int(round(sim.time / dt)), wall)
 
 
-def config_of(scenario: str | ScenarioConfig) -> ScenarioConfig:
-    """A soak task's scenario, resolved (a name or a file, or the config itself)."""
-    from macrostate_mj.chain.scenarios import scenario_for
-
-    return scenario_for(scenario) if isinstance(scenario, str) else scenario
-
-
-def soak_tasks(scenario: str | ScenarioConfig, robots: int, seeds: int, seconds: float,
+def soak_tasks(scenario: ScenarioRef, robots: int, seeds: int, seconds: float,
                first_seed: int = 0, check_hz: float = 50.0) -> list[SoakTask]:
+    """The seeds' tasks; a built-in's name or a scenario file is resolved here, once."""
+    from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.chain.world import validate_chain
 
-    validate_chain(config_of(scenario), robots, seconds)
+    scenario = get_scenario(scenario)
+    validate_chain(scenario, robots, seconds)
     check_count(seeds, "seeds")
     check_seed(first_seed, "first_seed")
     if not (0 < check_hz < float("inf")):
@@ -105,7 +102,7 @@ class SoakRunTask:
 
     def key(self) -> str:
         return task_key(self.stage, self.version,
-                        {"task": self.task, "scenario": config_of(self.task.scenario)})
+                        replace(self.task, scenario=self.task.scenario.as_made()))
 
     def compute(self) -> dict[str, bytes]:
         return {"run.json": json.dumps(asdict(soak_one(self.task))).encode()}

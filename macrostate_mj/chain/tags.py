@@ -59,7 +59,7 @@ class ArucoMarkers:
         """Every robot needs an id of its own."""
         if n > self.ids:
             raise UserError(f"{n} robots need {n} tag ids but {self.dictionary} has {self.ids}; "
-                            "use a larger dictionary (e.g. DICT_4X4_100 or DICT_4X4_250)", "n")
+                            "use a larger dictionary (e.g. DICT_4X4_100 or DICT_4X4_250)", "robots")
 
     def colour_teams(self, capacity: int) -> int | None:
         """Tags are black and white: a robot's colours cannot pass for one."""

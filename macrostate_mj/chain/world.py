@@ -33,8 +33,8 @@ def chain_capacity(cfg: ScenarioConfig) -> int:
     return len(_snake_slots(cfg))
 
 
-def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
-    """A chain request's checks (the scenario checked itself when made): a team of `n` robots
+def validate_chain(cfg: ScenarioConfig, robots: int, seconds: float) -> None:
+    """A chain request's checks (the scenario checked itself when made): a team of `robots`
     that fits the arena, and a positive duration."""
     capacity = chain_capacity(cfg)
     if capacity < 2:
@@ -42,16 +42,15 @@ def validate_chain(cfg: ScenarioConfig, n: int, seconds: float) -> None:
                         f"m once its margin ({cfg.wall_margin:g} m) and obstacles are left "
                         "clear; shrink the obstacles, the margin (arena.margin) or the spacing",
                         "obstacles")
-    if isinstance(n, bool) or not isinstance(n, int | np.integer):
-        raise UserError(f"n (the number of robots) must be a whole number, got {n!r}", "n")
-    if n < 2:
-        raise UserError(f"n (the number of robots) must be at least 2 (a Head and a Tail), "
-                        f"got {n}", "n")
-    if n > capacity:
-        raise UserError(f"{n} robots do not fit the {cfg.name} arena (at most "
-                        f"{capacity} at spacing {cfg.spacing} m); use fewer robots",
-                        "n")
-    cfg.markers.check_team(n)
+    if isinstance(robots, bool) or not isinstance(robots, int | np.integer):
+        raise UserError(f"robots must be a whole number, got {robots!r}", "robots")
+    if robots < 2:
+        raise UserError(f"robots must be at least 2 (a Head and a Tail), got {robots}",
+                        "robots")
+    if robots > capacity:
+        raise UserError(f"{robots} robots do not fit the {cfg.name} arena (at most "
+                        f"{capacity} at spacing {cfg.spacing} m); use fewer robots", "robots")
+    cfg.markers.check_team(robots)
     if not (isinstance(seconds, int | float) and seconds > 0 and seconds < float("inf")):
         raise UserError(f"seconds must be a positive finite number, got {seconds!r}", "seconds")
 
@@ -62,7 +61,7 @@ def place_chain(cfg: ScenarioConfig, n: int, rng: np.random.Generator) -> np.nda
     have to U-turn through its own chain); a snake layout when no straight chain fits."""
     if n > chain_capacity(cfg):
         raise UserError(f"{n} robots do not fit the {cfg.name} arena at spacing {cfg.spacing} m "
-                        f"(at most {chain_capacity(cfg)}); use fewer robots", "n")
+                        f"(at most {chain_capacity(cfg)}); use fewer robots", "robots")
     half = np.array(cfg.arena) / 2 - cfg.wall_margin
     back = np.arange(-2, n)[:, None] * cfg.spacing
     for _ in range(500):
@@ -171,13 +170,14 @@ def marker_area(spec: mujoco.MjSpec, mesh_name: str) -> float:
     return float(cv2.contourArea(cv2.convexHull(np.ascontiguousarray(verts[:, :2]))))
 
 
-def build_world(cfg: ScenarioConfig | str, n: int, start: np.ndarray | None = None) -> World:
+def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) -> World:
     """Compile the scene with n robots; `start` (n, 3) poses are baked in as the default
-    qpos (the simulation resets poses itself, this matters for exported MJCF). `cfg` may also
-    be a built-in scenario's name or a scenario file."""
-    from macrostate_mj.chain.scenarios import get_scenario
-
-    cfg = get_scenario(cfg)
+    qpos (the simulation resets poses itself, this matters for exported MJCF). `cfg` is
+    resolved (`chain.scenarios.scenario_for` turns a built-in's name or a file into one)."""
+    if not isinstance(cfg, ScenarioConfig):
+        raise UserError(f"build_world takes a ScenarioConfig, not {cfg!r}: "
+                        "chain.scenarios.scenario_for resolves a built-in's name or a file",
+                        "scenario")
     validate_chain(cfg, n, 1.0)      # from Python too: a team that fits, a drivable Head speed
     start = check_start(cfg, n, place_chain(cfg, n, np.random.default_rng(0))
                         if start is None else start)

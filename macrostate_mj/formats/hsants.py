@@ -85,13 +85,13 @@ def open_dataset(root: str | Path) -> AntFlowData:
     """Index a dataset folder; fail with one line if its layout is not the expected one."""
     root = Path(root)
     if not root.is_dir():
-        raise UserError(f"dataset folder {root} does not exist; check the path", "root")
+        raise UserError(f"dataset folder {root} does not exist; check the path", "data")
     ids, subs = {}, []
     for label in LABELS:
         folder = root / label
         if not folder.is_dir():
             raise UserError(f"dataset {root} has no {label}/ folder; give the folder holding "
-                            "Stable/, Unstable/ and split1..3/", "root")
+                            "Stable/, Unstable/ and split1..3/", "data")
         ids[label], sub = _index(folder)
         subs.append(sub)
     return AntFlowData(root, ids["Stable"], ids["Unstable"], min(subs),
@@ -130,7 +130,7 @@ def read_split(root: str | Path, k: int) -> tuple[list[int], list[int]]:
         path = root / f"split{k}" / f"{part}.csv"
         if not path.is_file():
             raise UserError(f"dataset {root} lacks split{k}/{part}.csv; use split 1..3 on a "
-                            "dataset that has its splits", "k")
+                            "dataset that has its splits", "split")
         ids = []
         for n, line in enumerate(path.read_text().splitlines(), 1):
             line = line.strip()

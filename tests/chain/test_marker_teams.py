@@ -15,6 +15,7 @@ from macrostate_mj.chain.markers import (
     marker_colours,
     marker_hues,
 )
+from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.errors import UserError
 
@@ -38,5 +39,5 @@ def test_a_colour_team_over_the_separable_count_is_refused():
     n = SEPARABLE_COLOURS + 1
     with pytest.raises(UserError, match=f'{n} colour markers .* kind = "aruco" for teams over '
                                         f"{SEPARABLE_COLOURS}") as err:
-        build_world("lab", n)
+        build_world(get_scenario("lab"), n)
     assert "\n" not in str(err.value)

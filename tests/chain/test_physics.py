@@ -124,7 +124,8 @@ SOAKS = [("lab", 3, 12), ("lab", 5, 12), ("lab", 7, 8), ("webots", 5, 12), ("rob
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario,robots,seeds", SOAKS)
 def test_many_seeds_never_tip_climb_escape_or_diverge(scenario, robots, seeds):
-    runs = soak(soak_tasks(scenario, robots, seeds, 300.0, first_seed=5000), workers=2)
+    runs = soak(soak_tasks(get_scenario(scenario), robots, seeds, 300.0, first_seed=5000),
+                workers=2)
     row = summary(runs, workers=2)
     assert [r.reason for r in runs if r.fault] == []
     assert row["runs"] == seeds and row["warnings"] == 0

@@ -149,7 +149,8 @@ def test_what_an_outsider_tried_is_refused_from_python():
             build_world(lab, 3, start=start)
     with pytest.raises(ValueError, match="k_t"):
         ChainSim(build_world(lab, 3), k_t=math.nan)
-    assert build_world("lab", 3).scenario == lab          # a name resolves as everywhere else
+    with pytest.raises(ValueError, match="scenario_for resolves a built-in's name"):
+        build_world("lab", 3)                     # resolved once where a call begins
 
 
 def test_the_noise_table_sets_the_imaging_noise_beside_the_marker_jitter(tmp_path):

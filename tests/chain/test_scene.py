@@ -172,7 +172,7 @@ def test_a_folding_lens_is_refused_by_check_and_simulate_with_exit_2_and_nothing
         assert "folds the image over itself" in err and "reduce |k1|" in err
     assert not out.exists()
     with pytest.raises(UserError, match="folds"):
-        build_world(str(path), 3)
+        build_world(get_scenario(path), 3)        # the Python API refuses it too
 
 
 def test_the_local_scale_is_the_pinhole_one_without_a_lens_and_smaller_at_barrel_corners():

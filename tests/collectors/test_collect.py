@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -174,11 +175,12 @@ def test_a_collection_made_with_other_scenario_values_is_not_finished(reference,
     from macrostate_mj.chain import scenarios
 
     req = CollectRequest("lab", 3, 0.75, 5, reference, "passive", split="60/10/30",
-                         episode_minutes=0.25)
+                         episode_minutes=0.25)          # the name resolved here, once
     assert finished(req)
     refit = scenarios.SCENARIOS["lab"].with_overrides(k_f=9.0)
     monkeypatch.setitem(scenarios.SCENARIOS, "lab", refit)
-    assert not finished(req)
+    assert finished(req)                                # the request holds what it resolved
+    assert not finished(replace(req, scenario="lab"))   # a new request gets the new fit
 
 
 def _episodes(out):

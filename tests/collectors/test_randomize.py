@@ -1,6 +1,7 @@
 """Domain randomization: profiles, draws, where they land, and bad profiles refused."""
 
 import json
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -138,11 +139,12 @@ def test_episodes_with_wheels_that_differ_are_keyed_apart_from_those_made_before
     from macrostate_mj.core.cache import task_key
 
     def key(spec):
-        made = {"spec": spec, "scenario": get_scenario(spec.scenario).as_made()}
+        fields = {k: v for k, v in asdict(spec).items() if k != "scenario"}
+        made = {"spec": fields, "scenario": spec.scenario.as_made()}
         return task_key(EpisodeTask.stage, EpisodeTask.version, made)
 
-    plain = EpisodeSpec("lab", 3, 60.0, 5.0, 1, 0)
+    plain = EpisodeSpec(get_scenario("lab"), 3, 60.0, 5.0, 1, 0)
     assert EpisodeTask(plain).key() == key(plain)
-    drawn = EpisodeSpec("lab", 3, 60.0, 5.0, 1, 0,
+    drawn = EpisodeSpec(get_scenario("lab"), 3, 60.0, 5.0, 1, 0,
                         randomize=Randomization(name="x", ranges=(("wheel_spread", 0.0, 0.02),)))
     assert EpisodeTask(drawn).key() != key(drawn)

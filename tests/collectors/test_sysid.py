@@ -18,6 +18,7 @@ from collectors.sysid import (
     score,
     values,
 )
+from macrostate_mj.chain.scenarios import get_scenario
 
 
 def test_score_sums_per_robot_rows_and_averages_each_lag_family():
@@ -50,10 +51,10 @@ def test_a_fit_is_keyed_by_the_scenario_s_content_not_its_name(tmp_path):
     """A lab file edited between two fits must not reuse the first fit's cached scores."""
     lab = tmp_path / "mylab.toml"
     lab.write_text('extends = "lab"\nname = "mylab"\n')
-    before = identity(SysidConfig(scenario=lab))
+    before = identity(SysidConfig(scenario=get_scenario(lab)))
     lab.write_text('extends = "lab"\nname = "mylab"\n[followers]\nkind = "wait_for_behind"\n'
                    "slack = 0.05\nhold = 0.01\n")
-    after = identity(SysidConfig(scenario=lab))
+    after = identity(SysidConfig(scenario=get_scenario(lab)))
     assert before["scenario"] == after["scenario"] == "mylab"
     assert before["scenario_hash"] != after["scenario_hash"]
 

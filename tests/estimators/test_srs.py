@@ -149,7 +149,8 @@ def test_a_tracking_srs_tail_scores_the_tracked_poses(tmp_path):
     first = []
     for track in (False, True):
         policy = SRSConfig(NoveltyFile(path), "max", k=9, track=track)
-        _, table, stats = run_episode(EpisodeSpec("webots", 3, 12.0, 0.0, 7, 0, policy))
+        spec = EpisodeSpec(get_scenario("webots"), 3, 12.0, 0.0, 7, 0, policy)
+        _, table, stats = run_episode(spec)
         first.append(np.array(stats["decisions"]["e"].to_pylist()[0]))
     assert not np.array_equal(first[0], first[1])
     assert np.allclose(first[0], first[1], rtol=0.05)

@@ -72,7 +72,8 @@ def test_ids_outside_the_team_are_ignored(hall):
 
 
 def test_the_plate_is_a_square_tag_at_the_cards_height():
-    colour, tag = build_world("examples/epuck_lab.toml", 3), build_world(HALL, 3)
+    colour, tag = (build_world(get_scenario(f), 3)
+                   for f in ("examples/epuck_lab.toml", HALL))
     assert tag.marker_height == pytest.approx(colour.marker_height, abs=1e-9)
     assert tag.marker_area == pytest.approx(0.051**2)     # the card's length
     data = mujoco.MjData(tag.model)

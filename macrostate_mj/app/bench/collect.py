@@ -13,7 +13,7 @@ import numpy as np
 
 from macrostate_mj.app.bench import figure
 from macrostate_mj.app.bench.sim import _best_of, best_of_pair, record_commands, replay_bare
-from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.scenarios import SCENARIOS
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.angles import wrap_angle
@@ -27,7 +27,7 @@ def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> 
     camera error; every frame, every robot), and tracker time per 750 x 570 frame on one core
     against one bare full-frame colour conversion. The image pipeline alone: the lab's marker
     jitter is drawn noise, not the tracker's."""
-    world = build_world(get_scenario("lab").with_overrides(marker_jitter=0.0), robots)
+    world = build_world(SCENARIOS["lab"].with_overrides(marker_jitter=0.0), robots)
     sim = ChainSim(world)
     chain = CameraChain(sim)
     pos, head, seen, frames = [], [], [], []
@@ -85,7 +85,7 @@ def bench_health(seconds: float = 30.0, robots: int = 5) -> list[dict]:
     than the figure). Target: at most 5 % slower (ratio >= 0.95)."""
     from macrostate_mj.chain.sim import PoseLog
 
-    world = build_world(get_scenario("lab"), robots)
+    world = build_world(SCENARIOS["lab"], robots)
     sim = ChainSim(world)
     chain = CameraChain(sim)
     monitor = chain.health
@@ -132,7 +132,7 @@ def _bare_limit(args: tuple) -> None:
     bare render of the state at `frames` of its camera ticks (spread evenly), at the same
     settings (same scene, size, offsamples, threads)."""
     spec, steps, frames, start, ticks = args
-    world = build_world(get_scenario(spec.scenario), spec.robots)
+    world = build_world(spec.scenario, spec.robots)
     filmed = np.zeros(len(ticks), bool)
     filmed[np.linspace(0, len(ticks) - 1, frames).round().astype(int)] = True
     with OverheadRenderer(world.model) as renderer:
@@ -142,7 +142,7 @@ def _bare_limit(args: tuple) -> None:
 
 def _recorded(spec) -> tuple:
     """The episode's start state and wheel commands, recorded before any timing starts."""
-    world = build_world(get_scenario(spec.scenario), spec.robots)
+    world = build_world(spec.scenario, spec.robots)
     return record_commands(ChainSim(world), spec.warmup + spec.seconds, spec.rng(0))
 
 
@@ -152,7 +152,7 @@ def _stages(spec, frames: int = 60) -> dict[str, float]:
     from macrostate_mj.formats.poses import write_poses
     from macrostate_mj.vision import imaging
 
-    world = build_world(get_scenario(spec.scenario), spec.robots)
+    world = build_world(spec.scenario, spec.robots)
     sim = ChainSim(world)
     sim.reset(spec.rng(0))
     chain = CameraChain(sim, spec.noise, rng=spec.rng(1))
@@ -210,9 +210,10 @@ def bench_collect(minutes: float = 1.0, robots: int = 3, repeats: int = 3) -> li
     from macrostate_mj.core.parallel import local_results, render_threads
 
     figures: list[dict] = []
-    run_episode(EpisodeSpec("lab", robots, 5.0, 0.0, 0, 0))      # warm-up (imports, GL)
+    lab = SCENARIOS["lab"]
+    run_episode(EpisodeSpec(lab, robots, 5.0, 0.0, 0, 0))      # warm-up (imports, GL)
     for workers in (1, 2):
-        specs = [EpisodeSpec("lab", robots, minutes * 60, 10.0, 0, i) for i in range(workers)]
+        specs = [EpisodeSpec(lab, robots, minutes * 60, 10.0, 0, i) for i in range(workers)]
         recorded = {s.index: _recorded(s) for s in specs}
         t_ours = t_limit = t_strict = np.inf
         for _ in range(repeats):       # alternated, best of each: the least disturbed runs
@@ -252,7 +253,7 @@ def bench_collect(minutes: float = 1.0, robots: int = 3, repeats: int = 3) -> li
                               "rendered"))
         if workers == 1:
             wall_1w, rendered_1w = t_ours / frames, rendered / frames
-    for name, sec in _stages(EpisodeSpec("lab", robots, 30.0, 0.0, 0, 0)).items():
+    for name, sec in _stages(EpisodeSpec(SCENARIOS["lab"], robots, 30.0, 0.0, 0, 0)).items():
         per_frame = name in ("physics", "writing")    # the rest: per rendered frame
         share = sec * (1 if per_frame else rendered_1w) / wall_1w
         figures.append(figure(f"collect_stage_{name}_ms_per_frame", sec * 1000, "ms",

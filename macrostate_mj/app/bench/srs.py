@@ -27,6 +27,7 @@ def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dic
         NoveltyNet,
         save_novelty,
     )
+    from macrostate_mj.chain.scenarios import SCENARIOS
 
     torch.manual_seed(0)
     with tempfile.TemporaryDirectory() as tmp:
@@ -34,13 +35,14 @@ def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dic
             NoveltyNet(NoveltyConfig()), NoveltyConfig(), 3, "webots"), {}))
         srs = SRSConfig(NoveltyFile(path), "max", k)
         policies = {"passive": PolicyConfig("passive"), "srs": srs}
-        run_episode(EpisodeSpec("webots", 3, 5.0, 0.0, 0, 0))          # warm-up (imports, GL)
+        webots = SCENARIOS["webots"]
+        run_episode(EpisodeSpec(webots, 3, 5.0, 0.0, 0, 0))          # warm-up (imports, GL)
         best = dict.fromkeys(policies, np.inf)
         scored = 0
         for _ in range(repeats):
             for name, policy in policies.items():
                 t0 = time.perf_counter()
-                _, _, stats = run_episode(EpisodeSpec("webots", 3, seconds, 10.0, 0, 0, policy))
+                _, _, stats = run_episode(EpisodeSpec(webots, 3, seconds, 10.0, 0, 0, policy))
                 best[name] = min(best[name], time.perf_counter() - t0)
                 if stats["decisions"] is not None:
                     scored = stats["decisions"].num_rows

@@ -36,13 +36,11 @@ from macrostate_mj.core.errors import RunFailure, UserError
 # is click's UsageError, which every parser error (bad flag, missing argument) derives from.
 UsageError: type[Exception] = typer.BadParameter.__mro__[1]
 INTERRUPTED = 130               # the shell's code for a process stopped by SIGINT
-# A library parameter the CLI names otherwise (`build_world(cfg, n)` is `--robots`); any other
-# parameter is the flag of the same name, where the command has one.
-ALIASES = {"n": "robots", "time_limit": "seconds", "root": "data", "k": "split"}
 
 
 def _flag_for(param: str | None, argv: list[str]) -> str | None:
-    """The running command's flag for the library parameter a `UserError` names, if any."""
+    """The running command's flag for the library parameter a `UserError` names, if any: the
+    library's parameters carry their flags' names."""
     if param is None:
         return None
     command = typer.main.get_command(app)
@@ -50,9 +48,8 @@ def _flag_for(param: str | None, argv: list[str]) -> str | None:
         sub = getattr(command, "commands", {}).get(token)
         if sub is not None:
             command = sub
-    name = ALIASES.get(param, param)
     for option in command.params:
-        if option.name == name:
+        if option.name == param:
             return next((o for o in option.opts if o.startswith("--")), None)
     return None
 

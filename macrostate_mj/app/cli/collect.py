@@ -65,29 +65,30 @@ def collect(
     overwrite: bool = Switch(False, "Start over, replacing existing outputs."),
 ) -> None:
     """Collect tracked pose datasets in the ThymioLoc layout; resumes after an interruption."""
-    from collectors.runner import CollectRequest, plan
+    from collectors.runner import CollectRequest, episode_count
     from collectors.runner import collect as run_collect
+    from macrostate_mj.chain.scenarios import scenario_for
     from macrostate_mj.core.errors import UserError
     from macrostate_mj.core.progress import sim_progress
 
+    lab = scenario_for(scenario, head_speed)       # the one scenario every episode runs in
     if policy == "srs":
         if instances is None:
             raise UserError("--policy srs needs --instances (the dataset's size, the Rand-Only "
                             "phase included)")
-        req = CollectRequest(scenario, robots, 0.0, seed, out, "random", sigma, workers, ray,
+        req = CollectRequest(lab, robots, 0.0, seed, out, "random", sigma, workers, ray,
                              split, overwrite, episode_minutes, px_per_cm=px_per_cm,
-                             head_speed=head_speed, keep_unhealthy=keep_unhealthy)
+                             keep_unhealthy=keep_unhealthy)
         _collect_srs(req, srs, instances, ro_instances, k, track)
         return
     if instances is not None:
         raise UserError(f"--instances is for --policy srs; --policy {policy} takes --minutes")
     if minutes is None:
         raise UserError(f"--policy {policy} needs --minutes (the simulated driving time)")
-    req = CollectRequest(scenario, robots, minutes, seed, out, policy, sigma, workers, ray,
+    req = CollectRequest(lab, robots, minutes, seed, out, policy, sigma, workers, ray,
                          split, overwrite, episode_minutes, px_per_cm=px_per_cm,
-                         head_speed=head_speed, randomize=randomize,
-                         keep_unhealthy=keep_unhealthy)
-    episodes = len(plan(req))
+                         randomize=randomize, keep_unhealthy=keep_unhealthy)
+    episodes = episode_count(req)     # the request is checked once, as the run begins
     with sim_progress(minutes, f"collecting {episodes} episodes", unit="sim min") as bar:
         written = run_collect(req, lambda _, minutes, resumed: bar(minutes, resumed))
     for kind, path in written.items():

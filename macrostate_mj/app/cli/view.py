@@ -18,8 +18,7 @@ def view(
     speed: float = Positive(1.0, "Playback speed, a multiple of real time.", max=100),
 ) -> None:
     """Watch a chain drive in MuJoCo's interactive viewer (needs a display)."""
-    from macrostate_mj.chain.scenarios import scenario_for
     from viz.viewer import view as run_view
 
-    reached = run_view(scenario_for(scenario), robots, seed, seconds, speed)
+    reached = run_view(scenario, robots, seed, seconds, speed)
     typer.echo(f"viewed {reached:.1f} simulated s of {scenario.name} with {robots} robots")

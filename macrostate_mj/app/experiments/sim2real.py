@@ -45,6 +45,7 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import Progress
+from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
@@ -98,6 +99,11 @@ class Config:
     ablate: tuple[tuple[str, ...], ...] = ()
 
     @property
+    def lab(self) -> ScenarioConfig:
+        """The scenario the lab data is collected in, resolved."""
+        return get_scenario(self.scenario)
+
+    @property
     def candidates(self) -> tuple[str, ...]:
         """The `randomize` candidates (`PLAIN` alone where none is named)."""
         return self.randomize or (PLAIN,)
@@ -141,7 +147,7 @@ def validate(config: Config) -> np.ndarray:
     """Refuse bad inputs in one line before anything is written; the pooled real instances."""
     from collectors.randomize import PARAMETERS, Randomization
 
-    if config.sim is not None and get_scenario(config.scenario) != get_scenario("lab"):
+    if config.sim is not None and config.lab != get_scenario("lab"):
         raise UserError("--scenario names the lab this command collects in; drop it or --sim")
     pooled = read_real(config.real)
     unknown = [a for a in config.arms if a not in ARMS]
@@ -189,7 +195,7 @@ def validate(config: Config) -> np.ndarray:
 def _collect(config: Config, out: Path, progress: Progress, randomize: str | None) -> Path:
     """A lab collection in `out` (a `collect` run: resumed, and replaced when another config
     made it, its episodes kept)."""
-    req = CollectRequest(config.scenario, 3, config.sim_minutes, config.sim_seed, out, "passive",
+    req = CollectRequest(config.lab, 3, config.sim_minutes, config.sim_seed, out, "passive",
                          workers=progress.workers, ray=progress.ray, split="80/20/0",
                          overwrite=True, episode_minutes=config.episode_minutes,
                          randomize=randomize)
@@ -225,7 +231,7 @@ def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, n
     from collectors.randomize import around
     from collectors.sysid import SysidConfig, fit
 
-    cfg = SysidConfig(scenario=config.scenario, robots=3, minutes=config.sysid_minutes,
+    cfg = SysidConfig(scenario=config.lab, robots=3, minutes=config.sysid_minutes,
                       seed=config.sim_seed, first=config.sysid_first,
                       refine=config.sysid_refine, episode_minutes=config.episode_minutes,
                       workers=progress.workers)

@@ -29,6 +29,7 @@ import numpy as np
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
 from macrostate_mj.app.experiments import Progress
+from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
 from macrostate_mj.core.io import write_json_atomic
@@ -94,8 +95,8 @@ class _Dataset:
     def request(self, config: Config, workers: int, ray: str | None) -> CollectRequest:
         # overwrite: the folder is this experiment's; a collection of another config there
         # (another profile) is replaced, its episodes kept in its cache
-        return CollectRequest(SCENARIO, self.robots, 0.0, self.seed, self.out, self.policy,
-                              self.sigma, workers, ray, overwrite=True,
+        return CollectRequest(get_scenario(SCENARIO), self.robots, 0.0, self.seed, self.out,
+                              self.policy, self.sigma, workers, ray, overwrite=True,
                               episode_minutes=config.episode_minutes)
 
     def ensure(self, config: Config, workers: int, ray: str | None) -> Path:
