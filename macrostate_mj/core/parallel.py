@@ -60,9 +60,8 @@ def ray_runner(address: str) -> Runner:
     """Connect to Ray: `local` starts an instance in this process (never joining a cluster
     already running here), `auto` finds this machine's cluster, HOST:PORT is a cluster's head
     (`ray start --head`). Every node needs this package installed (no runtime_env ships it: its
-    native dependencies could not travel). A task travels pickled and returns its outputs as
-    bytes, which the driver writes; a task that names an input file by path reads it on its
-    node, so such runs need the file at that path on every node."""
+    native dependencies could not travel). A task travels pickled, its input files with it
+    (`core.cache.ShipsFiles`), and returns its outputs as bytes, which the driver writes."""
     try:
         import ray
     except ImportError:
