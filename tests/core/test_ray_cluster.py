@@ -215,13 +215,24 @@ def test_collect_on_two_nodes_is_byte_identical_to_local_workers(cluster, tmp_pa
     _same_outputs_and_both_nodes(cluster, tmp_path, ["collect", *TINY], tasks=3)
 
 
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory) -> Path:
+    """A small lab collection (local workers) to train on: no real data needed."""
+    out = tmp_path_factory.mktemp("lab") / "lab"
+    res = _cli("collect", "--robots", "3", "--minutes", "2.5", "--episode-minutes", "1.25",
+               "--seed", "6", "--split", "80/20/0", "--workers", "2", "--out", str(out),
+               cwd=out.parent)
+    assert res.returncode == 0, res.stderr[-3000:]
+    return out
+
+
 @pytest.mark.slow
-def test_an_experiment_on_two_nodes_is_byte_identical_to_local_workers(cluster, tmp_path,
-                                                                        reference_data):
-    """`experiment retlo`'s quick profile: its two models (arrays in, checkpoints out) train
-    on the two nodes."""
-    _same_outputs_and_both_nodes(cluster, tmp_path, ["experiment", "retlo", "--profile",
-                                                     "quick"], tasks=2)
+def test_an_experiment_on_two_nodes_is_byte_identical_to_local_workers(cluster, tmp_path, lab):
+    """`experiment retlo`'s quick profile on a lab collection: its two models (arrays in,
+    checkpoints out) train on the two nodes."""
+    _same_outputs_and_both_nodes(cluster, tmp_path, [
+        "experiment", "retlo", "--profile", "quick", "--train", str(lab / "Train.csv"),
+        "--val", str(lab / "Val.csv")], tasks=2)
 
 
 @pytest.mark.slow
