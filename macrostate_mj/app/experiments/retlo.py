@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from estimators.retlo import MODEL_KINDS
 from estimators.retlo.api import evaluate, fit, predict, report
 from estimators.retlo.chain import Module, SplitChain, predict_chain
 from estimators.retlo.curves import inside_bias, largest_error_share
@@ -31,6 +32,7 @@ from estimators.retlo.heads import POINT, Head
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
+from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.app.experiments import Progress
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
@@ -40,10 +42,9 @@ from macrostate_mj.core.stats import cv_blocks, mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models"]
-HEURISTIC = "heuristic2x"
 CV_TEST = "cross-validated train + val"
 CV_VAL_SHARE = 0.15     # of each fold's training blocks, the last share selects
-LEARNED = ("fc", "lstm")
+LEARNED = MODEL_KINDS   # the learned models, each trained per seed (the 2X heuristic is not)
 FIRST = "first_"        # with --split, the first module's model: models/first_<kind>_seed<i>.pt
 
 
