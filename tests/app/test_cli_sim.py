@@ -210,4 +210,5 @@ def test_iogen_suite_times_bf16_against_float32_in_the_same_run():
     fp32, bf16 = (figs["iogen_one_split_minutes_estimate"],
                   figs["iogen_bf16_one_split_minutes_estimate"])
     assert bf16["limit"] == round(fp32["value"], 4) and bf16["value"] > 0
+    assert (fp32["limit_kind"], bf16["limit_kind"]) == ("target", "measured")
     assert bf16["ratio"] == pytest.approx(bf16["limit"] / bf16["value"], rel=1e-3)

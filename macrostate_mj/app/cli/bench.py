@@ -1,4 +1,5 @@
-"""`macrostate-mj bench`: speed figures, each a ratio against a limit measured in the same run."""
+"""`macrostate-mj bench`: speed figures, each a ratio against a limit measured in the same run
+(or against a fixed target, which the line says)."""
 
 import importlib
 import inspect
@@ -10,7 +11,8 @@ from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.cli.params import Choice, Count, Scenario, Switch
 
 # name -> "module:function"; each function takes no argument and returns a list of figures made
-# by `macrostate_mj.app.bench.figure` (one schema: name, value, unit, limit, ratio, config).
+# by `macrostate_mj.app.bench.figure` (one schema: name, value, unit, limit, limit_kind, ratio,
+# config).
 SUITES: dict[str, str] = {
     "sim": "macrostate_mj.app.bench.sim:bench_sim",
     "render": "macrostate_mj.app.bench.sim:bench_render",
@@ -51,7 +53,7 @@ def bench(
             if as_json:
                 print(json.dumps(fig), flush=True)
             else:
-                ratio = (f"  ratio {fig['ratio']:.3f} vs limit {fig['limit']:.4g}"
+                ratio = (f"  ratio {fig['ratio']:.3f} vs {fig['limit_kind']} {fig['limit']:.4g}"
                          if fig["ratio"] is not None else "")
                 results.print(f"{fig['name']:<40} {fig['value']:>12.4g} {fig['unit']}{ratio}",
                               soft_wrap=True)
