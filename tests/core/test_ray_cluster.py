@@ -194,25 +194,27 @@ def _files(folder: Path) -> dict[str, bytes]:
             if p.is_file() and p.name not in TIMED}
 
 
-def _same_outputs_and_both_nodes(cluster: Cluster, tmp_path: Path, args: list[str],
-                                 tasks: int) -> None:
+def _on_ray_and_local(cluster: Cluster, tmp_path: Path, args: list[str], tasks: int
+                      ) -> tuple[dict, dict, Counter, list]:
+    """The command's outputs on the cluster and on two local workers, the tasks each node ran
+    (from Ray's records) and the cluster's nodes."""
     on_ray, local = tmp_path / "ray", tmp_path / "local"
     res = _cli(*args, "--ray", cluster.address, "--out", str(on_ray), cwd=tmp_path)
     assert res.returncode == 0, res.stderr[-3000:]
     res = _cli(*args, "--workers", "2", "--out", str(local), cwd=tmp_path)
     assert res.returncode == 0, res.stderr[-3000:]
-    ours, theirs = _files(on_ray), _files(local)
-    assert sorted(ours) == sorted(theirs)
-    assert [name for name in ours if ours[name] != theirs[name]] == []
     seen = cluster.records(str(on_ray), tasks)
     ran = Counter(seen["ran"])
     print(f"{' '.join(args[:2])}: tasks per node {dict(ran)}")
-    assert sum(ran.values()) == tasks and set(ran) == set(seen["nodes"]), seen
+    return _files(on_ray), _files(local), ran, seen["nodes"]
 
 
 @pytest.mark.slow
 def test_collect_on_two_nodes_is_byte_identical_to_local_workers(cluster, tmp_path):
-    _same_outputs_and_both_nodes(cluster, tmp_path, ["collect", *TINY], tasks=3)
+    ours, theirs, ran, nodes = _on_ray_and_local(cluster, tmp_path, ["collect", *TINY], tasks=3)
+    assert sorted(ours) == sorted(theirs)
+    assert [name for name in ours if ours[name] != theirs[name]] == []
+    assert sum(ran.values()) == 3 and set(ran) == set(nodes), (ran, nodes)
 
 
 @pytest.fixture(scope="module")
@@ -230,9 +232,12 @@ def lab(tmp_path_factory) -> Path:
 def test_an_experiment_on_two_nodes_is_byte_identical_to_local_workers(cluster, tmp_path, lab):
     """`experiment retlo`'s quick profile on a lab collection: its two models (arrays in,
     checkpoints out) train on the two nodes."""
-    _same_outputs_and_both_nodes(cluster, tmp_path, [
+    ours, theirs, ran, nodes = _on_ray_and_local(cluster, tmp_path, [
         "experiment", "retlo", "--profile", "quick", "--train", str(lab / "Train.csv"),
         "--val", str(lab / "Val.csv")], tasks=2)
+    assert sorted(ours) == sorted(theirs)
+    assert [name for name in ours if ours[name] != theirs[name]] == []
+    assert sum(ran.values()) == 2 and set(ran) == set(nodes), (ran, nodes)
 
 
 @pytest.mark.slow
