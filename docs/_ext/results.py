@@ -2,16 +2,16 @@
 
 A page never types a measured number. It names where the number lives:
 
-- inline, the role ``{n}`json(srs_full/results.json, configs/passive/1.0000/head_cm, .1f)` ``;
-- a table, the directive ``{results-table} srs(srs_full, all_predictions_cm)``;
-- a chapter's claims, ``{claims} chapter3``: `docs/reproduction/claims.toml` gives per figure
-  the dissertation's value (the one number typed by hand, from the text), where ours lives, the
-  rule that says whether they agree, the command and the finding;
-- a folder's provenance, ``{provenance} srs_full``: its command and kind from
-  `results/index.toml`, its date and machine from its manifest.
+- inline, the role ``{n}`json(srs_text/results.json, configs/passive/1.0000/head_cm, .1f)` ``;
+- a table, the directive ``{results-table} srs(srs_text, all_predictions_cm)``;
+- a chapter's claims, ``{claims} chapter3``: judged by `macrostate_mj.app.claims` (what
+  `macrostate-mj claims` prints), from its `claims.toml`; ``{claims-summary}`` the rule and counts;
+- a folder's provenance, ``{provenance} srs_text``: its command, kind, units and disclosures from
+  `results/index.toml` (`macrostate_mj.app.provenance`), its date and machine from its manifest.
 
-`tests/docs/test_docs.py` builds the pages and fails on any number a results page shows that
-neither a results file nor `claims.toml` holds.
+Every source's output is recorded per page in `_numbers.json` beside the built pages;
+`tests/docs/test_docs.py` binds each number a results page shows to it (and each inline number
+to its file, key and rounding), and fails on any other number it was not told to expect.
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from functools import cache
-from importlib import import_module
 from pathlib import Path
 
 from docutils import nodes
@@ -34,7 +33,7 @@ from sphinx.util.docutils import SphinxRole
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
-CLAIMS = REPO / "docs" / "reproduction" / "claims.toml"
+NUMBERS = "_numbers.json"       # beside the built pages: every number each page was given
 
 
 @dataclass(frozen=True)
@@ -213,7 +212,7 @@ def retlo_steps_below(folder: str, test: str, robot: str, better: str, worse: st
 def _ms(values: list[float], fmt: str) -> str:
     if not values:
         return ""
-    sd = statistics.stdev(values) if len(values) > 1 else 0.0
+    sd = statistics.pstdev(values)
     return f"{statistics.fmean(values):{fmt}} ± {sd:{fmt}}"
 
 
@@ -509,17 +508,26 @@ def gap_ranked(*files: str) -> Table:
 
 
 @source
-def retlo_sim(folder: str) -> Table:
-    """Fig 2.2: per case, the chained MLPs' mean and max error (cm) and the 2X heuristic's."""
-    cases = load(f"{folder}/results.json")["cases"]  # type: ignore[index]
-    robots = sorted({r for c in cases.values() for r in c["per_robot"]}, key=_robot_order)
+def retlo_sim(pattern: str) -> Table:
+    """Fig 2.2: per case, the chained MLPs' mean and max error (cm) and the 2X heuristic's,
+    mean ± std over the run folders `pattern` matches (one a training seed)."""
+    runs = [load(str(f.relative_to(RESULTS)))["cases"]  # type: ignore[index]
+            for f in sorted(RESULTS.glob(f"{pattern}/results.json"))]
+    if not runs:
+        raise ValueError(f"no results/{pattern}/results.json")
+    robots = sorted({r for c in runs[0].values() for r in c["per_robot"]}, key=_robot_order)
     rows = [["case", "all, mean", "all, max", *[f"{r}, mean" for r in robots], "2X, all mean"]]
-    for key, case in cases.items():
-        per = case["per_robot"]
-        rows.append([f"{key}: {case['title']}", f"{case['all']['mean_error'] * 100:.1f}",
-                     f"{case['all']['max_error'] * 100:.1f}",
-                     *[f"{per[r]['mean_error'] * 100:.1f}" if r in per else "" for r in robots],
-                     f"{case['heuristic2x']['all']['mean_error'] * 100:.1f}"])
+
+    def cell(get: Callable[[dict], float]) -> str:
+        return _ms([100 * get(run) for run in runs], ".1f")
+
+    for key, case in runs[0].items():
+        rows.append([f"{key}: {case['title']}",
+                     cell(lambda r, k=key: r[k]["all"]["mean_error"]),
+                     cell(lambda r, k=key: r[k]["all"]["max_error"]),
+                     *[cell(lambda r, k=key, b=b: r[k]["per_robot"][b]["mean_error"])
+                       if b in case["per_robot"] else "" for b in robots],
+                     cell(lambda r, k=key: r[k]["heuristic2x"]["all"]["mean_error"])])
     return rows
 
 
@@ -846,6 +854,33 @@ def _num(value: object) -> str:
 
 # Docutils glue -------------------------------------------------------------------------------
 
+def _record(env: object, expression: str, shown: object) -> None:
+    """Note what a page was given by which source, for the docs test to bind each number."""
+    if isinstance(shown, list):
+        shown = [[c.astext() if isinstance(c, nodes.Node) else str(c) for c in row]
+                 for row in shown]
+    measured = env.__dict__.setdefault("measured_numbers", {})
+    measured.setdefault(env.docname, []).append([expression, shown])  # type: ignore[attr-defined]
+
+
+def _purge(app: object, env: object, docname: str) -> None:
+    env.__dict__.get("measured_numbers", {}).pop(docname, None)
+
+
+def _merge(app: object, env: object, docnames: set[str], other: object) -> None:
+    mine = env.__dict__.setdefault("measured_numbers", {})
+    for name, rows in other.__dict__.get("measured_numbers", {}).items():
+        if name in docnames:
+            mine[name] = rows
+
+
+def _dump(app: object, error: Exception | None) -> None:
+    """`_numbers.json` in the output folder: per page, each source and what it showed."""
+    if error is None:
+        measured = app.env.__dict__.get("measured_numbers", {})  # type: ignore[attr-defined]
+        (Path(app.outdir) / NUMBERS).write_text(json.dumps(measured, indent=1))  # type: ignore[attr-defined]
+
+
 def table_node(rows: Table) -> nodes.table:
     """A plain docutils table: first row the header."""
     table = nodes.table(classes=["results-table", "colwidths-auto"])   # HTML: widths by content
@@ -883,6 +918,7 @@ class NumberRole(SphinxRole):
         except (ValueError, KeyError, IndexError, TypeError) as exc:
             msg = self.inliner.reporter.error(f"{self.text}: {exc}", line=self.lineno)
             return [nodes.problematic(self.rawtext, self.rawtext)], [msg]
+        _record(self.env, self.text, text)
         return [nodes.inline(self.rawtext, text, classes=["measured"])], []
 
 
@@ -897,62 +933,61 @@ class ResultsTable(Directive):
             rows = call(self.arguments[0])
         except (ValueError, KeyError, IndexError, TypeError) as exc:
             raise self.error(f"{self.arguments[0]}: {exc}") from exc
+        _record(self.state.document.settings.env, self.arguments[0], rows)
         return [table_node(rows)]  # type: ignore[arg-type]
 
 
 class Claims(Directive):
-    """``{claims} chapter``: the chapter's claims, the text's value against ours; the command
-    once below the table when every row shares it, else a column of its own."""
+    """``{claims} chapter``: the chapter's claims judged by `macrostate_mj.app.claims` (the
+    code `macrostate-mj claims` runs): the text's value against ours with its interval and n,
+    what it was compared with, and the verdict by the one rule of the reproduction index."""
 
     required_arguments = 1
 
     def run(self) -> list[nodes.Node]:
-        claims = tomllib.loads(CLAIMS.read_text()).get(self.arguments[0])
-        if not claims:
-            raise self.error(f"no [[{self.arguments[0]}]] claims in {CLAIMS.name}")
-        for claim in claims:
-            if "folder" in claim:
-                claim["command"] = index()[claim["folder"]]["command"]
-        commands = {c.get("command", "") for c in claims} - {""}
-        shared = len(commands) == 1
-        header = ["figure", "claim", "dissertation", "ours", "verdict", "finding"]
-        rows: list[list] = [header if shared else [*header[:5], "results", header[5]]]
-        for claim in claims:
-            if "text_from" in claim:
-                module, _, keypath = claim["text_from"].partition(":")
-                claim["text"] = str(dig(vars(import_module(module)), keypath))
-            if "text_value" not in claim and re.search(r"\d", claim.get("text", "")):
-                claim["text_value"] = float(re.findall(r"[\d.]+", claim["text"])[0])
-            try:
-                ours = call(claim["ours"]) if claim.get("ours") else None
-                verdict = _verdict(claim, ours)
-            except (ValueError, KeyError, IndexError, TypeError) as exc:
-                raise self.error(f"{claim.get('figure')}: {exc}") from exc
-            row = [claim["figure"], claim["claim"], claim.get("text", ""),
-                   "" if ours is None else str(ours), verdict, claim.get("finding", "")]
+        from macrostate_mj.app.claims import judge_all
+        from macrostate_mj.core.errors import UserError
+
+        try:
+            judged = judge_all(RESULTS, [self.arguments[0]])
+        except UserError as exc:
+            raise self.error(str(exc)) from exc
+        folders = sorted({j.folder for j in judged if j.folder})
+        shared = len(folders) == 1
+        header = ["figure", "claim", "dissertation", "ours [95 % interval], n", "compared with",
+                  "verdict", "finding"]
+        rows: list[list] = [header if shared else [*header[:6], "results", header[6]]]
+        for j in judged:
+            decide = f"; {j.would_decide} units would decide it" if j.would_decide else ""
+            row = [j.figure, j.claim, j.text, j.ours_text + (" (smoke)" if j.smoke else ""),
+                   j.comparator, f"{j.verdict}: {j.why}{decide}", j.finding]
             if not shared:
-                row.insert(5, claim.get("folder") or nodes.literal(text=claim.get("command", "")))
+                row.insert(6, j.folder or "")
             rows.append(row)
+        _record(self.state.document.settings.env, f"claims {self.arguments[0]}", rows)
         out: list[nodes.Node] = [table_node(rows)]
-        if shared:                  # one run: name it (its provenance gives the command)
-            folders = {c["folder"] for c in claims if "folder" in c}
-            para = nodes.paragraph(text="Results: " if folders else "Command: ")
-            para += nodes.literal(text=f"results/{folders.pop()}" if len(folders) == 1
-                                  else commands.pop())
+        if shared:
+            para = nodes.paragraph(text="Results: ")
+            para += nodes.literal(text=f"results/{folders[0]}")
             out.append(para)
         return out
 
 
-def _verdict(claim: dict, ours: object) -> str:
-    """`agree` or `disagree` by the claim's rule, evaluated on the numbers, never typed."""
-    rule = claim.get("agree_if")
-    if rule is None:
-        return claim.get("verdict", "not measured")
-    values = {k: float(call(v)) for k, v in claim.get("values", {}).items()}  # type: ignore[arg-type]
-    names = {**values, "ours": float(ours), "text": claim.get("text_value"),  # type: ignore[arg-type]
-             "__builtins__": {"abs": abs, "min": min, "max": max, "all": all}}
-    ok = eval(rule, names)  # noqa: S307  (rules are ours, in claims.toml)
-    return ("agree" if ok else "disagree") + f" (rule: {claim.get('rule', rule)})"
+class ClaimsSummary(Directive):
+    """``{claims-summary}``: the rule, stated once, and each chapter's count of verdicts."""
+
+    def run(self) -> list[nodes.Node]:
+        from macrostate_mj.app.claims import RULE, VERDICTS, counts, judge_all
+        from macrostate_mj.app.provenance import RESULT_RULE
+
+        judged = judge_all(RESULTS)
+        chapters = list(dict.fromkeys(j.chapter for j in judged))
+        rows: list[list] = [["chapter", *VERDICTS, "claims"]]
+        for chapter in [*chapters, "all"]:
+            mine = [j for j in judged if chapter in ("all", j.chapter)]
+            rows.append([chapter, *counts(mine).values(), len(mine)])
+        _record(self.state.document.settings.env, "claims-summary", rows)
+        return [nodes.paragraph(text=RULE), nodes.paragraph(text=RESULT_RULE), table_node(rows)]
 
 
 class Provenance(Directive):
@@ -965,7 +1000,12 @@ class Provenance(Directive):
         entry = index().get(folder)
         if entry is None:
             raise self.error(f"results/{folder} is not in results/index.toml")
-        parts = [f"results/{folder}", entry["kind"]]
+        from macrostate_mj.app.provenance import disclosures, is_result
+
+        if entry["kind"].startswith("result") != is_result(entry):
+            raise self.error(f"results/index.toml [{folder}]: its kind contradicts the rule")
+        parts = [f"results/{folder}", entry["kind"], f"{entry['units']} independent units",
+                 *disclosures(entry)]
         manifest = RESULTS / folder / "manifest.json"
         if manifest.is_file():
             data = json.loads(manifest.read_text())
@@ -975,6 +1015,8 @@ class Provenance(Directive):
             if isinstance(machine, dict):
                 parts.append(str(machine.get("cpu") or machine.get("processor") or ""))
         para = nodes.paragraph(classes=["provenance"])
+        _record(self.state.document.settings.env, f"provenance {folder}",
+                [[*parts, entry["command"]]])
         para += nodes.emphasis(text=" · ".join(p for p in parts if p) + ". ")
         para += nodes.literal(text=entry["command"])
         return [para]
@@ -984,5 +1026,9 @@ def setup(app: object) -> dict:
     app.add_role("n", NumberRole())  # type: ignore[attr-defined]
     app.add_directive("results-table", ResultsTable)  # type: ignore[attr-defined]
     app.add_directive("claims", Claims)  # type: ignore[attr-defined]
+    app.add_directive("claims-summary", ClaimsSummary)  # type: ignore[attr-defined]
+    app.connect("env-purge-doc", _purge)  # type: ignore[attr-defined]
+    app.connect("env-merge-info", _merge)  # type: ignore[attr-defined]
+    app.connect("build-finished", _dump)  # type: ignore[attr-defined]
     app.add_directive("provenance", Provenance)  # type: ignore[attr-defined]
     return {"parallel_read_safe": True, "version": "1"}

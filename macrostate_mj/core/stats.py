@@ -63,3 +63,70 @@ def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any
     rest = np.setdiff1d(np.arange(n), test)
     n_val = max(1, int(round(val_share * len(rest))))
     return rest[:-n_val], rest[-n_val:], test
+
+
+# Verdicts over few units ------------------------------------------------------------------------
+# Seeds, folds and datasets come in threes and fives, where a percentile bootstrap undercovers
+# (95 % intervals hold the mean 76 % of the time at n = 3, 84 % at 5, 89 % at 9: 2,000 normal
+# draws each); Student's t holds 95 % at every n, so intervals and order tests here are t's.
+
+def _sample_sd(std: float, n: int) -> float:
+    """The sample standard deviation from a population one (what results files keep)."""
+    return std * (n / (n - 1)) ** 0.5
+
+
+def t_interval(mean: float, std: float, n: int, level: float = 0.95) -> tuple[float, float] | None:
+    """The `level` t interval of a mean over `n` independent units given the population `std`;
+    None under 2 units (no spread to judge by)."""
+    from scipy.stats import t
+
+    if n < 2:
+        return None
+    half = t.ppf(0.5 + level / 2, n - 1) * _sample_sd(std, n) / n ** 0.5
+    return mean - half, mean + half
+
+
+def p_above(mean: float, std: float, n: int) -> float | None:
+    """One-sided t p of "the units' true mean is above 0" against "at most 0"; None under 2
+    units. With std 0 the sign decides (p 0 or 1)."""
+    from scipy.stats import t
+
+    if n < 2:
+        return None
+    sd = _sample_sd(std, n)
+    if sd == 0:
+        return 0.0 if mean > 0 else 1.0
+    return float(t.sf(mean / (sd / n ** 0.5), n - 1))
+
+
+def p_above_welch(a: tuple[float, float, int], b: tuple[float, float, int]) -> float | None:
+    """One-sided Welch p of "a's mean is above b's", from (mean, population std, n) each: for
+    figures whose records keep no pairs. None when either side has under 2 units."""
+    from scipy.stats import ttest_ind_from_stats
+
+    (ma, sa, na), (mb, sb, nb) = a, b
+    if na < 2 or nb < 2:
+        return None
+    sa, sb = _sample_sd(sa, na), _sample_sd(sb, nb)
+    if sa == 0 and sb == 0:
+        return 0.0 if ma > mb else 1.0
+    return float(ttest_ind_from_stats(ma, sa, na, mb, sb, nb, equal_var=False,
+                                      alternative="greater").pvalue)
+
+
+def units_to_decide(effect: float, std: float, n: int, alpha: float = 0.05,
+                    two_sided: bool = False, limit: int = 10_000) -> int | None:
+    """How many units a t test would need to reach `alpha` at the observed `effect` (mean, or
+    mean difference) and spread; None when the spread is unknown (n < 2) or the effect is 0."""
+    from scipy.stats import t
+
+    if n < 2 or effect == 0:
+        return None
+    sd = _sample_sd(std, n)
+    if sd == 0:
+        return 2
+    q = 1 - alpha / 2 if two_sided else 1 - alpha
+    for m in range(2, limit + 1):
+        if abs(effect) / (sd / m ** 0.5) > t.ppf(q, m - 1):
+            return m
+    return None

@@ -110,10 +110,10 @@ def test_experiment_all_sets_the_precision_of_every_training_that_has_one():
 
 # The committed folder each experiment's full profile reproduces (`experiment all --profile
 # full`), and the settings it leaves out: retlo's lab 5-robot test is a collection of its own.
-# Chapter 3's docs figure has 3 model seeds a dataset, its own profile.
+# srs_full (3 model seeds a dataset, earlier code) has its own profile.
 REPRODUCES = {("caging", "full"): ("caging", ()),
               ("caging-multi", "full"): ("caging_two_tails", ()),
-              ("retlo-sim", "full"): ("retlo_sim_full", ()),
+              ("retlo-sim", "full"): ("retlo_sim_seeds/seed0", ()),
               ("learned-tail", "full"): ("learned_tail", ()),
               ("retlo", "full"): ("retlo_fig27_cv", ("test",)),
               ("srs", "full"): ("srs_text", ()), ("srs", "full-seeds"): ("srs_full", ()),

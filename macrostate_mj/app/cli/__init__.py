@@ -13,6 +13,7 @@ import typer
 from macrostate_mj.app.cli import ants as _ants  # noqa: F401
 from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers commands)
 from macrostate_mj.app.cli import caging as _caging  # noqa: F401
+from macrostate_mj.app.cli import claims as _claims  # noqa: F401
 from macrostate_mj.app.cli import collect as _collect  # noqa: F401
 from macrostate_mj.app.cli import data as _data  # noqa: F401
 from macrostate_mj.app.cli import experiments as _experiments  # noqa: F401

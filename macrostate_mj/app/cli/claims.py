@@ -1,0 +1,39 @@
+"""`claims`: the dissertation's claims judged on a checkout's committed results, by one rule."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.cli.params import InputDir, Switch
+
+
+@app.command("claims")
+def claims(
+    results: Path = InputDir(Path("results"), "A checkout's results/ folder (with index.toml)."),
+    chapter: list[str] = typer.Option(None, "--chapter", help="Only these chapters "
+                                      "(chapter2, chapter3, chapter4); repeatable."),
+    as_json: bool = Switch(False, "One JSON object per claim instead of the table.",
+                           "--json/--table"),
+) -> None:
+    """Judge every claim of the dissertation on the committed results: the text's value or
+    order against ours with its 95 % interval over seeds, folds or datasets; agree, disagree,
+    inconclusive (with the units that would decide it), not comparable or qualitative. The
+    rule is printed under the table; the docs' chapter pages show the same rows."""
+    from macrostate_mj.app.claims import RULE, counts, judge_all
+
+    judged = judge_all(results, chapter or None)
+    if as_json:
+        for j in judged:
+            print(json.dumps(j.as_json(), ensure_ascii=False))
+        return
+    for j in judged:
+        mark = " (smoke)" if j.smoke else ""
+        decide = f"; {j.would_decide} units would decide it" if j.would_decide else ""
+        print(f"{j.chapter} {j.figure}: {j.claim}\n  text {j.text or '-'} | ours "
+              f"{j.ours_text or '-'}{mark} | {j.verdict}: {j.why}{decide}")
+    print(", ".join(f"{n} {v}" for v, n in counts(judged).items()))
+    print(RULE)
