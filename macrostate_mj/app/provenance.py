@@ -19,7 +19,7 @@ MIN_UNITS = 3
 RESULT_RULE = (f"A result has at least {MIN_UNITS} independent seeds, folds or datasets, and "
                "none of its settings was chosen on the data it is scored on; anything else is "
                "a smoke test: a direction, not a measurement.")
-DISCLOSED = ("chosen_on_scored", "resumed_from", "copied", "code", "incomplete")
+DISCLOSED = ("chosen_on_scored", "resumed_from", "copied", "code", "unchecked")
 
 
 def read_index(results: Path) -> dict[str, dict]:
@@ -51,5 +51,5 @@ def disclosures(entry: dict) -> list[str]:
     settings chosen on the scored data, each as the index words it."""
     labels = {"chosen_on_scored": "chosen on the scored data", "resumed_from": "resumed from",
               "copied": "copied", "code": "earlier code",
-              "incomplete": "incomplete"}
+              "unchecked": "not checked against a manifest"}
     return [f"{labels[key]}: {entry[key]}" for key in DISCLOSED if entry.get(key)]
