@@ -118,6 +118,7 @@ def units_to_decide(effect: float, std: float, n: int, alpha: float = 0.05,
                     two_sided: bool = False, limit: int = 10_000) -> int | None:
     """How many units a t test would need to reach `alpha` at the observed `effect` (mean, or
     mean difference) and spread; None when the spread is unknown (n < 2) or the effect is 0."""
+    import numpy as np
     from scipy.stats import t
 
     if n < 2 or effect == 0:
@@ -126,7 +127,6 @@ def units_to_decide(effect: float, std: float, n: int, alpha: float = 0.05,
     if sd == 0:
         return 2
     q = 1 - alpha / 2 if two_sided else 1 - alpha
-    for m in range(2, limit + 1):
-        if abs(effect) / (sd / m ** 0.5) > t.ppf(q, m - 1):
-            return m
-    return None
+    m = np.arange(2, limit + 1)
+    enough = np.flatnonzero(abs(effect) / (sd / np.sqrt(m)) > t.ppf(q, m - 1))
+    return int(m[enough[0]]) if len(enough) else None

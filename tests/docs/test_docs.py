@@ -236,3 +236,22 @@ def test_the_reference_speaks_of_the_software_not_of_its_history():
     for page in pages:
         words = re.findall(r"\b(issue|session|previous stop|last stop)s?\b", page.read_text(), re.I)
         assert not words, f"{page.relative_to(REPO)}: {sorted(set(words))}"
+
+
+def test_the_claims_command_and_the_pages_agree_row_for_row(text_build, capsys):
+    """`macrostate-mj claims --json` and the chapter pages: the same claims, figures, ours and
+    verdicts, in the same order."""
+    from clitools import cli_inprocess
+
+    code, out, _ = cli_inprocess(capsys, "claims", "--results", str(RESULTS), "--json")
+    printed = [json.loads(line) for line in out.splitlines()]
+    shown = [row for page in ("chapter2", "chapter3", "chapter4")
+             for expression, rows in _given(text_build, f"reproduction/{page}")
+             if expression.startswith("claims ") for row in rows[1:]]
+    assert code == 0 and len(printed) == len(shown) == 37
+    for claim, row in zip(printed, shown, strict=True):
+        assert (row[0], row[1]) == (claim["figure"], claim["claim"])
+        assert row[5].startswith(claim["verdict"] + ":"), claim["figure"]
+        shown_ours = row[3].split(" ")[0]         # as printed: its rounding bounds the gap
+        decimals = len(shown_ours.partition(".")[2])
+        assert abs(float(shown_ours) - claim["ours"]) <= 0.5 * 10 ** -decimals + 1e-12, row
