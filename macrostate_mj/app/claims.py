@@ -23,9 +23,11 @@ from macrostate_mj.core.errors import UserError
 
 CLAIMS = Path(__file__).with_name("claims.toml")
 ALPHA = 0.05
+MARGIN = 0.1                    # a value claim's default margin: 10 % of the text's value
 RULE = ("A value claim agrees when the text's value lies inside our 95 % t interval over the "
-        "independent seeds, folds or datasets the row averages, and disagrees when the interval "
-        "excludes it. An ordering agrees when a one-sided t test over the same units (paired "
+        "independent seeds, folds or datasets the row averages and that interval is no wider "
+        "than the row's margin either side (10 % of the text's value unless the row names "
+        "another), and disagrees when the interval excludes it. An ordering agrees when a one-sided t test over the same units (paired "
         "where the records pair them, else Welch) rejects the reverse order at p < .05, and "
         "disagrees when it rejects the text's order; a claim over several comparisons (\"every "
         "step\", \"each model\") agrees only when every one agrees and disagrees when any one "
@@ -364,14 +366,19 @@ class Judged:
         return {k: getattr(self, k) for k in keys}
 
 
-def _value_verdict(ours: Figure, text_value: float) -> tuple[str, str, int | None]:
+def _value_verdict(ours: Figure, text_value: float, margin: float
+                   ) -> tuple[str, str, int | None]:
     ci = ours.interval()
     if ci is None:
         return "inconclusive", "one unit: no spread to judge by", None
-    inside = ci[0] <= text_value <= ci[1]
-    if inside:
-        return "agree", "the text's value lies inside our 95 % interval", None
-    return "disagree", "our 95 % interval excludes the text's value", None
+    if not ci[0] <= text_value <= ci[1]:
+        return "disagree", "our 95 % interval excludes the text's value", None
+    half = (ci[1] - ci[0]) / 2
+    if half > margin:
+        return "inconclusive", (f"the text's value is inside an interval too wide to tell "
+                                f"(± {half:.2g} against a margin of ± {margin:.2g})"), (
+            stats.units_to_narrow(ours.std, ours.n, margin))
+    return "agree", "the text's value lies inside our 95 % interval", None
 
 
 def _order_verdict(comparisons: list[Comparison]) -> tuple[str, str, int | None]:
@@ -425,7 +432,8 @@ def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset()
     if kind == "value":
         if ours is None or text_value is None:
             raise ClaimsError(f"{claim['figure']}: a value claim needs `ours` and `text_value`")
-        verdict, why, would = _value_verdict(ours, float(text_value))
+        margin = float(claim.get("margin", MARGIN * abs(float(text_value))))
+        verdict, why, would = _value_verdict(ours, float(text_value), margin)
     elif kind == "ordering":
         comparisons = []
         first, last = claim.get("steps", [1, 1])

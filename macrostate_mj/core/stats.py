@@ -130,3 +130,18 @@ def units_to_decide(effect: float, std: float, n: int, alpha: float = 0.05,
     m = np.arange(2, limit + 1)
     enough = np.flatnonzero(abs(effect) / (sd / np.sqrt(m)) > t.ppf(q, m - 1))
     return int(m[enough[0]]) if len(enough) else None
+
+
+def units_to_narrow(std: float, n: int, half_width: float, level: float = 0.95,
+                    limit: int = 10_000) -> int | None:
+    """How many units would bring the `level` t interval's half-width to `half_width` at the
+    observed spread; None when the spread is unknown (n < 2)."""
+    import numpy as np
+    from scipy.stats import t
+
+    if n < 2:
+        return None
+    sd = _sample_sd(std, n)
+    m = np.arange(2, limit + 1)
+    enough = np.flatnonzero(t.ppf(0.5 + level / 2, m - 1) * sd / np.sqrt(m) <= half_width)
+    return int(m[enough[0]]) if len(enough) else None

@@ -13,7 +13,16 @@ from macrostate_mj.app.claims import VERDICTS, ClaimsError, judge_all
 CLAIMS = """
 [[t]]
 figure = "value in"
-claim = "ours is 2"
+claim = "ours is 2, give or take 2"
+text_value = 2
+margin = 2
+kind = "value"
+ours = "runs(good/*/r.json, x)"
+folder = "good"
+
+[[t]]
+figure = "value too wide"
+claim = "ours is 2, give or take 10 %"
 text_value = 2
 kind = "value"
 ours = "runs(good/*/r.json, x)"
@@ -104,6 +113,8 @@ def test_each_verdict_follows_the_rule(tmp_path):
     root = _results(tmp_path)
     got = {j.figure: j for j in judge_all(root, claims_file=root / "claims.toml")}
     assert got["value in"].verdict == "agree" and got["value in"].lo < 2 < got["value in"].hi
+    wide = got["value too wide"]
+    assert wide.verdict == "inconclusive" and "too wide" in wide.why and wide.would_decide > 100
     assert got["value out"].verdict == "disagree"
     assert got["one unit"].verdict == "inconclusive" and got["one unit"].smoke
     assert got["paired order"].verdict == "agree" and not got["paired order"].smoke

@@ -52,3 +52,12 @@ def test_units_to_decide_is_the_first_count_at_which_the_test_rejects():
     t_at = [mean / (sd / m ** 0.5) > sp.t.ppf(0.95, m - 1) for m in (need - 1, need)]
     assert t_at == [False, True] and need > n
     assert stats.units_to_decide(0.0, 1.0, 5) is None
+
+
+def test_units_to_narrow_is_the_first_count_whose_interval_fits():
+    std, n, half = 1.0, 5, 0.5
+    need = stats.units_to_narrow(std, n, half)
+    sd = std * (n / (n - 1)) ** 0.5
+    widths = [sp.t.ppf(0.975, m - 1) * sd / m ** 0.5 for m in (need - 1, need)]
+    assert widths[0] > half >= widths[1]
+    assert stats.units_to_narrow(std, 1, half) is None
