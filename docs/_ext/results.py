@@ -1014,6 +1014,10 @@ class Provenance(Directive):
             machine = data.get("machine")
             if isinstance(machine, dict):
                 parts.append(str(machine.get("cpu") or machine.get("processor") or ""))
+            made = data.get("code") or {}
+            if made.get("commit"):
+                parts.append(f"code {made['commit'][:7]}" + (" with changes" if made["dirty"]
+                                                            else ""))
         para = nodes.paragraph(classes=["provenance"])
         _record(self.state.document.settings.env, f"provenance {folder}",
                 [[*parts, entry["command"]]])

@@ -19,6 +19,7 @@ inside the run (a `UserError`) leaves the manifest as it was: nothing half-writt
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import os
@@ -129,6 +130,7 @@ class Run:
             "config_hash": self.config_hash,
             "seed": self.seed,
             "version": __version__,
+            "code": code(),
             "versions": {"python": platform.python_version(),   # numeric libraries loaded
                          **{lib: sys.modules[lib].__version__
                             for lib in ("mujoco", "numpy", "torch") if lib in sys.modules}},
@@ -143,6 +145,36 @@ class Run:
             self.path.unlink(missing_ok=True)
         else:
             write_text_atomic(self.path, self._previous)
+
+
+@functools.cache
+def code() -> dict[str, Any]:
+    """Which code made a run: a digest of the installed packages' sources (the same files give
+    the same digest, in a checkout or a wheel) and, in a git checkout, its commit and whether
+    the tree had uncommitted changes. A folder's numbers say beside them if other code made them."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    digest = hashlib.sha256()
+    for package in PACKAGES:
+        for file in sorted((root / package).rglob("*")):
+            if file.suffix in (".py", ".toml", ".xml") and "__pycache__" not in file.parts:
+                digest.update(f"{file.relative_to(root)}\n".encode() + file.read_bytes())
+    out: dict[str, Any] = {"digest": digest.hexdigest()[:16], "commit": None, "dirty": None}
+    with contextlib.suppress(OSError, subprocess.SubprocessError):
+        if not (root / ".git").exists():          # a wheel: never an enclosing repository's
+            return out
+        git = ["git", "-C", str(root)]
+        head = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=10)
+        if head.returncode == 0:
+            status = subprocess.run([*git, "status", "--porcelain", "--", *PACKAGES],
+                                    capture_output=True, text=True, timeout=10)
+            out.update(commit=head.stdout.strip(), dirty=bool(status.stdout.strip()))
+    return out
+
+
+PACKAGES = ("macrostate_mj", "collectors", "estimators", "viz")   # what a run's code is
 
 
 def machine() -> dict[str, Any]:

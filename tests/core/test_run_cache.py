@@ -31,6 +31,28 @@ def test_a_run_records_its_stages_and_how_it_ended(tmp_path):
     assert not run_finished(tmp_path, {"a": 2})
 
 
+def test_a_manifest_says_which_code_made_it(tmp_path, monkeypatch):
+    """The sources' digest changes with any source file; a checkout adds its commit."""
+    import macrostate_mj.core.run as run_module
+
+    with Run(tmp_path, "demo", {"a": 1}, 7, []):
+        pass
+    made = _manifest(tmp_path)["code"]
+    assert len(made["digest"]) == 16 and made == run_module.code()
+    assert made["commit"] is None or len(made["commit"]) == 40
+    package = tmp_path / "pkg"
+    (package / "macrostate_mj" / "core").mkdir(parents=True)
+    (package / "macrostate_mj" / "a.py").write_text("x = 1\n")
+    monkeypatch.setattr(run_module, "__file__", str(package / "macrostate_mj/core/run.py"))
+    run_module.code.cache_clear()
+    first = run_module.code()
+    (package / "macrostate_mj" / "a.py").write_text("x = 2\n")
+    run_module.code.cache_clear()
+    second = run_module.code()
+    run_module.code.cache_clear()
+    assert first["digest"] != second["digest"] and first["commit"] is None   # no .git there
+
+
 def test_a_finished_run_is_not_overwritten_without_asking(tmp_path):
     with Run(tmp_path, "demo", {"a": 1}, None):
         pass
