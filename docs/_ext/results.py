@@ -874,6 +874,12 @@ def _merge(app: object, env: object, docnames: set[str], other: object) -> None:
             mine[name] = rows
 
 
+def _stale(app: object, env: object, added: set, changed: set, removed: set) -> list[str]:
+    """Every page that shows numbers is read again each build: its results may have changed
+    while its text did not."""
+    return sorted(env.__dict__.get("measured_numbers", {}))
+
+
 def _dump(app: object, error: Exception | None) -> None:
     """`_numbers.json` in the output folder: per page, each source and what it showed."""
     if error is None:
@@ -1034,5 +1040,6 @@ def setup(app: object) -> dict:
     app.connect("env-purge-doc", _purge)  # type: ignore[attr-defined]
     app.connect("env-merge-info", _merge)  # type: ignore[attr-defined]
     app.connect("build-finished", _dump)  # type: ignore[attr-defined]
+    app.connect("env-get-outdated", _stale)  # type: ignore[attr-defined]
     app.add_directive("provenance", Provenance)  # type: ignore[attr-defined]
     return {"parallel_read_safe": True, "version": "1"}
