@@ -1020,8 +1020,10 @@ class Provenance(Directive):
             machine = data.get("machine")
             if isinstance(machine, dict):
                 parts.append(str(machine.get("cpu") or machine.get("processor") or ""))
-            made = data.get("code") or {}
-            if made.get("commit"):
+            made = data.get("code")
+            if made is None:        # made before manifests kept it: say so, never guess
+                parts.append("code not recorded (an earlier manifest)")
+            elif made.get("commit"):
                 parts.append(f"code {made['commit'][:7]}" + (" with changes" if made["dirty"]
                                                             else ""))
         para = nodes.paragraph(classes=["provenance"])

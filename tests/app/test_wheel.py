@@ -97,3 +97,17 @@ def test_the_installed_copy_simulates_from_outside_the_checkout(installed, tmp_p
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "finished" and manifest["simulated_seconds"] == pytest.approx(2.0)
     assert (out / "poses.parquet").stat().st_size > 0
+    # an installed copy has no commit of its own: only the digest of its sources
+    assert manifest["code"]["commit"] is None and len(manifest["code"]["digest"]) == 16
+
+
+def test_the_installed_copy_judges_a_checkouts_claims(installed, tmp_path):
+    """The claims ship in the wheel: judged on a checkout's results from anywhere."""
+    _, site = installed
+    run = subprocess.run([sys.executable, "-m", "macrostate_mj", "claims", "--results",
+                          str(REPO / "results"), "--chapter", "chapter4", "--json"],
+                         cwd=tmp_path, env=_installed_env(site), capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    rows = [json.loads(line) for line in run.stdout.splitlines()]
+    assert len(rows) == 13 and {r["chapter"] for r in rows} == {"chapter4"}
