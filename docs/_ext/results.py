@@ -126,12 +126,6 @@ def above(path: str, keypath: str, base: str, base_keypath: str, fmt: str = ".1f
 
 
 @source
-def count(path: str, keypath: str) -> Q:
-    """How many entries a list or object holds."""
-    return Q(len(dig(load(path), keypath)), None, "d")  # type: ignore[arg-type]
-
-
-@source
 def oc_marks(folder: str, sign: str) -> Q:
     """Fig 4.8's paired tests, IO-GEN against DSVDD over every run and bin: how many cells
     IO-GEN wins (`above`), loses (`below`) or neither (`level`) at p < .05."""
@@ -153,25 +147,11 @@ def srs_cell(folder: str, config: str, budget: str, metric: str) -> Q:
 
 
 @source
-def srs_step(folder: str, config: str, robot: str, step: str) -> Q:
-    """Chapter 3, Fig 3.6: one robot's error (cm) at the k-th prediction (1-based), full budget."""
-    per_step = dig(load(f"{folder}/results.json"), f"configs/{config}/1.0000/per_step_cm/{robot}")
-    return Q(float(per_step[int(step) - 1]), None, ".1f", "cm")  # type: ignore[index]
-
-
-@source
 def quantile(path: str, keypath: str, q: str, fmt: str = ".1f", unit: str = "") -> Q:
     """A quantile of a list of numbers in a results file."""
     values = sorted(float(v) for v in dig(load(path), keypath))  # type: ignore[union-attr]
     return Q(statistics.quantiles(values, n=1000, method="inclusive")[round(float(q) * 1000) - 1]
              if float(q) < 1 else values[-1], None, fmt, unit)
-
-
-@source
-def share_above(path: str, keypath: str, threshold: str) -> Q:
-    """The share (%) of a list of numbers in a results file above a threshold."""
-    values = [float(v) for v in dig(load(path), keypath)]  # type: ignore[union-attr]
-    return Q(100 * sum(v > float(threshold) for v in values) / len(values), None, ".1f", "%")
 
 
 @source
@@ -184,27 +164,6 @@ def caging_cell(folder: str, tail: str, field: str) -> Q:
         return Q(arm["seeds"], None, "d")  # type: ignore[index]
     time = arm["time_to_cage_s"]  # type: ignore[index]
     return Q(float(time["mean"]), float(time["std"]), ".1f", "s")
-
-
-@source
-def retlo_gain(folder: str, test: str) -> Q:
-    """Fig 2.7: how much lower the LSTM's mean error is than FC's on a test set (%)."""
-    per = dig(load(f"{folder}/results.json"), f"results/{test}")
-    lstm, fc = per["lstm"]["mean_error_cm"]["mean"], per["fc"]["mean_error_cm"]["mean"]  # type: ignore[index]
-    return Q(100 * (1 - lstm / fc), None, ".0f", "%")
-
-
-@source
-def retlo_steps_below(folder: str, test: str, robot: str, better: str, worse: str) -> Q:
-    """Fig 2.8: the share (%) of steps at which one model's mean error on a robot is below
-    another's (or, with `worse` a robot name, below that robot's under the same model)."""
-    per = dig(load(f"{folder}/results.json"), f"results/{test}")
-    a = [s["mean"] for s in per[better]["per_robot_step_cm"][robot]]  # type: ignore[index]
-    other = (per[better]["per_robot_step_cm"][worse] if worse in per[better]["per_robot_step_cm"]  # type: ignore[index]
-             else per[worse]["per_robot_step_cm"][robot])  # type: ignore[index]
-    b = [s["mean"] for s in other]
-    pairs = [(x, y) for x, y in zip(a, b, strict=True) if x is not None and y is not None]
-    return Q(100 * sum(x < y for x, y in pairs) / len(pairs), None, ".0f", "%")
 
 
 # Tables ------------------------------------------------------------------------------------------
