@@ -1,5 +1,5 @@
-"""Caging runs (seed §2.5.4): one episode of a Tail on `macrostate_mj/CagingTail-v0`, the Tail's
-live ReTLo head source, and the simulated runs its estimator learns from.
+"""Caging runs (seed §2.5.4): one episode of a Tail (`macrostate_mj.tails`) on
+`macrostate_mj/CagingTail-v0`, and the simulated runs the Tail's estimator learns from.
 
 This layer sits beside `macrostate_mj.env` and `estimators`, independent of both: the caller
 makes the environment and the estimator's online chain and passes them in (any object with
@@ -26,17 +26,7 @@ from macrostate_mj.chain.team import (
     team_start_poses,
 )
 from macrostate_mj.chain.world import build_world
-
-
-class CagingPolicy(Protocol):
-    """A Tail in a caging episode (`chain.caging.ScriptedTail`, `PassiveTail`, `RandomTail`)."""
-
-    detected_at: float | None           # when it found the Head circling (s), if it did
-
-    @property
-    def head_estimate(self) -> np.ndarray | None: ...
-
-    def act(self, obs: dict, info: dict, t: float) -> np.ndarray: ...
+from macrostate_mj.tails.caging import CagingTail
 
 
 class Recorder(Protocol):
@@ -45,79 +35,7 @@ class Recorder(Protocol):
     def finish(self) -> None: ...
 
 
-class OnlineEstimator(Protocol):
-    """`estimators.retlo.online.OnlineChain`'s interface (poses Tail first)."""
-
-    def start(self, poses: np.ndarray) -> None: ...
-
-    def observe(self, sensed: np.ndarray) -> None: ...
-
-    def share(self, poses: np.ndarray) -> None: ...
-
-    @property
-    def head(self) -> tuple[int, np.ndarray]: ...
-
-
-class PassiveTail:
-    """Follows its neighbour (offset 0): the team the text says cannot cage."""
-
-    detected_at: float | None = None
-    head_estimate: np.ndarray | None = None
-
-    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
-        return np.zeros(2, np.float32)
-
-
-class RandomTail:
-    """A new uniform offset within `bound` (the action space's high) every `every` steps."""
-
-    detected_at: float | None = None
-    head_estimate: np.ndarray | None = None
-
-    def __init__(self, rng: np.random.Generator, bound: np.ndarray, every: int):
-        self.rng, self.bound, self.every = rng, bound, every
-        self._action = np.zeros(2, np.float32)
-        self._steps = 0
-
-    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
-        if self._steps % self.every == 0:
-            self._action = self.rng.uniform(-1, 1, 2).astype(np.float32) * self.bound
-        self._steps += 1
-        return self._action
-
-
-class LiveHeadSource:
-    """The Head's position as the Tail's live estimator (`chain`, e.g. ReTLo's `OnlineChain`) has
-    it after each of its steps (every `stride` ticks; lagging n - 2 steps), from the Tail's
-    observations and the poses the team shares (at τ: `team_at_start`, Head first, and in the
-    step info's `team`); None between steps. A `chain.caging.HeadSource`. In a team of several
-    chains (`chain.team`), `robots` are the team's rows of this Tail's chain, Head first: the
-    estimator sees only those of what the team shares."""
-
-    def __init__(self, chain: OnlineEstimator, team_at_start: np.ndarray, stride: int,
-                 robots: np.ndarray | None = None):
-        self.chain, self.stride = chain, stride
-        self.robots = slice(None) if robots is None else np.asarray(robots)
-        chain.start(team_at_start[self.robots][::-1])            # Tail first
-        self._tick = -1          # the observation of tick k comes with the info of tick k
-
-    def __call__(self, obs: dict, info: dict) -> np.ndarray | None:
-        self._tick += 1
-        if self._tick == 0 or self._tick % self.stride:
-            return None
-        self.chain.observe(np.array([obs["tail"][-1, :2], obs["neighbour"][-1, :2]]))
-        if "team" in info:
-            self.chain.share(info["team"][self.robots][::-1])
-        t, head = self.chain.head
-        return head.copy() if t > 0 else None
-
-    def latest(self) -> tuple[int, np.ndarray]:
-        """(the command tick it is for, the Head's position): the estimate to score."""
-        step, head = self.chain.head
-        return step * self.stride, head
-
-
-def run_caging_episode(env: gymnasium.Env, obs: dict, info: dict, tail: CagingPolicy,
+def run_caging_episode(env: gymnasium.Env, obs: dict, info: dict, tail: CagingTail,
                        recorders: Sequence[tuple[int, Recorder]] = (),
                        frames_every: float | None = None,
                        scored: Callable[[], tuple[int, np.ndarray]] | None = None) -> dict:
@@ -139,7 +57,7 @@ def run_caging_episode(env: gymnasium.Env, obs: dict, info: dict, tail: CagingPo
                            None if estimate is None else estimate.copy()})
             next_frame += frames_every
         heads.append(sim.poses[0, :2].copy())
-        action = tail.act(obs, info, t)
+        action = tail.act(obs, {**info, "t": t})
         estimate = tail.head_estimate
         if scored is not None and estimate is not None:
             at, head = scored()

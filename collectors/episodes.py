@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyarrow as pa
 
-from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import (
     Randomization,
     randomize_model,
@@ -21,6 +20,7 @@ from collectors.randomize import (
 )
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.formats.poses import poses_table
+from macrostate_mj.tails.collection import PolicyConfig, PolicySpec
 from macrostate_mj.vision.imaging import NoiseConfig
 
 

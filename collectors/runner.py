@@ -22,7 +22,6 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
-from collectors.policies import PolicyConfig, PolicySpec
 from collectors.randomize import Randomization, check_fits
 from macrostate_mj.chain.rendered import check_rendered_colours
 from macrostate_mj.chain.scenario import ScenarioConfig
@@ -43,6 +42,7 @@ from macrostate_mj.formats.instances import (
 )
 from macrostate_mj.formats.poses import table_arrays, write_poses
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, write_csv
+from macrostate_mj.tails.collection import PolicyConfig, PolicySpec
 
 SPLIT_NAMES = ("Train", "Val", "Test")
 # A request's fields that say where or how a collection runs, or what it keeps of unhealthy

@@ -30,7 +30,6 @@ from typing import Protocol
 
 import numpy as np
 
-from collectors.policies import PolicyConfig, PolicySpec
 from collectors.runner import (
     CACHE,
     NOT_IDENTITY,
@@ -41,7 +40,6 @@ from collectors.runner import (
     parse_split,
     plan,
 )
-from collectors.srs_policy import SRSConfig, check_srs
 from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
@@ -54,6 +52,8 @@ from macrostate_mj.formats.instances import (
 )
 from macrostate_mj.formats.srs_windows import NoveltySource
 from macrostate_mj.formats.thymioloc import read_csv, write_csv
+from macrostate_mj.tails.collection import PolicyConfig, PolicySpec
+from macrostate_mj.tails.srs import SRSConfig, check_srs
 
 NOVELTY = "novelty.pt"
 NOVELTY_STAGE, NOVELTY_VERSION = "srs-novelty", 1   # bump when the models change for the same data

@@ -1,123 +1,23 @@
-"""Scripted and learned Tails on `LocalizeTail-v0`, one seeded episode each, scored by what the
-frozen estimator makes of the team (for `experiment learned-tail`).
-
-Every Tail acts through the Gymnasium API only (the action: the destination offset SRS
-perturbs), so the learned policy and the baselines meet the same environment:
-
-- passive: offset 0 (the chain's own rule);
-- random: Rand-Only (§3.3): N(0, (σ · robot size)² I) each log step in random mode, alternating
-  with passive mode every `alternate` steps, as `collectors.policies.TailPolicy` draws it;
-- srs_med: SRS-Med's Tail (§3.3.1; the novelty models trained on a Rand-Only collection of the
-  scenario), reading the team's true poses as the SR phase does;
-- chain_offset: the scripted heuristic: a fixed offset in the chain's frame (along the Tail ->
-  neighbour direction and to its left), the one of a small grid with the lowest mean Head error
-  on tuning seeds (`tune_chain_offset`), held out from the evaluation seeds;
-- learned: a PPO policy's deterministic action, through the spacing shield it trained with.
-
-The spacing shield (`shield`): when the Tail sees its neighbour farther than a limit, its
-action becomes passive (offset 0: the chain's own rule closes the gap) until the gap is back
-under it. It uses only what the Tail observes, and keeps a policy from ending an episode with a
-chain break (`env.explore.BREAK_SPACINGS`).
+"""Tails on `LocalizeTail-v0`, one seeded episode each, scored by what the frozen estimator
+makes of the team (for `experiment learned-tail`): every Tail (`macrostate_mj.tails`: passive,
+Rand-Only, SRS-Med, the scripted chain-offset Tail, the learned one) acts through the Gymnasium
+API only, so the learned policy and the baselines meet the same environment. The chain-offset
+Tail's offset is the one of a small grid with the lowest mean Head error on tuning seeds
+(`tune_chain_offset`), held out from the evaluation seeds.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from macrostate_mj.app.envs import ID as ENV_ID
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.stats import wilcoxon_p
-
-
-class Tail(Protocol):
-    """A Tail for one episode: `act` maps the observation to a destination offset (m)."""
-
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray: ...
-
-
-class Passive:
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        return np.zeros(2, np.float32)
-
-
-class RandOnly:
-    """Rand-Only's draw, clipped to the action bounds (σ · size is well inside them)."""
-
-    def __init__(self, rng: np.random.Generator, sigma: float, bound: float, alternate: int = 6):
-        self.rng, self.sigma, self.bound, self.alternate = rng, sigma, bound, alternate
-        self.step = 0
-
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        from macrostate_mj.chain.motion import draw_tail_offsets
-
-        random_mode = (self.step // self.alternate) % 2 == 0
-        self.step += 1
-        if not random_mode:
-            return np.zeros(2, np.float32)
-        return np.clip(draw_tail_offsets(self.rng, self.sigma), -self.bound,
-                       self.bound).astype(np.float32)
-
-
-class ChainOffset:
-    """The offset `along` (m, toward the neighbour) and `left` (m, to its left) in the frame of
-    the Tail -> neighbour direction at the latest observation: it holds the neighbour at one
-    bearing and distance from the Tail, whichever way the Head leads."""
-
-    def __init__(self, along: float, left: float):
-        self.along, self.left = along, left
-
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        d = obs["neighbour"][-1, :2] - obs["tail"][-1, :2]
-        u = d / max(float(np.linalg.norm(d)), 1e-9)
-        return (self.along * u + self.left * np.array([-u[1], u[0]])).astype(np.float32)
-
-
-class SRSTail:
-    """SRS's Tail (§3.3.1) with a pick policy (SRS-Med: the median novelty), its SR phase's
-    choice each log step, held between them. Like the SR phase that collects data, it reads the
-    whole team's true poses (`policy` scores candidates by what the Head and Follower would
-    do): privileged, where the other Tails see only their neighbour."""
-
-    def __init__(self, env: Any, policy: Any, bound: float):
-        task = env.unwrapped.task
-        self.sim, self.every, self.policy, self.bound = task.sim, task.every, policy, bound
-        self.step = 0
-        self.offset = np.zeros(2, np.float32)
-
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        if self.step % self.every == 0:
-            self.offset = np.clip(self.policy.choose(self.sim), -self.bound,
-                                  self.bound).astype(np.float32)
-        self.step += 1
-        return self.offset
-
-
-def shield(obs: dict[str, np.ndarray], action: np.ndarray, limit_m: float | None
-           ) -> np.ndarray:
-    """`action`, or offset 0 (passive) when the Tail's neighbour is farther than `limit_m`
-    (None: no shield)."""
-    if limit_m is None:
-        return action
-    gap = float(np.linalg.norm(obs["neighbour"][-1, :2] - obs["tail"][-1, :2]))
-    return np.zeros_like(action) if gap > limit_m else action
-
-
-def shield_limit(env: Any, spacings: float | None) -> float | None:
-    """The shield's gap limit (m): `spacings` × the env's chain spacing; None: no shield."""
-    return None if spacings is None else spacings * env.unwrapped.task.sim.cfg.spacing
-
-
-class Learned:
-    """A stable-baselines3 policy, deterministic at evaluation, behind its spacing shield."""
-
-    def __init__(self, model: Any, limit_m: float | None = None):
-        self.model, self.limit_m = model, limit_m
-
-    def act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
-        return shield(obs, self.model.predict(obs, deterministic=True)[0], self.limit_m)
+from macrostate_mj.tails import Tail
+from macrostate_mj.tails.scripted import ChainOffset
 
 
 def make_env(checkpoint: str | None, time_limit: float) -> Any:
@@ -135,18 +35,18 @@ def run_episode(make_tail: Callable[[Any], Tail], seed: int, checkpoint: str | N
     (F2 .. Head), the mean neighbour spacing (m), and whether a chain break (or a fault) ended
     it. With `record`, also "truth" (log steps, robots, 3) and "estimate" (log steps, robots,
     2), Tail first, for a video."""
-    from macrostate_mj.env.explore import chain_broken
+    from macrostate_mj.chain.health import chain_broken
 
     env = make_env(checkpoint, time_limit)
-    obs, _ = env.reset(seed=seed)
+    obs, info = env.reset(seed=seed)
     tail = make_tail(env)
     task = env.unwrapped.task
     sim = task.sim
     poses, spacings, errors, ret, steps = [sim.poses[::-1].copy()], [], [], 0.0, 0
-    info: dict = {}
     terminated = truncated = False
     while not (terminated or truncated):
-        obs, reward, terminated, truncated, info = env.step(tail.act(obs))
+        obs, reward, terminated, truncated, info = env.step(
+            tail.act(obs, {**info, "t": sim.time}))
         ret += float(reward)
         steps += 1
         if len(task.truth) > len(poses):            # a log tick: the estimator stepped

@@ -17,8 +17,8 @@ robotarium scenario (spacing d = 8 cm) and documented in docs/explanation/tail-t
   of the Head's surface following), so the ring settles into a net around it rather than
   sliding off (without it, closed rings slid off the object in 4 of 4 oracle runs).
 
-`ScriptedTail` is a Tail that cages through the environment's action alone, fed the Head's
-position by a head source (`oracle_source`: the truth; an estimator: what it believes).
+The Tails that cage through the environment's action alone live in `macrostate_mj.tails.caging`;
+the geometry they steer by (`circling_centre`, `circle_velocity`, `offset_for_velocity`) is here.
 """
 
 from __future__ import annotations
@@ -29,8 +29,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from macrostate_mj.chain.motion import pull
-from macrostate_mj.chain.scenario import ScenarioConfig
-from macrostate_mj.chain.sim import ChainSim
 
 TRACK_STEPS = 5        # how many of the Head's latest positions the Tail fits a circle to
 DETECTION = {"min_arc_deg": 90.0, "max_rms": 0.06, "radius_factor": 2.0}   # loose: estimates
@@ -228,65 +226,3 @@ def offset_for_velocity(u: np.ndarray, tail: np.ndarray, fol: np.ndarray, d: flo
     gap = max(float(np.linalg.norm(fol - tail)), 1e-3)
     w = (np.asarray(u, float) - k_t * pull(tail, fol, d)) / (k_t * gap)
     return np.clip(w, -bound, bound)
-
-
-class ScriptedTail:
-    """A scripted Tail: watch the Head's track (one position per head-source step); once it
-    circles, encircle clockwise: around the mean centre of every circle found so far (an estimated
-    track gives a new, noisy fit at most steps) until its own sensor finds the object, then
-    around the object it senses (and remembers). It acts through the environment's action (a
-    destination offset within ±`bound`), given the scenario, the Tail rule's gain `k_t` and
-    the caging geometry."""
-
-    def __init__(self, scenario: ScenarioConfig, k_t: float, caging: CagingConfig,
-                 bound: float, head_source: HeadSource):
-        self.scenario, self.k_t, self.caging = scenario, k_t, caging
-        self.bound = bound
-        self.head_source = head_source
-        self.track: list[np.ndarray] = []
-        self.found: list[np.ndarray] = []          # the centres of the circles found
-        self.sensed: np.ndarray | None = None      # the object's centre, once sensed
-        self.detected_at: float | None = None
-
-    @property
-    def centre(self) -> np.ndarray | None:
-        """Where the Tail encircles: the sensed object, else the circles' mean centre."""
-        if self.sensed is not None or not self.found:
-            return self.sensed
-        return np.mean(self.found, axis=0)
-
-    @property
-    def head_estimate(self) -> np.ndarray | None:
-        """The Head's latest position as the Tail has it."""
-        return self.track[-1] if self.track else None
-
-    def act(self, obs: dict, info: dict, t: float) -> np.ndarray:
-        """The action for the step whose observation and info are `obs`, `info`, at time t."""
-        head = self.head_source(obs, info)
-        if head is not None:
-            self.track = [*self.track[-(TRACK_STEPS - 1):], head]
-            found = (circling_centre(np.array(self.track), self.caging, **DETECTION)
-                     if len(self.track) == TRACK_STEPS and self.sensed is None else None)
-            if found is not None:
-                self.found.append(found)
-                self.detected_at = self.detected_at or t
-        tail, fol = obs["tail"][-1], obs["neighbour"][-1]
-        if self.found and obs["object"][2] > 0:
-            self.sensed = tail[:2] + obs["object"][:2]
-        if self.centre is None:
-            return np.zeros(2, np.float32)
-        u = circle_velocity(tail[:2], self.centre, self.caging.ring_radius,
-                            self.scenario.chain_speed, -1.0, self.caging.circle_gain)
-        w = offset_for_velocity(u, tail, fol, self.scenario.spacing, self.k_t, self.bound)
-        return w.astype(np.float32)
-
-
-def oracle_source(sim: ChainSim, stride: int) -> HeadSource:
-    """The Head's true position every `stride` ticks (privileged, no lag): the upper bound of
-    any estimator's head source."""
-    ticks = [-1]
-
-    def source(_obs: dict, _info: dict) -> np.ndarray | None:
-        ticks[0] += 1
-        return sim.poses[0, :2].copy() if ticks[0] % stride == 0 else None
-    return source

@@ -11,7 +11,8 @@ once it senses it, parks on the boundary instead of circling (a circling Head wo
 chains round the same way). Both Tails must then wrap their chains round opposite sides of the
 object; when they face each other on the far side, the ring [TA, ..., A1, H, B1, ..., TB] closes
 and every robot becomes a Follower of its two ring neighbours, as the one-chain ring does.
-`SideTails` is a scripted pair of Tails that does this through the environment's actions.
+`tails.caging.SideTails` is a scripted pair of Tails that does this through the environment's
+actions.
 """
 
 from __future__ import annotations
@@ -20,17 +21,12 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.chain.caging import (
-    TRACK_STEPS,
     CagingConfig,
     CagingMission,
-    HeadSource,
-    circle_velocity,
-    offset_for_velocity,
     repulsion,
     start_poses,
 )
 from macrostate_mj.chain.motion import chain_velocities, pulls
-from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
@@ -137,68 +133,3 @@ class TeamCaging(CagingMission):
             if i > 0 or self.closed_at is not None:
                 vel[i] += repulsion(p[i], c, cfg.object_radius, cfg.repulse_reach,
                                     cfg.repulse_gain)
-
-
-class SideTails:
-    """Two scripted Tails that cooperate (see the module docstring). Both watch the Head (one
-    position per head-source step); once it has parked (its last `TRACK_STEPS` positions within
-    `STILL_M` of their mean), they place the object one boundary radius beyond it along its
-    approach, and take opposite sides together: the Tail to the left of the Head's line of
-    approach wraps clockwise, the other counter-clockwise, so the chains never cross and meet
-    on the far side. The object's centre is shared: once either Tail's own sensor has it, both
-    encircle the sensed centre. Actions are destination offsets within ±`bound`. The head
-    source reads the observations of Tail `seer` (where an estimator runs, it runs on that
-    Tail; the other is told the Head's position, as the object's centre is shared)."""
-
-    def __init__(self, scenario: ScenarioConfig, k_t: float, caging: CagingConfig,
-                 bound: float, head_source: HeadSource, seer: int = 0):
-        self.scenario, self.k_t, self.caging, self.bound = scenario, k_t, caging, bound
-        self.head_source, self.seer = head_source, seer
-        self.track: list[np.ndarray] = []
-        self.centre: np.ndarray | None = None
-        self.sensed = False
-        self.directions: np.ndarray | None = None
-        self.detected_at: float | None = None
-
-    @property
-    def head_estimate(self) -> np.ndarray | None:
-        return self.track[-1] if self.track else None
-
-    def act(self, obs: list[dict], info: dict, t: float) -> list[np.ndarray]:
-        """The two Tails' actions for their observations `obs` (chain A's first) at time t."""
-        head = self.head_source(obs[self.seer], info)
-        if head is not None:
-            self.track.append(head)
-            if self.centre is None and self._parked():
-                self._decide(np.array([o["tail"][-1, :2] for o in obs]))
-                self.detected_at = t
-        if self.centre is not None and not self.sensed:
-            seen = [o["tail"][-1, :2] + o["object"][:2] for o in obs if o["object"][2] > 0]
-            if seen:
-                self.centre, self.sensed = np.mean(seen, axis=0), True
-        if self.centre is None:
-            return [np.zeros(2, np.float32) for _ in obs]
-        return [self._encircle(o, s) for o, s in zip(obs, self.directions, strict=True)]
-
-    def _parked(self) -> bool:
-        last = np.array(self.track[-TRACK_STEPS:])
-        return len(last) == TRACK_STEPS and bool(
-            np.linalg.norm(last - last.mean(axis=0), axis=1).max() <= STILL_M)
-
-    def _decide(self, tails: np.ndarray) -> None:
-        """Where the object lies and who goes which way."""
-        head = self.track[-1]
-        moved = [p for p in self.track if np.linalg.norm(head - p) > 2 * STILL_M]
-        approach = head - (moved[-1] if moved else self.track[0])
-        approach = approach / max(float(np.linalg.norm(approach)), 1e-9)
-        self.centre = head + self.caging.ring_radius * approach
-        rel = tails - head
-        left = approach[0] * rel[:, 1] - approach[1] * rel[:, 0]
-        self.directions = np.where(np.arange(2) == np.argmax(left), -1.0, 1.0)
-
-    def _encircle(self, obs: dict, direction: float) -> np.ndarray:
-        tail, fol = obs["tail"][-1], obs["neighbour"][-1]
-        u = circle_velocity(tail[:2], self.centre, self.caging.ring_radius,
-                            self.scenario.chain_speed, direction, self.caging.circle_gain)
-        w = offset_for_velocity(u, tail, fol, self.scenario.spacing, self.k_t, self.bound)
-        return w.astype(np.float32)

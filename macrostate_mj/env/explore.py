@@ -9,16 +9,8 @@ from __future__ import annotations
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
-from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.health import chain_broken
 from macrostate_mj.env.task import TailTask
-
-BREAK_SPACINGS = 2.5
-
-
-def chain_broken(sim: ChainSim) -> bool:
-    """A neighbour gap over `BREAK_SPACINGS` × d: the chain has come apart."""
-    gaps = np.linalg.norm(np.diff(sim.poses[:, :2], axis=0), axis=1)
-    return bool(gaps.max() > BREAK_SPACINGS * sim.cfg.spacing)
 
 
 class ExploreTask(TailTask):

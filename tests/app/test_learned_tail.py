@@ -45,7 +45,7 @@ def test_quick_runs_end_to_end_then_reuses_its_policy(tmp_path):
 
 
 def test_a_killed_training_continues_from_its_last_save(tmp_path):
-    from macrostate_mj.app.tail_rl import PPOSpec, train
+    from macrostate_mj.tails.ppo import PPOSpec, train
 
     spec = PPOSpec(timesteps=768, envs=2, n_steps=128, batch_size=64, save_every=256,
                    time_limit=10.0)
@@ -82,7 +82,7 @@ def test_the_spacing_shield_turns_a_far_tail_passive():
     inside it, the policy's action passes; no limit, no shield."""
     import numpy as np
 
-    from macrostate_mj.app.tail_eval import shield
+    from macrostate_mj.tails.learned import shield
 
     obs = {"tail": np.zeros((10, 3)), "neighbour": np.zeros((10, 3))}
     obs["neighbour"][-1, :2] = (0.5, 0.2)               # 0.54 m away at the latest step
@@ -98,7 +98,8 @@ def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
     import gymnasium
 
     import macrostate_mj  # noqa: F401
-    from macrostate_mj.app.tail_eval import ENV_ID, SRSTail
+    from macrostate_mj.app.tail_eval import ENV_ID
+    from macrostate_mj.tails.srs import SRSTail
 
     class Far:
         calls = 0
@@ -109,10 +110,10 @@ def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
 
     env = gymnasium.make(ENV_ID, time_limit=5.0, robots=3)
     obs, _ = env.reset(seed=3)
-    tail = SRSTail(env, Far(), float(env.action_space.high[0]))
     every = env.unwrapped.task.every
+    tail = SRSTail(env.unwrapped.task.sim, every, Far(), float(env.action_space.high[0]))
     for _ in range(3 * every):
-        action = tail.act(obs)
+        action = tail.act(obs, {})
         assert env.action_space.contains(action) and abs(action[0]) == env.action_space.high[0]
         obs, *_ = env.step(action)
     assert Far.calls == 3
@@ -120,10 +121,12 @@ def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
 
 def test_the_2x_heuristic_is_an_estimator_by_name_with_its_own_policy_folder(tmp_path):
     from estimators.retlo.heuristic import Heuristic2X
+    from macrostate_mj.app.experiments.learned_tail import estimator_inputs
     from macrostate_mj.app.tail_eval import make_env
-    from macrostate_mj.app.tail_rl import PPOSpec, folder_for
+    from macrostate_mj.tails.ppo import PPOSpec, folder_for
 
     env = make_env("heuristic2x", 5.0)
     assert isinstance(env.unwrapped.task.localizer.module, Heuristic2X)
     spec = PPOSpec(timesteps=512)
-    assert folder_for(tmp_path, spec, "heuristic2x") != folder_for(tmp_path, spec, None)
+    assert folder_for(tmp_path, spec, estimator_inputs("heuristic2x")) != folder_for(
+        tmp_path, spec, estimator_inputs(None))

@@ -9,23 +9,24 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from collectors.policies import PolicyConfig, TailPolicy
-from collectors.srs_policy import SRSConfig
 from macrostate_mj.chain.motion import ROBOT_SIZE_M
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.tails.collection import PolicyConfig
+from macrostate_mj.tails.srs import SRSConfig
 
 
 class _Recorder:
-    """Stands in for the simulation: the policy only writes `tail_offset`."""
+    """Stands in for the simulation: the policy only writes `tail_offset` (at a time)."""
 
     tail_offset = np.zeros(2)
+    time = 0.0
 
 
 def _offsets(cfg: PolicyConfig, seed: int, steps: int) -> np.ndarray:
-    policy, sim, out = TailPolicy(cfg, np.random.default_rng(seed)), _Recorder(), []
+    policy, sim, out = cfg.build(np.random.default_rng(seed)), _Recorder(), []
     for _ in range(steps):
         policy(sim)
         out.append(sim.tail_offset.copy())

@@ -94,9 +94,9 @@ def test_the_tail_senses_the_object_only_within_its_sensor_radius():
 def test_the_retlo_tail_receives_the_shared_poses():
     """The team's poses shared at a tick reach the Tail's estimator at that very step: with a
     module that knows nothing (it predicts zeros), the Head estimate of a sync step is the truth."""
-    from collectors.caging import LiveHeadSource
     from estimators.retlo.mlp import OneStepModule
     from estimators.retlo.online import OnlineChain
+    from macrostate_mj.tails.caging import LiveHeadSource
 
     class Blind(OneStepModule):
         def predict(self, base: np.ndarray) -> np.ndarray:

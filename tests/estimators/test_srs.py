@@ -10,8 +10,6 @@ import pytest
 import torch
 from clitools import assert_clean_error, cli
 
-from collectors.policies import PolicyConfig
-from collectors.srs_policy import PICKS, SRSConfig, pick_index
 from estimators.srs.novelty import (
     NoveltyConfig,
     NoveltyFile,
@@ -36,6 +34,8 @@ from macrostate_mj.formats.srs_windows import (
     window_features,
 )
 from macrostate_mj.formats.thymioloc import read_csv
+from macrostate_mj.tails.collection import PolicyConfig
+from macrostate_mj.tails.srs import PICKS, SRSConfig, pick_index
 
 
 def _tracks(seed: int, seconds: float = 400.0, sigma: float = 0.75) -> np.ndarray:

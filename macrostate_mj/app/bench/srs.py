@@ -18,8 +18,6 @@ def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dic
     import torch
 
     from collectors.episodes import EpisodeSpec, run_episode
-    from collectors.policies import PolicyConfig
-    from collectors.srs_policy import SRSConfig
     from estimators.srs.novelty import (
         NoveltyConfig,
         NoveltyFile,
@@ -28,6 +26,8 @@ def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dic
         save_novelty,
     )
     from macrostate_mj.chain.scenarios import SCENARIOS
+    from macrostate_mj.tails.collection import PolicyConfig
+    from macrostate_mj.tails.srs import SRSConfig
 
     torch.manual_seed(0)
     with tempfile.TemporaryDirectory() as tmp:

@@ -6,8 +6,6 @@ from pathlib import Path
 
 import typer
 
-from collectors.policies import POLICIES
-from collectors.srs_policy import PICKS
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.cli.params import (
     MAX_SECONDS,
@@ -22,6 +20,8 @@ from macrostate_mj.app.cli.params import (
     Switch,
 )
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
+from macrostate_mj.tails.collection import POLICIES
+from macrostate_mj.tails.srs import PICKS
 
 
 @app.command()

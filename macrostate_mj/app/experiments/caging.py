@@ -36,8 +36,8 @@ from macrostate_mj.core.stats import show
 if TYPE_CHECKING:
     import gymnasium
 
-    from collectors.caging import CagingPolicy
     from estimators.retlo.mlp import ChainedMLP
+    from macrostate_mj.tails.caging import CagingTail
 
 POLICIES = ("passive", "retlo", "oracle", "random")
 PRODUCTS = ["results.json", "snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp4",
@@ -81,20 +81,20 @@ def run_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None = 
 
 def _tail(policy: str, env: gymnasium.Env, info: dict, seed: int, cfg: Config,
           model: ChainedMLP | None
-          ) -> tuple[CagingPolicy, Callable[[], tuple[int, np.ndarray]] | None]:
+          ) -> tuple[CagingTail, Callable[[], tuple[int, np.ndarray]] | None]:
     """The Tail of `policy` on the reset `env`, and what scores its estimates of the Head (the
     ReTLo Tail's only)."""
-    from collectors.caging import LiveHeadSource, PassiveTail, RandomTail
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.chain.caging import ScriptedTail, oracle_source
+    from macrostate_mj.tails.caging import LiveHeadSource, ScriptedTail, oracle_source
+    from macrostate_mj.tails.scripted import Passive, Uniform
 
     task, bound = env.unwrapped.task, env.action_space.high
     sim = task.sim
     if policy == "passive":
-        return PassiveTail(), None
+        return Passive(), None
     if policy == "random":               # a new offset each second
         rng = np.random.default_rng([cfg.seed, seed, 7])
-        return RandomTail(rng, bound, int(round(sim.cfg.command_hz))), None
+        return Uniform(rng, bound, int(round(sim.cfg.command_hz))), None
     scored = None
     if policy == "retlo":
         steps = int(cfg.time_limit * sim.cfg.command_hz / cfg.stride) + 2

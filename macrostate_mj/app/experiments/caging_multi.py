@@ -3,7 +3,7 @@
 estimator believes.
 
 - one_tail: `experiment caging`'s oracle Tail on `CagingTail-v0` (a line of 6 robots);
-- two_tails: `chain.team.SideTails` on the team of `macrostate_mj.env.multi` (6 robots: a Head
+- two_tails: `tails.caging.SideTails` on the team of `macrostate_mj.env.multi` (6 robots: a Head
   leading chains of 3 and 2), fed the same privileged head source (the Head's true position
   each second): the two Tails take opposite sides of the object once the Head parks at it;
 - two_passive: the same two-chain team with both Tails following (offset 0): whether the team
@@ -85,11 +85,10 @@ def team_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None =
                  ) -> dict:
     """One seeded episode of the two-chain team, its Tails scripted (`two_tails`, fed the
     truth; `two_tails_retlo`, fed `model` live) or passive."""
-    from collectors.caging import LiveHeadSource
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.chain.caging import cage_report, oracle_source
-    from macrostate_mj.chain.team import SideTails
+    from macrostate_mj.chain.caging import cage_report
     from macrostate_mj.env.multi import parallel_env
+    from macrostate_mj.tails.caging import LiveHeadSource, SideTails, oracle_source
 
     env = parallel_env(time_limit=cfg.time_limit)
     obs, infos = env.reset(seed=seed)
@@ -112,8 +111,8 @@ def team_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None =
         if policy == "two_passive":
             actions = {a: np.zeros(2, np.float32) for a in agents}
         else:
-            actions = dict(zip(agents, tails.act([obs[a] for a in agents], info, sim.time),
-                               strict=True))
+            actions = dict(zip(agents, tails.act([obs[a] for a in agents],
+                                                 {**info, "t": sim.time}), strict=True))
         if live is not None and tails.head_estimate is not None:
             at, head = live.latest()
             errors.append(float(np.linalg.norm(head - heads[at])))

@@ -6,7 +6,7 @@ pose histories and the latest Head estimate with its covariance) learns the dest
 that SRS perturbs, rewarded by minus the frozen estimator's Head error (m) each step (the env's
 default ReTLo module, `app.envs.DEFAULT_CHECKPOINT`, or a `train retlo` checkpoint), on
 training seeds from 1000 up. A chain break costs the steps it cut short, and the policy acts
-through a spacing shield, passive while its neighbour is over 2 d away (`tail_rl`). Then every
+through a spacing shield, passive while its neighbour is over 2 d away (`tails.ppo`). Then every
 Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive, Rand-Only (σ = 75 % of the
 robot size), SRS-Med (its novelty models trained on the RO phase of an SRS collection of the
 env's scenario, seeds 700 on), the scripted chain-offset Tail (tuned on seeds 500 up) and the
@@ -77,7 +77,7 @@ class Config:
                             "stay below the tuning and training seeds", "seeds")
 
     def ppo(self) -> object:
-        from macrostate_mj.app.tail_rl import PPOSpec
+        from macrostate_mj.tails.ppo import PPOSpec
 
         return PPOSpec(self.timesteps, self.envs, self.n_steps, self.batch_size,
                        save_every=self.save_every, time_limit=self.time_limit, seed=self.seed)
@@ -112,8 +112,9 @@ def check_checkpoint(cfg: Config) -> None:
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
     learning_curve.png; summary lines."""
-    from macrostate_mj.app import tail_eval, tail_rl
+    from macrostate_mj.app import tail_eval
     from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
+    from macrostate_mj.tails import ppo
     from viz.learned_tail_figures import plot_learning_curve
 
     check_checkpoint(cfg)
@@ -121,12 +122,12 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     spec = cfg.ppo()
     model, training = None, {"steps": 0, "curve": [], "resumed_from": 0, "steps_run_now": 0}
     if "learned" in cfg.policies:
-        tail_rl.require_sb3()
+        ppo.require_sb3()
         with progress.stage("train_ppo"):
             t0 = time.perf_counter()
-            folder = tail_rl.folder_for(out / CHECKPOINTS, spec, cfg.checkpoint)
-            model, training = tail_rl.train(spec, cfg.checkpoint, folder, progress.workers,
-                                            lambda d, t: progress.report("timesteps", d, t))
+            folder = ppo.folder_for(out / CHECKPOINTS, spec, estimator_inputs(cfg.checkpoint))
+            model, training = ppo.train(spec, cfg.checkpoint, folder, progress.workers,
+                                        lambda d, t: progress.report("timesteps", d, t))
             wall = time.perf_counter() - t0
             training |= {"wall_s": round(wall, 1), "folder": str(folder.relative_to(out)),
                          "steps_per_s": (round(training["steps_run_now"] / wall, 1)
@@ -160,6 +161,13 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     return [*lines, f"PPO: {training['steps']} steps ({training['steps_run_now']} run now)"]
 
 
+def estimator_inputs(checkpoint: str | None) -> list:
+    """The frozen estimator as the policy folder's key reads it: a checkpoint by its bytes,
+    the 2X heuristic by its name, the env's default by nothing."""
+    return [] if checkpoint is None else [HEURISTIC.encode()] if checkpoint == HEURISTIC \
+        else [checkpoint]
+
+
 def srs_models(cfg: Config, out: Path, workers: int) -> Any:
     """SRS-Med's novelty models: an SRS collection of 3 robots in the env's scenario (seed
     `SRS_SEED`), its RO phase of `srs_ro_instances` instances at σ, then the one SR instance
@@ -185,26 +193,28 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
     """Every Tail on every evaluation seed; seed 0's episode of each also as a video with the
     estimates drawn (`videos/<policy>_seed0.mp4`)."""
     from macrostate_mj.app import tail_eval
+    from macrostate_mj.tails import Tail
+    from macrostate_mj.tails.learned import Learned, shield_limit
+    from macrostate_mj.tails.scripted import ChainOffset, Passive, RandOnly
     from viz.learned_tail_figures import write_episode_video
 
-    def tail_for(policy: str, seed: int) -> Callable[[Any], tail_eval.Tail]:
+    def tail_for(policy: str, seed: int) -> Callable[[Any], Tail]:
         if policy == "passive":
-            return lambda env: tail_eval.Passive()
+            return lambda env: Passive()
         if policy == "random":
             rng = np.random.default_rng([cfg.seed, seed, 11])
-            return lambda env: tail_eval.RandOnly(rng, cfg.sigma,
-                                                  float(env.action_space.high[0]))
+            return lambda env: RandOnly(rng, cfg.sigma, float(env.action_space.high[0]))
         if policy == "srs_med":
-            from collectors.srs_policy import SRSConfig
+            from macrostate_mj.tails.srs import SRSConfig, SRSTail
 
             srs = SRSConfig(novelty, "med", cfg.srs_k, cfg.sigma)
             rng = np.random.default_rng([cfg.seed, seed, 13])
-            return lambda env: tail_eval.SRSTail(env, srs.build(rng),
-                                                 float(env.action_space.high[0]))
+            return lambda env: SRSTail(env.unwrapped.task.sim, env.unwrapped.task.every,
+                                       srs.build(rng), float(env.action_space.high[0]))
         if policy == "chain_offset" and tuned is not None:
-            return lambda env: tail_eval.ChainOffset(tuned["along"], tuned["left"])
+            return lambda env: ChainOffset(tuned["along"], tuned["left"])
         spacings = cfg.ppo().shield_spacings
-        return lambda env: tail_eval.Learned(model, tail_eval.shield_limit(env, spacings))
+        return lambda env: Learned(model, shield_limit(env, spacings))
 
     episodes, done = [], 0
     for policy in cfg.policies:

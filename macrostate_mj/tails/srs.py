@@ -1,5 +1,7 @@
-"""The SR phase's Tail (seed §3.3.1): in random mode it draws k candidate destinations, scores
-each by the novelty of the team motion it would lead to, and drives to the policy's pick.
+"""SRS's Tail (seed §3.3.1): in random mode it draws k candidate destinations, scores each by
+the novelty of the team motion it would lead to, and drives to the policy's pick. `SRSPolicy`
+is the SR phase's hook in a collection; `SRSTail` the same choice as a `Tail` of an environment,
+once per log step.
 
 Per random-mode log step, from the last `WINDOW` steps of the team's poses (ground truth):
 1. k offsets w ~ N(0, σ²I), the RO draw repeated (the RO phase is k = 1 and no scoring);
@@ -137,3 +139,22 @@ class SRSPolicy:
                                              pa.list_(pa.float64())),
                          "e": pa.array([e.tolist() for e in rows["e"]], pa.list_(pa.float64())),
                          "pick": pa.array(rows["pick"], pa.int32())})
+
+
+class SRSTail:
+    """SRS's Tail (§3.3.1) with a pick policy (SRS-Med: the median novelty), its SR phase's
+    choice each log step, held between them. Like the SR phase that collects data, it reads the
+    whole team's true poses (`policy` scores candidates by what the Head and Follower would
+    do): privileged, where the other Tails see only their neighbour."""
+
+    def __init__(self, sim: ChainSim, every: int, policy: SRSPolicy, bound: float):
+        self.sim, self.every, self.policy, self.bound = sim, every, policy, bound
+        self.step = 0
+        self.offset = np.zeros(2, np.float32)
+
+    def act(self, obs: dict, info: dict) -> np.ndarray:
+        if self.step % self.every == 0:
+            self.offset = np.clip(self.policy.choose(self.sim), -self.bound,
+                                  self.bound).astype(np.float32)
+        self.step += 1
+        return self.offset

@@ -10,8 +10,10 @@ environments restart from fresh seeds, derived from the step count).
 Training only: a chain break ends an episode, and the reward (minus the Head error, m, per
 step) is negative, so ending early would pay. `training_env` charges `break_penalty` m for every
 step the broken episode did not run; evaluation reports the raw error and the breaks apart.
-The policy acts through the spacing shield (`tail_eval.shield`, `shield_spacings` × the chain's
-spacing) in training as at evaluation, so it learns what the shield lets it do.
+The policy acts through the spacing shield (`learned.shield`, `shield_spacings` × the chain's
+spacing) in training as at evaluation, so it learns what the shield lets it do. The environment
+is named by its Gymnasium id; the frozen estimator it runs is the caller's (`checkpoint`, and
+`estimator` the bytes or name that identify it in the checkpoint folder's key).
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.core.cache import task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -50,7 +51,7 @@ class PPOSpec:
     save_every: int = 10_240
     break_penalty: float = 2.0    # m per step a broken episode did not run
     shield_spacings: float | None = 2.0   # passive beyond this gap to the neighbour (× d);
-                                          # a break is at 2.5 d (env.explore.BREAK_SPACINGS)
+                                          # a break is at 2.5 d (chain.health.BREAK_SPACINGS)
     time_limit: float = 60.0
     seed: int = 0
 
@@ -64,12 +65,11 @@ def require_sb3() -> Any:
     return stable_baselines3
 
 
-def folder_for(root: Path, spec: PPOSpec, checkpoint: str | None) -> Path:
-    # a checkpoint by its bytes; the 2X heuristic by its name
-    inputs = [] if checkpoint is None else [HEURISTIC.encode()] if checkpoint == HEURISTIC \
-        else [checkpoint]
+def folder_for(root: Path, spec: PPOSpec, estimator: list) -> Path:
+    """The policy's checkpoint folder, keyed by `spec` and the frozen estimator (`estimator`:
+    its file, or the bytes of its name; empty for the env's default)."""
     # version 2: the estimator is given the first ℓ log steps (env.localize), scored after
-    return root / task_key("learned-tail-ppo", 2, asdict(spec), inputs)[:16]
+    return root / task_key("learned-tail-ppo", 2, asdict(spec), estimator)[:16]
 
 
 def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: float | None
@@ -79,8 +79,8 @@ def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: f
     extra)."""
     import gymnasium
 
-    from macrostate_mj.app.tail_eval import shield, shield_limit
-    from macrostate_mj.env.explore import chain_broken
+    from macrostate_mj.chain.health import chain_broken
+    from macrostate_mj.tails.learned import shield, shield_limit
 
     class Training(gymnasium.Wrapper):
         steps = 0

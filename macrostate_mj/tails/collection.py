@@ -1,8 +1,9 @@
-"""Data-collection policies of the Tail (seed §3.3–3.5.1): passive, or random perturbations.
-
-`random` perturbs the Tail's destination with N(0, sigma^2 I), sigma a fraction of the robot's
-size, drawing a new perturbation every log step, and alternates random and passive modes every
-`alternate` steps so the Tail never loses its team.
+"""A Tail in a collection's episodes (seed §3.3–3.5.1): a hook the simulation calls once per
+log step, which sets `ChainSim.tail_offset` to what the Tail chooses: `passive`, or `random`
+(Rand-Only, `scripted.RandOnly`: N(0, sigma^2 I), sigma a fraction of the robot's size, each
+log step in random mode, alternating with passive mode every `alternate` steps). An episode task
+carries a picklable `PolicySpec` to its worker, where `build` makes the hook (the SR phase's is
+`srs.SRSConfig`'s).
 """
 
 from __future__ import annotations
@@ -13,9 +14,10 @@ from typing import Protocol
 import numpy as np
 import pyarrow as pa
 
-from macrostate_mj.chain.motion import draw_tail_offsets
 from macrostate_mj.chain.sim import ChainSim, Tracker
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.tails import Tail
+from macrostate_mj.tails.scripted import Passive, RandOnly
 
 POLICIES = ("passive", "random")
 
@@ -31,8 +33,8 @@ class PolicyHook(Protocol):
 
 class PolicySpec(Protocol):
     """A picklable policy configuration that an episode task carries to its worker, where
-    `build` makes the hook (the SR phase's lives in `collectors.srs_policy`); `tracker` is the
-    episode's camera chain, for a policy that acts on tracked poses."""
+    `build` makes the hook (the SR phase's lives in `tails.srs`); `tracker` is the episode's
+    camera chain, for a policy that acts on tracked poses."""
 
     name: str
 
@@ -52,24 +54,20 @@ class PolicyConfig:
             raise UserError(f"--sigma must be non-negative, got {self.sigma}")
 
     def build(self, rng: np.random.Generator, tracker: Tracker | None = None) -> TailPolicy:
-        return TailPolicy(self, rng)
+        tail = RandOnly(rng, self.sigma, None, self.alternate) if self.name == "random" \
+            else Passive()
+        return TailPolicy(tail)
 
 
 class TailPolicy:
-    """A periodic hook, one call per log step, setting the simulation's Tail offset."""
+    """A periodic hook, one call per log step, setting the simulation's Tail offset to what
+    its `Tail` chooses (a collection's Tails draw without looking: `obs` is empty)."""
 
-    def __init__(self, cfg: PolicyConfig, rng: np.random.Generator):
-        self.cfg = cfg
-        self.rng = rng
-        self.step = 0
+    def __init__(self, tail: Tail):
+        self.tail = tail
 
     def __call__(self, sim: ChainSim) -> None:
-        random_mode = self.cfg.name == "random" and (self.step // self.cfg.alternate) % 2 == 0
-        if random_mode:
-            sim.tail_offset = draw_tail_offsets(self.rng, self.cfg.sigma)
-        else:
-            sim.tail_offset = np.zeros(2)
-        self.step += 1
+        sim.tail_offset = self.tail.act({}, {"t": sim.time})
 
     def records(self) -> pa.Table | None:
         return None
