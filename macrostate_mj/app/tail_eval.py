@@ -35,7 +35,7 @@ def run_episode(make_tail: Callable[[Any], Tail], seed: int, checkpoint: str | N
     (F2 .. Head), the mean neighbour spacing (m), and whether a chain break (or a fault) ended
     it. With `record`, also "truth" (log steps, robots, 3) and "estimate" (log steps, robots,
     2), Tail first, for a video."""
-    from macrostate_mj.chain.health import chain_broken
+    from macrostate_mj.chain.sim import chain_broken
 
     env = make_env(checkpoint, time_limit)
     obs, info = env.reset(seed=seed)

@@ -11,16 +11,12 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import RunFailure
-
-if TYPE_CHECKING:                   # the simulation imports this module
-    from macrostate_mj.chain.sim import ChainSim
 
 
 class Fault(enum.Enum):
@@ -156,12 +152,3 @@ class PhysicsMonitor:
         self.stats.warnings = {name: int(data.warning[i].number)
                                for name, i in WARNINGS.items() if data.warning[i].number}
 
-
-BREAK_SPACINGS = 2.5     # a neighbour gap over this many spacings d: the chain has come apart
-
-
-def chain_broken(sim: ChainSim) -> bool:
-    """A neighbour gap over `BREAK_SPACINGS` × d: the chain has come apart (what ends a Tail
-    environment's episode, and what the learned Tail's shield keeps it from)."""
-    gaps = np.linalg.norm(np.diff(sim.poses[:, :2], axis=0), axis=1)
-    return bool(gaps.max() > BREAK_SPACINGS * sim.cfg.spacing)

@@ -362,3 +362,13 @@ def simulate_poses(world: World, seconds: float, seed: int,
     hooks = [Every(1 / world.scenario.log_hz, log.append, sim.log_phase), *(extra_hooks or [])]
     sim.episode(seconds, hooks, progress)
     return sim, log
+
+
+BREAK_SPACINGS = 2.5     # a neighbour gap over this many spacings d: the chain has come apart
+
+
+def chain_broken(sim: ChainSim) -> bool:
+    """A neighbour gap over `BREAK_SPACINGS` × d: the chain has come apart (what ends a Tail
+    environment's episode, and what the learned Tail's shield keeps it from)."""
+    gaps = np.linalg.norm(np.diff(sim.poses[:, :2], axis=0), axis=1)
+    return bool(gaps.max() > BREAK_SPACINGS * sim.cfg.spacing)

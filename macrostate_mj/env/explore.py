@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
-from macrostate_mj.chain.health import chain_broken
+from macrostate_mj.chain.sim import chain_broken
 from macrostate_mj.env.task import TailTask
 
 

@@ -30,8 +30,7 @@ import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
-from macrostate_mj.chain.health import chain_broken
-from macrostate_mj.chain.sim import ChainSim
+from macrostate_mj.chain.sim import ChainSim, chain_broken
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.env.task import TailTask

@@ -3,7 +3,7 @@
 The spacing shield (`shield`): when the Tail sees its neighbour farther than a limit, its action
 becomes passive (offset 0: the chain's own rule closes the gap) until the gap is back under it.
 It uses only what the Tail observes, and keeps a policy from ending an episode with a chain
-break (`chain.health.BREAK_SPACINGS`). `ppo` trains the policy through the same shield.
+break (`chain.sim.BREAK_SPACINGS`). `ppo` trains the policy through the same shield.
 """
 
 from __future__ import annotations

@@ -51,7 +51,7 @@ class PPOSpec:
     save_every: int = 10_240
     break_penalty: float = 2.0    # m per step a broken episode did not run
     shield_spacings: float | None = 2.0   # passive beyond this gap to the neighbour (× d);
-                                          # a break is at 2.5 d (chain.health.BREAK_SPACINGS)
+                                          # a break is at 2.5 d (chain.sim.BREAK_SPACINGS)
     time_limit: float = 60.0
     seed: int = 0
 
@@ -79,7 +79,7 @@ def training_env(env: Any, penalty: float, time_limit: float, shield_spacings: f
     extra)."""
     import gymnasium
 
-    from macrostate_mj.chain.health import chain_broken
+    from macrostate_mj.chain.sim import chain_broken
     from macrostate_mj.tails.learned import shield, shield_limit
 
     class Training(gymnasium.Wrapper):

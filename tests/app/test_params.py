@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 import typer.main
+from conftest import REPO
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -64,6 +65,7 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "collect": ["--minutes", "1", "--out", str(out)],
         "soak": ["--out", str(out)],
         "stats": [c],
+        "claims": ["--results", str(REPO / "results"), "--chapter", "chapter4"],
         "data fetch": ["retlo", "--dir", str(out), "--mirror", "http://127.0.0.1:9/"],
         "train retlo": ["--model", "fc", "--train", c, "--val", c, "--out", f"{out}.pt"],
         "evaluate retlo": ["--model", "heuristic2x", "--data", c, "--out", f"{out}.json"],

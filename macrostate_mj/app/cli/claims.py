@@ -3,19 +3,21 @@
 from __future__ import annotations
 
 import json
+import tomllib
 from pathlib import Path
 
-import typer
-
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import InputDir, Switch
+from macrostate_mj.app.cli.params import Choice, InputDir, Switch
+
+CLAIMS = Path(__file__).parents[1] / "claims.toml"      # app/claims.toml: its chapters
+CHAPTERS = tuple(tomllib.loads(CLAIMS.read_text()))
 
 
 @app.command("claims")
 def claims(
     results: Path = InputDir(Path("results"), "A checkout's results/ folder (with index.toml)."),
-    chapter: list[str] = typer.Option(None, "--chapter", help="Only these chapters "
-                                      "(chapter2, chapter3, chapter4); repeatable."),
+    chapter: list[str] = Choice(None, "Only these chapters; repeatable.", CHAPTERS,
+                                "--chapter"),
     as_json: bool = Switch(False, "One JSON object per claim instead of the table.",
                            "--json/--table"),
 ) -> None:
