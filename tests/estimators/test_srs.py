@@ -268,6 +268,11 @@ def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
         9, 6, 6)
     assert len(list((out / "cache" / "srs-model").iterdir())) == 6
     assert cfg["srs_max"]["0.5000"] == cfg["ro_0.75"]["0.5000"]
+    # models/: one report a model, named to pair across configurations, as its task wrote it
+    reports = sorted((out / "models").iterdir())
+    assert len(reports) == 9 and "passive_b100_d0_m0.json" in {r.name for r in reports}
+    assert {r.read_bytes() for r in reports} == {
+        p.read_bytes() for p in (out / "cache" / "srs-model").glob("*/report.json")}
     before = (out / "results.json").read_bytes()
     res = cli("experiment", "srs", "--profile", "quick", "--out", str(out), "--overwrite")
     assert res.returncode == 0, res.stderr

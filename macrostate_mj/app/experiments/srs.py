@@ -14,6 +14,8 @@ resumed episode by episode); every model a cached task (`cache/srs-model/<key>/r
 keyed by its training settings and the content of its data, so a rerun after a kill trains
 only what is missing, and identical training data trains once (Rand-Only at σ = 0 is Passive;
 an SRS dataset's first `ro_instances` are Rand-Only's). Models run on `--workers` or Ray.
+`models/<config>_b<budget %>_d<dataset>_m<model seed>.json` keeps each model's report as its
+task wrote it, so a claim can pair configurations model by model.
 """
 
 from __future__ import annotations
@@ -32,12 +34,13 @@ from macrostate_mj.app.experiments import Progress
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.io import write_json_atomic, write_text_atomic
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
 PRODUCTS = ["results.json", "fig3_4.png", "fig3_5a.png", "fig3_5b.png", "fig3_6.png",
-            "fig3_7.png"]
+            "fig3_7.png", "models"]
+MODEL_REPORT = "{config}_b{percent}_d{dataset}_m{model}.json"   # models/: one report a model
 SCENARIO = "webots"
 RO_SIGMA = 0.75        # the Rand-Only baseline of Fig 3.5 (the best σ of §3.5.1)
 
@@ -241,21 +244,28 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                 ds.ensure(config, progress.workers, progress.ray)
         worlds = [read_world(ds.csv) for ds in sets]
         mine = [(b, ModelTask(w[:int(round(b * config.train))], val.csv, test.csv,
-                              config.epochs, m, config.precision))
-                for b in _budgets(config, name) for w in worlds for m in range(config.models)]
+                              config.epochs, m, config.precision),
+                 MODEL_REPORT.format(config=name, percent=round(b * 100), dataset=d, model=m))
+                for b in _budgets(config, name) for d, w in enumerate(worlds)
+                for m in range(config.models)]
         reports: dict[int, dict] = {}         # id(task) -> its report
+        texts: dict[int, str] = {}            # id(task) -> its report as the task wrote it
         with progress.stage("models"):
-            for outcome in run_tasks(progress.cache, [t for _, t in mine], progress.workers,
-                                     progress.ray, config.group):
+            for outcome in run_tasks(progress.cache, [t for _, t, _ in mine],
+                                     progress.workers, progress.ray, config.group):
                 if outcome.folder is None:
                     raise RunFailure(f"a model of {name} failed: {outcome.failure}")
                 if not outcome.cached:
                     trained.add(outcome.task.key())
                 resumed += outcome.cached
-                reports[id(outcome.task)] = json.loads(
-                    (outcome.folder / "report.json").read_text())
+                text = (outcome.folder / "report.json").read_text()
+                reports[id(outcome.task)] = json.loads(text)
+                texts[id(outcome.task)] = text
                 progress.report("models", len(cells) + len(reports), total, resumed)
-        cells += [_Cell(name, b, t.key(), reports[id(t)]) for b, t in mine]   # in task order
+        cells += [_Cell(name, b, t.key(), reports[id(t)]) for b, t, _ in mine]  # task order
+        (out / "models").mkdir(exist_ok=True)     # each model's report, as its task wrote it
+        for _, t, file in mine:
+            write_text_atomic(out / "models" / file, texts[id(t)])
         if name in shown:
             distances[name] = _distances(sets, config)
 
