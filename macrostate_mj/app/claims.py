@@ -121,7 +121,10 @@ def _load(file: Path) -> object:
     if not file.is_file():
         raise ClaimsError(f"{file} does not exist: run the command results/index.toml gives for "
                           "its folder, or pass --results with a checkout's results/ folder")
-    return json.loads(file.read_text())
+    try:
+        return json.loads(file.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ClaimsError(f"cannot read {file}: {exc}; rerun its folder's command") from exc
 
 
 def dig(data: object, keypath: str) -> object:
@@ -131,7 +134,7 @@ def dig(data: object, keypath: str) -> object:
     return data
 
 
-_RESULTS: list[Results] = []
+_RESULTS: list[Results] = []        # the folder `judge_all` is judging, for the sources
 
 
 def _res() -> Results:

@@ -132,6 +132,9 @@ def test_each_verdict_follows_the_rule(tmp_path):
 
 def test_a_folder_that_cannot_be_judged_is_one_clear_error(tmp_path):
     root = _results(tmp_path)
+    (root / "good" / "s.json").write_text("{ half")
+    with pytest.raises(ClaimsError, match="cannot read .*s.json"):
+        judge_all(root, claims_file=root / "claims.toml")
     (root / "good" / "s.json").unlink()
     with pytest.raises(ClaimsError, match="s.json does not exist"):
         judge_all(root, claims_file=root / "claims.toml")
