@@ -115,7 +115,7 @@ REPRODUCES = {("caging", "full"): ("caging", ()),
               ("caging-multi", "full"): ("caging_two_tails", ()),
               ("retlo-sim", "full"): ("retlo_sim_seeds/seed0", ()),
               ("learned-tail", "full"): ("learned_tail", ()),
-              ("retlo", "full"): ("retlo_fig27_cv", ("test",)),
+              ("retlo", "full"): ("retlo_fig27_rerun", ("test",)),
               ("srs", "full"): ("srs_text", ()), ("srs", "full-seeds"): ("srs_full", ()),
               ("sim2real", "full"): ("s2r_mixed", ()), ("oc", "full"): ("oc_dev_table41", ())}
 
