@@ -31,7 +31,8 @@ def read_index(results: Path) -> dict[str, dict]:
     for name, entry in index.items():
         missing = {"command", "kind", "units"} - set(entry)
         if missing:
-            raise UserError(f"results/index.toml [{name}] lacks {sorted(missing)}")
+            raise UserError(f"{results / 'index.toml'} [{name}] lacks {sorted(missing)}: give "
+                            "each folder its command, kind and independent units")
     return index
 
 
