@@ -31,6 +31,9 @@ from docutils import nodes
 from docutils.parsers.rst import Directive
 from sphinx.util.docutils import SphinxRole
 
+from macrostate_mj.app.claims import dig, parse
+from macrostate_mj.app.provenance import read_index
+
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
 NUMBERS = "_numbers.json"       # beside the built pages: every number each page was given
@@ -77,26 +80,18 @@ def load(path: str) -> object:
     return json.loads(text)
 
 
-def dig(data: object, keypath: str) -> object:
-    """`a/b/0/c` into nested dicts and lists."""
-    for key in filter(None, keypath.split("/")):
-        data = data[int(key)] if isinstance(data, list) else data[key]  # type: ignore[index]
-    return data
-
-
 @cache
 def index() -> dict:
-    """`results/index.toml`: per folder its command, kind and what it shows."""
-    return tomllib.loads((RESULTS / "index.toml").read_text())
+    """`results/index.toml`, checked (`macrostate_mj.app.provenance`), once per build."""
+    return read_index(RESULTS)
 
 
 def call(expression: str) -> object:
-    """Evaluate `name(arg, arg, ...)` with bare-word arguments (no quotes needed)."""
-    match = re.fullmatch(r"\s*(\w+)\((.*)\)\s*", expression, re.S)
-    if not match or match[1] not in SOURCES:
+    """Evaluate a page's source expression (`macrostate_mj.app.claims.parse`)."""
+    name, args = parse(expression)
+    if name not in SOURCES:
         raise ValueError(f"not a results source: {expression!r} (one of {sorted(SOURCES)})")
-    args = [a.strip() for a in match[2].split(",")] if match[2].strip() else []
-    return SOURCES[match[1]](*args)
+    return SOURCES[name](*args)
 
 
 # Sources of single quantities ------------------------------------------------------------------

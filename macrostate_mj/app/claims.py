@@ -86,9 +86,9 @@ class Figure:
             return f"{self.mean:{fmt}}"
         unit = f" {self.unit}" if self.unit else ""
         ci = self.interval()
-        spread = (f" [{ci[0]:{fmt}}, {ci[1]:{fmt}}]" if ci else "")
-        return f"{self.mean:{fmt}}{unit}{spread}, n {self.n}" if not self.given else (
-            f"{self.mean:{fmt}}{unit}{spread}")
+        spread = f" [{ci[0]:{fmt}}, {ci[1]:{fmt}}]" if ci else ""
+        units = "" if self.given else f", n {self.n}"   # a folder's interval is over samples
+        return f"{self.mean:{fmt}}{unit}{spread}{units}"
 
 
 class _Unpaired(Exception):
@@ -105,16 +105,6 @@ def source(fn: Callable[..., Figure]) -> Callable[..., Figure]:
 
 
 # Reading the results folders ------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Results:
-    """A checkout's `results/` folder, read once per file."""
-
-    root: Path
-
-    def json(self, path: str) -> object:
-        return _load(self.root / path)
-
 
 @cache
 def _load(file: Path) -> object:
@@ -134,11 +124,16 @@ def dig(data: object, keypath: str) -> object:
     return data
 
 
-_RESULTS: list[Results] = []        # the folder `judge_all` is judging, for the sources
+_ROOTS: list[Path] = []          # the results folder `judge_all` is judging, for the sources
 
 
-def _res() -> Results:
-    return _RESULTS[-1]
+def _root() -> Path:
+    return _ROOTS[-1]
+
+
+def _json(path: str) -> object:
+    """A JSON file under the results folder being judged, read once."""
+    return _load(_root() / path)
 
 
 def _meanstd(d: dict, scale: float = 1.0, fmt: str = ".1f", unit: str = "") -> Figure:
@@ -151,7 +146,7 @@ def _meanstd(d: dict, scale: float = 1.0, fmt: str = ".1f", unit: str = "") -> F
 @source
 def runs(pattern: str, keypath: str, fmt: str = ".1f", unit: str = "", scale: str = "1") -> Figure:
     """One number of each run folder matching `pattern` (a glob under results/, one run a seed)."""
-    files = sorted(_res().root.glob(pattern))
+    files = sorted(_root().glob(pattern))
     if not files:
         raise ClaimsError(f"no results/{pattern}: run the command results/index.toml gives")
     return Figure.of({f.parent.name: float(dig(_load(f), keypath)) * float(scale)
@@ -168,7 +163,7 @@ def ratio(numerator: str, denominator: str, scale: str = "100", offset: str = "-
 
 
 def _retlo(folder: str, test: str) -> dict:
-    return dig(_res().json(f"{folder}/results.json"), f"results/{test}")  # type: ignore[return-value]
+    return dig(_json(f"{folder}/results.json"), f"results/{test}")  # type: ignore[return-value]
 
 
 @source
@@ -197,7 +192,7 @@ def retlo_step(folder: str, test: str, model: str, robot: str, step: str) -> Fig
 def meanstd(path: str, keypath: str, fmt: str = ".3f", unit: str = "", scale: str = "1",
             n: str = "") -> Figure:
     """A `{mean, std, n}` object of a results file (`n` given where the file omits it)."""
-    d = dict(dig(_res().json(path), keypath))  # type: ignore[call-overload]
+    d = dict(dig(_json(path), keypath))  # type: ignore[call-overload]
     if n:
         d["n"] = int(n)
     return _meanstd(d, float(scale), fmt, unit)
@@ -205,7 +200,7 @@ def meanstd(path: str, keypath: str, fmt: str = ".3f", unit: str = "", scale: st
 
 def _srs_models(folder: str) -> dict[tuple[str, int, int, int], dict]:
     out = {}
-    for file in sorted((_res().root / folder / "models").glob("*.json")):
+    for file in sorted((_root() / folder / "models").glob("*.json")):
         match = re.fullmatch(r"(.+)_b(\d+)_d(\d+)_m(\d+)", file.stem)
         if match:
             out[(match[1], int(match[2]), int(match[3]), int(match[4]))] = _load(file)
@@ -244,14 +239,14 @@ def srs_quantile(folder: str, config: str, pair: str, q: str, datasets: str = "3
     the datasets' distances one after another, in equal parts)."""
     import numpy as np
 
-    values = np.asarray(dig(_res().json(f"{folder}/results.json"), f"distances/{config}/{pair}"))
+    values = np.asarray(dig(_json(f"{folder}/results.json"), f"distances/{config}/{pair}"))
     parts = np.split(values, int(datasets))
     return Figure.of({f"d{j}": float(np.quantile(p, float(q))) for j, p in enumerate(parts)},
                      ".1f", "cm")
 
 
 def _oc_runs(folder: str, m: str) -> dict[str, dict]:
-    runs_ = dig(_res().json(f"{folder}/results.json"), "runs")
+    runs_ = dig(_json(f"{folder}/results.json"), "runs")
     got = {key.split("_", 1)[1]: run for key, run in runs_.items()  # type: ignore[union-attr]
            if key.startswith(f"m{m}_")}
     if not got:
@@ -287,19 +282,27 @@ def oc_margin(folder: str) -> Figure:
 @source
 def share(path: str, keypath: str) -> Figure:
     """A `{share, lo, hi, samples}` object (%): a folder's own bootstrap interval over samples."""
-    d = dig(_res().json(path), keypath)
+    d = dig(_json(path), keypath)
     return Figure(100 * float(d["share"]), 0.0, int(d["samples"]), None,  # type: ignore[index]
                   (100 * float(d["lo"]), 100 * float(d["hi"])), ".1f", "%")  # type: ignore[index]
 
 
-def call(expression: str) -> Figure:
-    """Evaluate `name(arg, arg, ...)` with bare-word arguments (no quotes needed)."""
+def parse(expression: str) -> tuple[str, list[str]]:
+    """`name(arg, arg, ...)` with bare-word arguments (no quotes needed): the name and the
+    arguments; ("", []) when it is not such an expression. The docs' sources use it too."""
     match = re.fullmatch(r"\s*(\w+)\((.*)\)\s*", expression, re.S)
-    if not match or match[1] not in SOURCES:
+    if not match:
+        return "", []
+    return match[1], [a.strip() for a in match[2].split(",")] if match[2].strip() else []
+
+
+def call(expression: str) -> Figure:
+    """Evaluate a claims source expression (`parse`)."""
+    name, args = parse(expression)
+    if name not in SOURCES:
         raise ClaimsError(f"not a claims source: {expression!r} (one of {sorted(SOURCES)})")
-    args = [a.strip() for a in match[2].split(",")] if match[2].strip() else []
     try:
-        return SOURCES[match[1]](*args)
+        return SOURCES[name](*args)
     except (KeyError, IndexError, TypeError) as exc:
         raise ClaimsError(f"{expression}: the results hold no {exc}") from exc
 
@@ -492,12 +495,12 @@ def judge_all(results: Path, chapters: list[str] | None = None,
     unknown = sorted(set(chapters or []) - set(claims))
     if unknown:
         raise ClaimsError(f"no chapter {unknown[0]!r} in the claims: one of {sorted(claims)}")
-    _RESULTS.append(Results(results.resolve()))
+    _ROOTS.append(results.resolve())
     try:
         smoke = smoke_folders(results)
         return [judge(ch, c, smoke) for ch in (chapters or list(claims)) for c in claims[ch]]
     finally:
-        _RESULTS.pop()
+        _ROOTS.pop()
 
 
 def counts(judged: list[Judged]) -> dict[str, int]:

@@ -51,18 +51,13 @@ def check(runs: list, scenario: ScenarioConfig, robots: int, seconds: float,
     `simulate` command that reproduces it; nothing when every run was sound."""
     from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
 
-    if track:
-        sick = [r for r in runs if r.findings]
-        if sick:
-            first = sick[0].seed
+    failures = (([r for r in runs if r.findings] if track else []), "tracked unhealthily",
+                lambda r: r.findings[0], track), \
+               ([r for r in runs if r.fault is not None], "faulted", lambda r: r.reason, False)
+    for failed, what, reason, tracked in failures:
+        if failed:
+            first = failed[0].seed
             again = SimulateRequest(scenario, robots, seconds, first, Path(f"soak_seed{first}"),
-                                    track=True)
-            raise RunFailure(f"{len(sick)} of {len(runs)} runs tracked unhealthily; first: seed "
-                             f"{first}: {sick[0].findings[0]}; reproduce: "
-                             f"{reproduce_command(again)}")
-    bad = [r for r in runs if r.fault is not None]
-    if bad:
-        first = bad[0].seed
-        again = SimulateRequest(scenario, robots, seconds, first, Path(f"soak_seed{first}"))
-        raise RunFailure(f"{len(bad)} of {len(runs)} runs faulted; first: seed {first}: "
-                         f"{bad[0].reason}; reproduce: {reproduce_command(again)}")
+                                    track=tracked)
+            raise RunFailure(f"{len(failed)} of {len(runs)} runs {what}; first: seed {first}: "
+                             f"{reason(failed[0])}; reproduce: {reproduce_command(again)}")
