@@ -135,8 +135,8 @@ def tracking_record(chain: CameraChain, cfg: ScenarioConfig) -> dict:
     findings = [f.describe() for f in health.judged(cfg)]
     return {"frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise,
             "marker_jitter_m": cfg.marker_jitter, "health": health.as_dict(),
-            "limits": cfg.tracking, "summary": health.summary(), "healthy": not findings,
-            "findings": findings}
+            "limits": cfg.tracking, "summary": health.summary(cfg.marker_jitter),
+            "healthy": not findings, "findings": findings}
 
 
 def tracking_summary(manifest: Path) -> str:

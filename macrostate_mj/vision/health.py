@@ -135,8 +135,10 @@ class TrackingHealth:
         """The findings against scenario `cfg`'s `[tracking]` limits, in its markers' words."""
         return self.findings(cfg.tracking, cfg.markers)
 
-    def summary(self) -> str:
-        """One line: the worst robot's figures (robots never in view left out)."""
+    def summary(self, marker_jitter: float = 0.0) -> str:
+        """One line: the worst robot's figures (robots never in view left out). They are the
+        tracker's own; a scenario's `marker_jitter` (sigma, m) is added after them to the
+        tracked columns a dataset holds, and the line says so."""
         seen = [r for r in self.robots if r.frames]
         if not seen:
             return "no frames tracked"
@@ -147,10 +149,15 @@ class TrackingHealth:
             values = [getattr(r, key) for r in errs]
             return f"{max(values):.1f}" if values else "n/a"
 
-        return (f"{len(seen)} robots, detected >= {worst.detected:.1%} ({worst.robot}), median "
+        line = (f"{len(seen)} robots, detected >= {worst.detected:.1%} ({worst.robot}), median "
                 f"error <= {top('median_mm')} mm, p99 <= {top('p99_mm')} mm, heading <= "
                 f"{top('heading_deg')} deg, identity errors <= "
                 f"{max(r.identity for r in seen):.1%}")
+        if marker_jitter > 0:     # what comparing a dataset with its truth columns shows
+            line += (f" (the tracker's own error; the tracked columns add marker_jitter, sigma "
+                     f"{1000 * marker_jitter:g} mm a coordinate)")
+        return line
+
 
     def as_dict(self) -> dict:
         """For a manifest: per robot, its figures (NaN written as None)."""

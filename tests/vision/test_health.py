@@ -119,6 +119,8 @@ def test_a_tracked_run_reports_its_health_in_the_manifest_and_one_line(tmp_path)
     res = cli("simulate", "--robots", "3", "--seconds", "6", "--track", "--out", str(out))
     assert res.returncode == 0, res.stderr
     assert "tracking  healthy: 3 robots, detected >= " in res.stdout
+    # the figures are the tracker's own: the lab's marker jitter comes on top in the dataset
+    assert "the tracked columns add marker_jitter, sigma 2.75 mm" in res.stdout
     tracking = json.loads((out / "manifest.json").read_text())["tracking"]
     assert tracking["healthy"] and tracking["findings"] == []
     assert set(tracking["health"]) == {"H", "F1", "T"}
