@@ -19,7 +19,7 @@ ENVS: dict[str, dict[str, Any]] = {
     "macrostate_mj/LocalizeTail-v0": {"scenario": "webots", "robots": 5},
 }
 # An id made by another factory than `ENTRY_POINT` (one that needs an estimator).
-ENTRY_POINTS = {"macrostate_mj/LocalizeTail-v0": "macrostate_mj.app.envs:localize_tail"}
+ENTRY_POINTS = {"macrostate_mj/LocalizeTail-v0": "macrostate_mj.env.estimated:localize_tail"}
 
 
 def register() -> bool:

@@ -1,11 +1,13 @@
 """One-class models on optical flows (SPEC §8, §4.6): DCAE, OC-SVM, DSVDD, GEN, N-GEN, IO-GEN.
 
-The models load lazily (PEP 562), so that the CLI can list `METHODS` without importing torch.
+The models load lazily (PEP 562), so that the CLI can list `METHODS` (`methods.METHODS`, each
+registered where its score is) without importing torch.
 """
 
 import importlib
 
-METHODS = ("ofw", "dcae", "ocsvm", "dsvdd", "gen", "ngen", "iogen")
+from estimators.oneclass.methods import METHODS
+
 _LAZY = {"OCModel": "model", "fit": "model", "flow_weight": "model", "OCConfig": "train"}
 
 __all__ = ["METHODS", *_LAZY]

@@ -24,19 +24,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from estimators.oneclass import METHODS
 from estimators.oneclass import train as T
+from estimators.oneclass.methods import METHODS
 from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
 from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
 from macrostate_mj.vision.flow import BOUND
-
-# stages each method needs, in training order
-NEEDS: dict[str, tuple[str, ...]] = {
-    "ofw": (), "dcae": ("dcae",), "ocsvm": ("dcae", "ocsvm"), "dsvdd": ("dcae", "dsvdd"),
-    "iogen": ("dcae", "dsvdd", "iogen", "cls_iogen"), "gen": ("dcae", "dsvdd", "gen", "cls_gen"),
-    "ngen": ("dcae", "dsvdd", "iogen", "cls_ngen")}
 
 
 def flow_magnitude(x: np.ndarray) -> np.ndarray:
@@ -71,18 +65,9 @@ class OCModel:
         if x.shape[1] != self.channels:
             raise UserError(f"model expects m = {self.channels // 2} but got inputs with m = "
                             f"{x.shape[1] // 2}; use --m {self.channels // 2}")
-        if method == "ofw":
-            return flow_weight(x)
         xt = torch.from_numpy(np.ascontiguousarray(x)).to(self.cfg.device)
         with torch.no_grad():
-            if method == "dcae":
-                return T.reconstruction_error(self.ae, xt).cpu().numpy()
-            if method == "ocsvm":
-                return -self._svm_decision(T.encode(self.ae.encoder, xt).cpu())
-            codes = T.encode(self.dsvdd, xt)
-            if method == "dsvdd":
-                return ((codes - self.c) ** 2).sum(1).cpu().numpy()
-            return torch.cat([self.classifiers[method](v) for v in codes.split(512)]).cpu().numpy()
+            return METHODS[method].score(self, xt)
 
     def _svm_decision(self, codes: torch.Tensor) -> np.ndarray:
         s = self.ocsvm
@@ -140,7 +125,7 @@ class OCModel:
         cfg = T.OCConfig(**{**meta["config"], "device": "cpu"})
         model = cls(cfg, tuple(meta["methods"]), ch,
                     history=meta.get("history", {}))
-        stages = {s for m in model.methods for s in NEEDS[m]}
+        stages = {s for m in model.methods for s in METHODS[m].needs}
         if "dcae" in stages:
             model.ae = DCAE(ch).to(memory_format=torch.channels_last)
         if "dsvdd" in stages:
@@ -321,7 +306,7 @@ def fit(x: np.ndarray, methods: Sequence[str], cfg: T.OCConfig, tick: T.Tick | N
     xall = torch.from_numpy(np.ascontiguousarray(x)).to(cfg.device)
     xtr, xval = xall[perm[n_val:]], xall[perm[:n_val]]
     model = OCModel(cfg, tuple(methods), x.shape[1])
-    stages = {s for m in methods for s in NEEDS[m]}
+    stages = {s for m in methods for s in METHODS[m].needs}
     if "dcae" in stages:
         model.ae, model.history["dcae_val"] = cache.run(
             "dcae", lambda snaps: T.train_dcae(xtr, xval, cfg, gen, tick, snaps))

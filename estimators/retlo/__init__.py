@@ -15,6 +15,23 @@ edges: ThymioLoc files (`api`), chapter 3's reports (cm, as its figures), and th
 inputs (`models`: they were designed and first trained in cm).
 """
 
-MODEL_KINDS = ("fc", "lstm")   # here, not in models: the CLI lists them without importing torch
+
+from dataclasses import dataclass
+
+from macrostate_mj.core.registry import Registry
+
+
+@dataclass(frozen=True)
+class ModelKind:
+    """What a ReTLo network of a kind reads: the observation alone (§2.6.2.3's FC baseline) or
+    also ℓ steps of history through an LSTM (§2.6)."""
+
+    history: bool
+
+
+# here, not in models: the CLI lists them without importing torch
+MODEL_KINDS: Registry[ModelKind] = Registry("model kind")
+MODEL_KINDS.register("fc")(ModelKind(history=False))
+MODEL_KINDS.register("lstm")(ModelKind(history=True))
 UNCERTAINTIES = ("none", "gaussian", "gaussian-faithful")   # `heads.HEADS`' names, likewise
 CM_PER_M = 100.0

@@ -90,7 +90,7 @@ class StackedNet(nn.Module):
         for start in (0, 2 + n_ang):
             hist[..., start:start + 2] = hist[..., start:start + 2] / scale.unsqueeze(-1)
         feats = [torch.relu(self._linear("f_obs.0", obs))]
-        if cfg.kind == "lstm":
+        if cfg.reads_history:
             finals = []
             for lstm, h in zip(self.lstms, hist, strict=True):
                 _, (h_n, _) = lstm(h)

@@ -41,10 +41,14 @@ class ModelConfig:
     rotate: bool = True  # frame axes along Tail→Follower; False: compass axes as in §2.5.1.1
 
     def __post_init__(self) -> None:
-        if self.kind not in MODEL_KINDS:
-            raise UserError(f"unknown model {self.kind!r}; choose one of {', '.join(MODEL_KINDS)}")
+        MODEL_KINDS[self.kind]      # an unknown kind: one line naming the kinds
         if self.history < 1:
             raise UserError(f"history must be at least 1 step, got {self.history}")
+
+    @property
+    def reads_history(self) -> bool:
+        """Whether this kind has the LSTM over ℓ steps of history (`MODEL_KINDS`)."""
+        return MODEL_KINDS[self.kind].history
 
 
 class RetloNet(nn.Module):
@@ -66,7 +70,7 @@ class RetloNet(nn.Module):
         n_ang = 2 if cfg.cos_sin else 1
         self.f_obs = nn.Sequential(nn.Linear(4, cfg.k), nn.ReLU())
         width = cfg.k
-        if cfg.kind == "lstm":
+        if cfg.reads_history:
             self.f_hist = nn.LSTM(4 + 2 * n_ang + int(cfg.mark_estimates), cfg.m, batch_first=True,
                                   bidirectional=cfg.bidirectional)
             width += cfg.m * (2 if cfg.bidirectional else 1)
@@ -86,7 +90,7 @@ class RetloNet(nn.Module):
         (B, 3, 2) for cos/sin."""
         obs, hist = self.scale_inputs(obs, hist)
         feats = [self.f_obs(obs)]
-        if self.cfg.kind == "lstm":
+        if self.cfg.reads_history:
             _, (h_n, _) = self.f_hist(hist)
             feats.append(h_n.transpose(0, 1).reshape(len(obs), -1))  # final state per direction
         z = self.fuse(torch.cat(feats, dim=-1))

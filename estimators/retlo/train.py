@@ -365,7 +365,7 @@ def _validation_d2(net: RetloNet, val_world: np.ndarray, seed: int) -> list[np.n
 
 
 def _describe(cfg: ModelConfig) -> str:
-    direction = "" if cfg.kind != "lstm" else (" bidirectional" if cfg.bidirectional
+    direction = "" if not cfg.reads_history else (" bidirectional" if cfg.bidirectional
                                                 else " unidirectional")
     return (f"{cfg.kind}{direction} model (history {cfg.history}, "
             f"{'cos/sin' if cfg.cos_sin else 'radian'} angles, "

@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from macrostate_mj.app.envs import ID as ENV_ID
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.stats import wilcoxon_p
+from macrostate_mj.env.estimated import ID as ENV_ID
 from macrostate_mj.tails import Tail
 from macrostate_mj.tails.scripted import ChainOffset
 

@@ -34,11 +34,12 @@ from macrostate_mj.chain.team import (
 )
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.env.task import TailTask
+from macrostate_mj.env.task import TASKS, TailTask
 
 SETTLE_S = 5.0
 
 
+@TASKS.register("caging")
 class CagingTask(TailTask):
     """See the module docstring."""
 

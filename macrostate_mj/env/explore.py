@@ -10,9 +10,10 @@ import numpy as np
 from dm_control import mujoco as dm_mujoco
 
 from macrostate_mj.chain.sim import chain_broken
-from macrostate_mj.env.task import TailTask
+from macrostate_mj.env.task import TASKS, TailTask
 
 
+@TASKS.register("explore")
 class ExploreTask(TailTask):
     """See the module docstring."""
 

@@ -6,7 +6,7 @@ pose true from τ over the first ℓ log steps, the window the model reads, as t
 a ThymioLoc instance are known; then only the Tail's own position and its neighbour's, one log
 step at a time).
 This module does not import it (the environments and the estimators are sibling layers); the
-task takes any object of the `Localizer` shape, and `macrostate_mj.app.envs` builds the one
+task takes any object of the `Localizer` shape, and `macrostate_mj.env.estimated` builds the one
 behind `LocalizeTail-v0` from a checkpoint.
 
 Action: the Tail's destination offset, as in `explore` (the control SRS perturbs); the Head's
@@ -33,7 +33,7 @@ from dm_control import mujoco as dm_mujoco
 from macrostate_mj.chain.sim import ChainSim, chain_broken
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.env.task import TailTask
+from macrostate_mj.env.task import TASKS, TailTask
 
 
 class Localizer(Protocol):
@@ -66,6 +66,7 @@ class Localizer(Protocol):
         estimator without uncertainty."""
 
 
+@TASKS.register("localize")
 class LocalizeTask(TailTask):
     """See the module docstring."""
 

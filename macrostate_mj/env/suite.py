@@ -1,5 +1,6 @@
-"""The Tail's tasks by name, in one place (as dm_control's `suite`): `SUITE` maps each name to
-its task class, and `load` builds the task's `control.Environment` on a scenario's world.
+"""The Tail's tasks by name, in one place (as dm_control's `suite`): importing this module
+imports every task, each registered by name in `SUITE` (`env.task.TASKS`) where it is defined,
+and `load` builds the task's `control.Environment` on a scenario's world.
 """
 
 from __future__ import annotations
@@ -12,13 +13,10 @@ from dm_control.rl import control
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.world import build_world, validate_chain
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.env.caging import CagingTask
-from macrostate_mj.env.explore import ExploreTask
-from macrostate_mj.env.localize import LocalizeTask
-from macrostate_mj.env.task import TailTask
+from macrostate_mj.env import caging, explore, localize  # noqa: F401  (they register)
+from macrostate_mj.env.task import TASKS, TailTask
 
-SUITE: dict[str, type[TailTask]] = {"explore": ExploreTask, "caging": CagingTask,
-                                    "localize": LocalizeTask}
+SUITE = TASKS
 
 
 def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history: int = 10,
@@ -26,8 +24,6 @@ def load(name: str = "explore", scenario: str = "lab", robots: int = 3, history:
          random: np.random.RandomState | int | None = None, **options) -> control.Environment:
     """The dm_control `Environment` of the task `name` (its task: `.task`, its simulation:
     `.task.sim`); `options` go to the task's `create` (`caging=CagingConfig(...)`)."""
-    if name not in SUITE:
-        raise UserError(f"unknown task {name!r}; choose one of {', '.join(SUITE)}")
     return environment(SUITE[name], scenario, robots, history, observe, time_limit, random,
                        **options)
 

@@ -1,8 +1,8 @@
 """The Tail's task on dm_control's lifecycle (`suite.base.Task`: `initialize_episode`,
 `before_step`, `after_step`, `get_observation`, `get_reward`, `get_termination`, and its
 seeded `random`): what every Tail task shares. The tasks themselves (`ExploreTask`,
-`CagingTask`) set the reward and the ending; `env.suite` names them and builds their
-`control.Environment`.
+`CagingTask`) set the reward and the ending, and register themselves in `TASKS` by name
+(`@TASKS.register("explore")`); `env.suite` imports them and builds their `control.Environment`.
 
 One environment step is one command tick: the agent sets the Tail's destination offset (the same
 control SRS perturbs), every robot's controller runs (planner, motion rules, unicycle tracking),
@@ -24,9 +24,11 @@ from dm_env import specs
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.registry import Registry
 from macrostate_mj.vision.health import TrackingHealth
 
 OBSERVE = ("truth", "camera")
+TASKS: Registry[type[TailTask]] = Registry("task")    # filled as `env.suite` imports the tasks
 
 
 class TailTask(base.Task):

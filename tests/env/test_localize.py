@@ -106,7 +106,7 @@ def test_the_default_estimator_is_the_trained_one_it_was_chosen_as():
     the two match on average), gives its covariance, and refuses to be combined with another
     estimator."""
     from estimators.retlo.heuristic import Heuristic2X
-    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
+    from macrostate_mj.env.estimated import DEFAULT_CHECKPOINT
 
     assert DEFAULT_CHECKPOINT.is_file()
 

@@ -3,13 +3,21 @@ or, where no such limit exists, against a fixed target that says so (`limit_kind
 
 Every suite returns figures made by `figure`, so that every `bench --json` line has the same
 keys: name, value, unit, limit, limit_kind, ratio, config (limit, limit_kind and ratio null
-where no limit exists).
+where no limit exists), and registers itself in `SUITES` (`@SUITES.register("sim")`).
 `ratio` reads the same way for every figure: 1.0 matches the limit, below falls short of it and
 above beats it, whether the figure is a rate (ratio = value / limit) or a time (limit / value).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
+from macrostate_mj.core.registry import Registry
+
+# the suites, in the order `bench` runs them: each module's own, in the order they register
+SUITES: Registry[Callable[..., list[dict]]] = Registry("bench suite", [
+    f"{__name__}.{m}" for m in ("sim", "collect", "colony", "retlo", "flow", "iogen", "srs",
+                                "ensemble")])
 FIELDS = ("name", "value", "unit", "limit", "limit_kind", "ratio", "config")
 MEASURED, TARGET = "measured", "target"     # a limit measured in the same run, or a fixed goal
 

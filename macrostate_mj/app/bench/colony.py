@@ -10,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench import SUITES, figure
 from macrostate_mj.app.bench.sim import _best_of
 from macrostate_mj.colony.sim import Colony, ColonyConfig
 
 
+@SUITES.register("colony")
 def bench_colony(ants: int = 55, seconds: float = 4.0, size: int = 256) -> list[dict]:
     import mujoco
 

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench import SUITES, figure
 
 KS = (1, 3, 9, 27)
 INSTANCES, VAL, EPOCHS = 24, 8, 2
@@ -43,6 +43,7 @@ def _jobs(k: int, kind: str) -> list:
             for i in range(k)]
 
 
+@SUITES.register("ensemble")
 def bench_ensemble(ks: tuple[int, ...] = KS) -> list[dict]:
     """Per network and K: the speed-up of training K together over K one after another."""
     from estimators.retlo.ensemble import train_many

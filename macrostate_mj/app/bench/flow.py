@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench import SUITES, figure
 
 
 def _pairs(n: int, size: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -39,6 +39,7 @@ def _rates(fns, pairs, repeats: int) -> list[float]:
     return best
 
 
+@SUITES.register("flow")
 def bench_flow(n: int = 400, size: int = 64, repeats: int = 5) -> list[dict]:
     """Pairs/s on one core at size × size: our FlowComputer + encode_flow vs bare DIS.calc."""
     import cv2

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 
-from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench import SUITES, figure
 
 
 def _data() -> tuple[str, list, object]:
@@ -49,6 +49,7 @@ def _bare_batch_seconds(cfg, n_hist_features: int, repeats: int = 30) -> float:
     return (time.perf_counter() - start) / repeats
 
 
+@SUITES.register("retlo")
 def bench_retlo() -> list[dict]:
     """Figures: LSTM training wall time (limit: bare network steps), per-batch cost, accuracy."""
     import torch

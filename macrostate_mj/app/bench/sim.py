@@ -9,7 +9,7 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
-from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench import SUITES, figure
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import build_world
@@ -66,6 +66,7 @@ def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int,
     return data
 
 
+@SUITES.register("sim")
 def bench_sim(scenario: ScenarioRef = "lab", robots: int = 5, seconds: float = 60.0
               ) -> list[dict]:
     """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
@@ -95,6 +96,7 @@ def bench_sim(scenario: ScenarioRef = "lab", robots: int = 5, seconds: float = 6
     ]
 
 
+@SUITES.register("render")
 def bench_render(scenario: ScenarioRef = "lab", robots: int = 5, frames: int = 60
                  ) -> list[dict]:
     from macrostate_mj.vision.camera import OverheadRenderer
@@ -120,15 +122,16 @@ def bench_render(scenario: ScenarioRef = "lab", robots: int = 5, frames: int = 6
                    limit_name="bare mujoco.Renderer, same camera", config=f"{w}x{h}")]
 
 
+@SUITES.register("env")
 def bench_env(seconds: float = 60.0) -> list[dict]:
     """One Gymnasium step of a Tail environment against the same simulated time through
     `ChainSim` (controller, mission and physics, no hooks; for LocalizeTail plus one call of
     the same estimator per log step): the issues' bounds are 1.2x (ratio >= 0.83) and 1.3x for
     LocalizeTail (>= 0.77). ExploreTail on lab with 3 robots, CagingTail on robotarium with 6,
-    LocalizeTail on webots with 5 (its default estimator, `app.envs.DEFAULT_CHECKPOINT`)."""
+    LocalizeTail on webots with 5 (its default estimator, `env.estimated.DEFAULT_CHECKPOINT`)."""
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.app.envs import load_estimator, localize_tail
     from macrostate_mj.chain.caging import CagingConfig, CagingMission
+    from macrostate_mj.env.estimated import load_estimator, localize_tail
     from macrostate_mj.env.gym import TailEnv
 
     module = load_estimator()         # loaded once, outside the timed runs (as the env's is)

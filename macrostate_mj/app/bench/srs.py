@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.app.bench import figure
+from macrostate_mj.app.bench import SUITES, figure
 
 
+@SUITES.register("srs")
 def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dict]:
     """One webots 3-robot episode collected passively, then with the SRS Tail (k candidates,
     SRS-Max; a model of the default size with seeded weights: its cost does not depend on

@@ -18,8 +18,8 @@ from macrostate_mj.app.cli.params import (
     Seed,
     Switch,
 )
-from macrostate_mj.app.envs import HEURISTIC
 from macrostate_mj.app.experiments.learned_tail import POLICIES
+from macrostate_mj.env.estimated import HEURISTIC
 
 
 @experiment_app.command("learned-tail")

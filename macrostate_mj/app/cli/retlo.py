@@ -26,7 +26,7 @@ from macrostate_mj.app.cli.params import (
     Seed,
     Switch,
 )
-from macrostate_mj.app.envs import HEURISTIC
+from macrostate_mj.env.estimated import HEURISTIC
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 if TYPE_CHECKING:

@@ -7,18 +7,21 @@ Each module here is one experiment and exports:
   the test suite can afford);
 - `PRODUCTS`: the files it writes into its output folder (a finished run refuses to be
   overwritten without `--overwrite`);
-- `run(config, out, progress) -> list[str]`: writes the products, returns summary lines.
+- `run(config, out, progress) -> list[str]`: writes the products, returns summary lines, and
+  registers its module in `EXPERIMENTS` (`@register`) under the module's name (`retlo_sim` ->
+  `retlo-sim`).
 
 `execute` wraps `run` in the one run lifecycle (`core.run.Run`: the folder claimed, the manifest
 with the config, its hash, stage timings and how the run ended). Adding an experiment is one
-new module here (found by `registry()`) and its test.
+new module here and its test: `EXPERIMENTS` imports every module of this package on first read,
+and the CLI lists their names without importing them (`names`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import importlib
 import pkgutil
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -27,6 +30,7 @@ from typing import Any
 
 from macrostate_mj.core.cache import TaskCache
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.registry import Registry
 from macrostate_mj.core.run import Run
 
 CACHE = "cache"          # an experiment's cached tasks, inside its output folder
@@ -56,25 +60,33 @@ class Progress:
         self.run.record(**extra)
 
 
-def names() -> list[str]:
-    """Every experiment's command name, from its module's (`retlo_sim` -> `retlo-sim`), without
-    importing any (the CLI lists them while parsing)."""
-    return sorted(info.name.replace("_", "-") for info in pkgutil.iter_modules(__path__)
+_MODULES = sorted(info.name for info in pkgutil.iter_modules(__path__)
                   if not info.name.startswith("_"))
+EXPERIMENTS: Registry[ModuleType] = Registry("experiment", [f"{__name__}.{m}" for m in _MODULES])
+
+
+def register(run: Callable[..., list[str]]) -> Callable[..., list[str]]:
+    """Decorates an experiment's `run`: registers its module (`Config`, `PROFILES`,
+    `PRODUCTS`, `run`) under the module's name, `_` read as `-`."""
+    module = sys.modules[run.__module__]
+    EXPERIMENTS.register(module.__name__.rsplit(".", 1)[-1].replace("_", "-"))(module)
+    return run
+
+
+def names() -> list[str]:
+    """Every experiment's command name, without importing any (the CLI lists them while
+    parsing): the names `register` gives the modules `EXPERIMENTS` imports."""
+    return [m.replace("_", "-") for m in _MODULES]
 
 
 def registry() -> dict[str, ModuleType]:
-    """Every experiment module of this package by its command name."""
-    return {name: importlib.import_module(f"{__name__}.{name.replace('-', '_')}")
-            for name in names()}
+    """Every experiment module by its command name, in the order of `names` (a module that
+    does not register is refused by name here)."""
+    return {name: EXPERIMENTS[name] for name in names()}
 
 
 def experiment(name: str) -> ModuleType:
-    found = registry()
-    if name not in found:
-        raise UserError(f"unknown experiment {name!r}; choose from {', '.join(found)} "
-                        "(`macrostate-mj experiment list`)")
-    return found[name]
+    return EXPERIMENTS[name]
 
 
 def profile(name: str, chosen: str) -> Any:

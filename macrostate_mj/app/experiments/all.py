@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from estimators.precision import precision_named
-from macrostate_mj.app.experiments import Progress, at_precision, execute, names, registry
+from macrostate_mj.app.experiments import Progress, at_precision, execute, names, register, registry
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.run import MANIFEST, config_hash, run_finished
@@ -49,6 +49,7 @@ class Config:
 PROFILES = {"full": Config("full"), "quick": Config("quick")}
 
 
+@register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Run (or keep, or skip) every chosen experiment; write the index; summary lines."""
     chosen = {n: m for n, m in _members().items() if not config.only or n in config.only}

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import show
@@ -140,6 +140,7 @@ class EstimatorTask:
         return {"mlp.npz": fit_runs(runs, rng, t["epochs"]).to_npz()}
 
 
+@register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Every policy on every seed; results.json, snapshots.png, videos; summary lines."""
     from estimators.retlo.mlp import ChainedMLP

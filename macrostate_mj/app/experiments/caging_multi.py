@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress, caging
+from macrostate_mj.app.experiments import Progress, caging, register
 from macrostate_mj.core.cache import run_tasks
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import mean_std, show, wilcoxon_p
@@ -138,6 +138,7 @@ def run_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None = 
     return team_episode(policy, seed, cfg, model)
 
 
+@register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Every arm on every seed; results.json; summary lines."""
     from estimators.retlo.mlp import ChainedMLP

@@ -4,7 +4,7 @@
 PPO (stable-baselines3, the `rl` extra; `MultiInputPolicy` on the Tail's and its neighbour's
 pose histories and the latest Head estimate with its covariance) learns the destination offset
 that SRS perturbs, rewarded by minus the frozen estimator's Head error (m) each step (the env's
-default ReTLo module, `app.envs.DEFAULT_CHECKPOINT`, or a `train retlo` checkpoint), on
+default ReTLo module, `env.estimated.DEFAULT_CHECKPOINT`, or a `train retlo` checkpoint), on
 training seeds from 1000 up. A chain break costs the steps it cut short, and the policy acts
 through a spacing shield, passive while its neighbour is over 2 d away (`tails.ppo`). Then every
 Tail runs the held-out seeds 0..seeds-1 (`tail_eval`): passive, Rand-Only (σ = 75 % of the
@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from macrostate_mj.app.envs import HEURISTIC
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import mean_std, show
+from macrostate_mj.env.estimated import HEURISTIC
 
 POLICIES = ("passive", "random", "srs_med", "chain_offset", "learned")
 PRODUCTS = ["results.json", "learning_curve.png", "episodes"]
@@ -109,11 +109,12 @@ def check_checkpoint(cfg: Config) -> None:
             raise UserError(str(err), "checkpoint") from None
 
 
+@register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
     learning_curve.png; summary lines."""
     from macrostate_mj.app import tail_eval
-    from macrostate_mj.app.envs import DEFAULT_CHECKPOINT
+    from macrostate_mj.env.estimated import DEFAULT_CHECKPOINT
     from macrostate_mj.tails import ppo
     from viz.learned_tail_figures import plot_learning_curve
 
@@ -175,8 +176,8 @@ def srs_models(cfg: Config, out: Path, workers: int) -> Any:
     from collectors.runner import CollectRequest
     from collectors.srs import NOVELTY, SRSRequest, collect_srs, finished_srs
     from estimators.srs.novelty import NoveltyTraining
-    from macrostate_mj.app.envs import ID_DEFAULTS
     from macrostate_mj.chain.scenarios import get_scenario
+    from macrostate_mj.env.estimated import ID_DEFAULTS
 
     base = CollectRequest(get_scenario(ID_DEFAULTS["scenario"]), 3, 0.0, SRS_SEED, out,
                           "random", cfg.sigma, workers, overwrite=True)

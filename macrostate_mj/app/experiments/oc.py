@@ -21,7 +21,7 @@ import numpy as np
 from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
 from estimators.oneclass.train import OCConfig
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
@@ -186,6 +186,7 @@ def selection_on_test(probe: Probe, history: dict[str, list[float]], n_stable: i
     return out
 
 
+@register
 def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     """Train and score every (m, split, seed); summarise over splits and seeds; draw the
     figures and tables into `out`. A rerun resumes from the cached runs and stages."""

@@ -32,19 +32,18 @@ from estimators.retlo.heads import POINT, Head
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
-from macrostate_mj.app.envs import HEURISTIC
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic
 from macrostate_mj.core.paths import real_thymioloc
 from macrostate_mj.core.stats import cv_blocks, mean_std
+from macrostate_mj.env.estimated import HEURISTIC
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models"]
 CV_TEST = "cross-validated train + val"
 CV_VAL_SHARE = 0.15     # of each fold's training blocks, the last share selects
-LEARNED = MODEL_KINDS   # the learned models, each trained per seed (the 2X heuristic is not)
 FIRST = "first_"        # with --split, the first module's model: models/first_<kind>_seed<i>.pt
 
 
@@ -97,6 +96,7 @@ def missing(cfg: Config) -> str | None:
     return f"the ThymioLoc file {absent[0]}" if absent else None
 
 
+@register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train, test, plot, draw; return summary lines."""
     from viz.lab_backdrop import write_lab_video
@@ -112,7 +112,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
                                         folds[:cfg.folds]]}
     tests = shared + ([folds[0].test] if cfg.folds else [])
     big = max(tests, key=lambda t: t["world"].shape[2])
-    curves: dict[str, list[dict]] = {kind: [] for kind in LEARNED}
+    curves: dict[str, list[dict]] = {kind: [] for kind in MODEL_KINDS}
     # per seed and kind the model, then (with --split) its first module's: trained unchained
     tasks = [TrainTask(fold.trains, fold.val, TrainConfig(epochs=cfg.epochs, seed=seed,
                                                           chained=chained,
@@ -120,7 +120,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
                                                           precision=cfg.precision), px,
                        cfg.head)
              for seed, fold in zip(range(cfg.seed, cfg.seed + cfg.seeds), folds, strict=True)
-             for kind in LEARNED
+             for kind in MODEL_KINDS
              for chained in ((cfg.chained, False) if cfg.split else (cfg.chained,))]
     folders: dict[int, Path] = {}
     cached = 0
@@ -130,7 +130,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
             folders[tasks.index(outcome.task)] = outcome.folder
             cached += outcome.cached
             progress.report("train", len(folders), len(tasks), cached)
-    train_s: dict[str, list[float]] = {kind: [] for kind in LEARNED}
+    train_s: dict[str, list[float]] = {kind: [] for kind in MODEL_KINDS}
     per_model = 2 if cfg.split else 1
     for i in range(0, len(tasks), per_model):   # in task order: the same file for any workers
         kind, seed = tasks[i].cfg.model.kind, tasks[i].cfg.seed
@@ -308,7 +308,7 @@ def _summary(results: dict, train_s: dict[str, list[float]]) -> list[str]:
     for test in results["tests"]:
         res = results["results"][test["name"]]
         parts = [f"{test['name']} ({test['n_robots']} robots, {test['n_instances']} inst.):"]
-        for model in (HEURISTIC, *LEARNED):
+        for model in (HEURISTIC, *MODEL_KINDS):
             m = res[model]["mean_error_cm"]
             parts.append(f"{model} {m['mean']:.2f} ± {m['std']:.2f} cm")
         gain = 1 - res["lstm"]["mean_error_cm"]["mean"] / res["fc"]["mean_error_cm"]["mean"]

@@ -26,7 +26,7 @@ from estimators.retlo.chain import estimate_chain, sync_steps
 from estimators.retlo.heuristic import estimate_heuristic
 from estimators.retlo.mlp import ChainedMLP, mse, train_mlp, training_pairs
 from estimators.retlo.report import chain_errors, one_step_errors, summarize, unseen_names
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import get_scenario
@@ -73,6 +73,7 @@ class Config:
 PROFILES = {"full": Config(), "quick": Config(epochs=1, train_steps=20, test_steps=40)}
 
 
+@register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Generate, train, estimate, write results.json and the figures; summary lines."""
     from viz.retlo_sim_figures import plot_case, plot_trajectories

@@ -44,7 +44,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, ShipsFiles, run_tasks, task_key
@@ -345,6 +345,7 @@ class ModelTask(ShipsFiles):
         return files
 
 
+@register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect (or take) the lab data, train every arm and fraction, plot; summary lines."""
     from estimators.retlo.files import pixels_to_world

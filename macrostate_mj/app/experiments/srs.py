@@ -30,7 +30,7 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
-from macrostate_mj.app.experiments import Progress
+from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
@@ -215,6 +215,7 @@ class _Cell:
     report: dict
 
 
+@register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect, train, test and plot; returns summary lines.
 

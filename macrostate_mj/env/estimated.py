@@ -1,4 +1,4 @@
-"""Environments that need an estimator (a layer above both `env` and `estimators`): what the
+"""Environments that carry an estimator (`env` sits above `estimators` for them): what the
 `LocalizeTail-v0` id makes, and the estimator it carries unless told otherwise."""
 
 from __future__ import annotations
