@@ -1,7 +1,7 @@
 """Caging runs (seed §2.5.4): one episode of a Tail (`macrostate_mj.tails`) on
 `macrostate_mj/CagingTail-v0`, and the simulated runs the Tail's estimator learns from.
 
-This layer sits beside `macrostate_mj.env` and `estimators`, independent of both: the caller
+This layer sits beside `macrostate_mj.env`, independent of it, and above `estimators`: the caller
 makes the environment and the estimator's online chain and passes them in (any object with
 their methods will do), and builds the recorders (`viz.caging_video`).
 """
@@ -16,7 +16,7 @@ import numpy as np
 
 from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs
 from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
-from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.scenarios import SCENARIOS
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.team import (
     BranchedSim,
@@ -27,6 +27,8 @@ from macrostate_mj.chain.team import (
 )
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.tails.caging import CagingTail
+
+ARENA = SCENARIOS["robotarium"]    # the caging mission's world (§2.5.4), as the CagingTail id's
 
 
 class Recorder(Protocol):
@@ -85,7 +87,7 @@ def rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
     """Caging episodes with a passive Tail (seeds 10000.., never an evaluation seed), every
     consecutive three robots as a 3-robot module run: (runs * (n - 2), steps, 3, 3), H first."""
     caging = CagingConfig()
-    world = build_world(get_scenario("robotarium"), 6)
+    world = build_world(ARENA, 6)
     sim = ChainSim(world, mission=CagingMission(caging))
     return _rehearse(sim, runs, seconds, [np.arange(sim.n)],
                      lambda rng: start_poses(caging, sim.n, sim.cfg.spacing, rng))
@@ -95,7 +97,7 @@ def team_rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
     """As `rehearsal_runs`, of the two-chain caging team (`chain.team`, 6 robots, both Tails
     passive: the Head parks at the object): every three consecutive robots of either chain."""
     caging = CagingConfig()
-    world = build_world(get_scenario("robotarium"), 6)
+    world = build_world(ARENA, 6)
     branches = split_branches(6, 2)
     sim = BranchedSim(world, branches, mission=TeamCaging(caging, ring_order(branches)))
     return _rehearse(sim, runs, seconds, branches,
@@ -126,7 +128,7 @@ def estimator_runs(train_steps: int, rehearsals: int, seconds: float, stride: in
     team, or `team_rehearsal_runs`), each taken at every `stride`-th log step from each phase,
     as 5 noisy replicas (σ 1 mm): one array per (source, phase), in that order (the draws from
     `rng` follow it)."""
-    runs = training_runs(get_scenario("robotarium"), train_steps, K_T_FACTORS)
+    runs = training_runs(ARENA, train_steps, K_T_FACTORS)
     rehearsed = rehearse(rehearsals, seconds)
     return [noisy_replicas(r[:, k::stride], 5, 0.001, rng)
             for r in (runs, rehearsed) for k in range(stride)]

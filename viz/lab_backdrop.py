@@ -18,11 +18,11 @@ class LabBackdrop:
     def __init__(self, n_robots: int, px_per_cm: float):
         import mujoco
 
-        from macrostate_mj.chain.scenarios import get_scenario
+        from macrostate_mj.chain.scenarios import SCENARIOS
         from macrostate_mj.chain.world import build_world
         from macrostate_mj.vision.camera import OverheadRenderer
 
-        self.cfg = get_scenario("lab")
+        self.cfg = SCENARIOS["lab"]        # the built-in lab: ThymioLoc's own arena
         self.world = build_world(self.cfg, n_robots)
         self.data = mujoco.MjData(self.world.model)
         self.renderer = OverheadRenderer(self.world.model)

@@ -38,7 +38,7 @@ def localize_tail(checkpoint: str | Path | None = None, scenario: Any = ID_DEFAU
     (from `train retlo`, or "heuristic2x"; default `DEFAULT_CHECKPOINT`), or `estimator`, any
     ReTLo module object."""
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.chain.scenarios import get_scenario
+    from macrostate_mj.chain.scenarios import scenario_for
     from macrostate_mj.core.errors import UserError
     from macrostate_mj.env.gym import TailEnv
 
@@ -51,10 +51,11 @@ def localize_tail(checkpoint: str | Path | None = None, scenario: Any = ID_DEFAU
     if checkpoint is not None and estimator is not None:
         raise UserError("pass a checkpoint or an estimator, not both", "estimator")
     module = estimator if estimator is not None else load_estimator(checkpoint)
-    steps = int(time_limit * get_scenario(scenario).log_hz) + 2     # every log step, and τ
+    cfg = scenario_for(scenario)           # resolved here, once: the env below takes the config
+    steps = int(time_limit * cfg.log_hz) + 2     # every log step, and τ
 
     def localizer(n: int) -> OnlineChain:
         return OnlineChain(module, n, steps)
 
-    return TailEnv("localize", scenario, robots, history, observe, time_limit, render_mode,
+    return TailEnv("localize", cfg, robots, history, observe, time_limit, render_mode,
                    localizer=localizer)

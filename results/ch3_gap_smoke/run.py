@@ -10,8 +10,7 @@ from macrostate_mj.chain.scenarios import get_scenario
 
 def main():
     variant, out = sys.argv[1], Path(sys.argv[2])
-    srs.SCENARIO = get_scenario(variant)
-    config = srs.Config(train=100, val=50, test=50)
+    config = srs.Config(train=100, val=50, test=50, scenario=get_scenario(variant))
     t0 = time.perf_counter()
     sets = [srs._Dataset(out / "train", 3, 100, 0), srs._Dataset(out / "val", 3, 50, 500),
             srs._Dataset(out / "test", 5, 50, 900)]

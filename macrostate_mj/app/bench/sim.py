@@ -10,7 +10,8 @@ import mujoco
 import numpy as np
 
 from macrostate_mj.app.bench import SUITES, figure
-from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
+from macrostate_mj.chain.scenario import ScenarioConfig
+from macrostate_mj.chain.scenarios import SCENARIOS
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog
 from macrostate_mj.chain.world import build_world
 
@@ -67,11 +68,11 @@ def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int,
 
 
 @SUITES.register("sim")
-def bench_sim(scenario: ScenarioRef = "lab", robots: int = 5, seconds: float = 60.0
-              ) -> list[dict]:
+def bench_sim(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5,
+              seconds: float = 60.0) -> list[dict]:
     """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
     wheel commands from the same start state: the physics cost alone, same contacts."""
-    cfg = get_scenario(scenario)
+    cfg = scenario
     world = build_world(cfg, robots)
     dt = world.model.opt.timestep
     steps = int(round(seconds / dt))
@@ -97,11 +98,11 @@ def bench_sim(scenario: ScenarioRef = "lab", robots: int = 5, seconds: float = 6
 
 
 @SUITES.register("render")
-def bench_render(scenario: ScenarioRef = "lab", robots: int = 5, frames: int = 60
+def bench_render(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5, frames: int = 60
                  ) -> list[dict]:
     from macrostate_mj.vision.camera import OverheadRenderer
 
-    world = build_world(get_scenario(scenario), robots)
+    world = build_world(scenario, robots)
     sim = ChainSim(world)
     sim.reset(np.random.default_rng(0))
     with OverheadRenderer(world.model) as ours:
@@ -150,7 +151,7 @@ def bench_env(seconds: float = 60.0) -> list[dict]:
                 env.step(zero)
 
         mission = CagingMission(CagingConfig()) if task == "caging" else None
-        cfg = get_scenario(scenario)
+        cfg = env.task.sim.cfg                # the env's own scenario, resolved by it
         sim = ChainSim(build_world(cfg, robots), mission=mission)
         env.reset(seed=0)
         start = env.task.sim.poses.copy()

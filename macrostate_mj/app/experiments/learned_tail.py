@@ -176,10 +176,9 @@ def srs_models(cfg: Config, out: Path, workers: int) -> Any:
     from collectors.runner import CollectRequest
     from collectors.srs import NOVELTY, SRSRequest, collect_srs, finished_srs
     from estimators.srs.novelty import NoveltyTraining
-    from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.env.estimated import ID_DEFAULTS
 
-    base = CollectRequest(get_scenario(ID_DEFAULTS["scenario"]), 3, 0.0, SRS_SEED, out,
+    base = CollectRequest(ID_DEFAULTS["scenario"], 3, 0.0, SRS_SEED, out,
                           "random", cfg.sigma, workers, overwrite=True)
     req = SRSRequest(base, "med", cfg.srs_ro_instances + 1, cfg.srs_ro_instances, cfg.srs_k)
     novelty = NoveltyTraining()

@@ -31,7 +31,7 @@ import numpy as np
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
 from macrostate_mj.app.experiments import Progress, register
-from macrostate_mj.chain.scenarios import get_scenario
+from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
 from macrostate_mj.core.io import write_json_atomic, write_text_atomic
@@ -41,7 +41,6 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_worl
 PRODUCTS = ["results.json", "fig3_4.png", "fig3_5a.png", "fig3_5b.png", "fig3_6.png",
             "fig3_7.png", "models"]
 MODEL_REPORT = "{config}_b{percent}_d{dataset}_m{model}.json"   # models/: one report a model
-SCENARIO = "webots"
 RO_SIGMA = 0.75        # the Rand-Only baseline of Fig 3.5 (the best σ of §3.5.1)
 
 
@@ -66,6 +65,7 @@ class Config:
     precision: str = "fp32"   # the models' training arithmetic (`estimators.precision`)
     group: int = 1         # models trained together (`estimators.retlo.ensemble`): for a GPU;
     #                        on a CPU chapter 3's LSTM gains little (`bench --only ensemble`)
+    scenario: ScenarioRef = "webots"   # every collection's world: a built-in, a file or a config
 
 
 PROFILES = {
@@ -98,7 +98,7 @@ class _Dataset:
     def request(self, config: Config, workers: int, ray: str | None) -> CollectRequest:
         # overwrite: the folder is this experiment's; a collection of another config there
         # (another profile) is replaced, its episodes kept in its cache
-        return CollectRequest(get_scenario(SCENARIO), self.robots, 0.0, self.seed, self.out,
+        return CollectRequest(config.scenario, self.robots, 0.0, self.seed, self.out,
                               self.policy, self.sigma, workers, ray, overwrite=True,
                               episode_minutes=config.episode_minutes)
 
@@ -275,7 +275,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     write_json_atomic(out / "results.json", results)
     with progress.stage("figures"):
         plot_all(results, out, list(config.picks))
-    progress.record(scenario=SCENARIO, models=len(cells),
+    progress.record(models=len(cells),
                     models_distinct=len({c.key for c in cells}),
                     models_trained=len(trained))
     timings = {k: progress.run.timings.get(k, 0.0) for k in ("datasets", "models")}
