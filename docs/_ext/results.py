@@ -530,7 +530,8 @@ def retlo_trainings(*folders: str) -> Table:
     training (from the manifest), then each learned model's mean error (cm) on every test,
     mean ± std over seeds; the per-fold figures of the cross-validated test in the last
     column, and on how many folds each run beats the first."""
-    from macrostate_mj.app.experiments.retlo import CV_TEST, LEARNED
+    from estimators.retlo import MODEL_KINDS
+    from macrostate_mj.app.experiments.retlo import CV_TEST
 
     runs = [(load(f"{f}/results.json"), load(f"{f}/manifest.json")["config"])  # type: ignore
             for f in folders]
@@ -542,7 +543,7 @@ def retlo_trainings(*folders: str) -> Table:
             "chained" if config.get("chained", True) else "not chained"
         if config.get("precision", "fp32") != "fp32":
             label += f", {config['precision']}"
-        for model in LEARNED:
+        for model in MODEL_KINDS:
             cells = [_stat(data["results"][t][model]["mean_error_cm"], ".2f") for t in tests]
             per = data["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
             first = runs[0][0]["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
