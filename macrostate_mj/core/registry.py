@@ -40,8 +40,12 @@ class Registry(Generic[T]):
     def _load(self) -> dict[str, T]:
         if not self._loaded:
             self._loaded = True         # before importing: a module may read its own registry
-            for module in self._modules:
-                importlib.import_module(module)
+            try:
+                for module in self._modules:
+                    importlib.import_module(module)
+            except BaseException:
+                self._loaded = False    # a failed import is not a registry with fewer entries
+                raise
         return self._entries
 
     def __getitem__(self, name: str) -> T:
