@@ -12,7 +12,8 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from estimators.oneclass import train as T  # noqa: E402
-from estimators.oneclass.model import METHODS, OCModel, flow_magnitude  # noqa: E402
+from estimators.oneclass.methods import METHODS, flow_magnitude  # noqa: E402
+from estimators.oneclass.model import OCModel  # noqa: E402
 from macrostate_mj.core.io import atomic_path, write_text_atomic  # noqa: E402
 from macrostate_mj.formats.hsants import AntFlowData, load_images, sample_file  # noqa: E402
 from viz import gradcam as gc  # noqa: E402

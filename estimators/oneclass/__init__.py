@@ -8,7 +8,7 @@ import importlib
 
 from estimators.oneclass.methods import METHODS
 
-_LAZY = {"OCModel": "model", "fit": "model", "flow_weight": "model", "OCConfig": "train"}
+_LAZY = {"OCModel": "model", "fit": "model", "flow_weight": "methods", "OCConfig": "train"}
 
 __all__ = ["METHODS", *_LAZY]
 

@@ -1,32 +1,48 @@
 """The one-class methods by name (`METHODS`), each registered where its score is defined: the
-stages it needs trained (in training order) and how a fitted `OCModel` scores with it (higher =
-unstable). Light to import (torch only inside the scores), so the CLI lists the names without
-torch; the order of registration is the order of every report's columns.
+stages it needs trained (in training order) and how a fitted `model.OCModel` (typed `Any`
+here: that module imports this one) scores inputs with it (higher = unstable). Light to import
+(torch only inside the scores), so the CLI lists the names without torch; the order of
+registration is the order of every report's columns.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from macrostate_mj.core.registry import Registry
+from macrostate_mj.vision.flow import BOUND
 
 if TYPE_CHECKING:
     import torch
-
-    from estimators.oneclass.model import OCModel
 
 
 @dataclass(frozen=True)
 class Method:
     needs: tuple[str, ...]                                     # stages, in training order
-    score: Callable[[OCModel, torch.Tensor], np.ndarray]       # on inputs already on the device
+    score: Callable[[Any, np.ndarray], np.ndarray]             # (OCModel, inputs), no grad
 
 
 METHODS: Registry[Method] = Registry("one-class method")
+
+
+def flow_magnitude(x: np.ndarray) -> np.ndarray:
+    """Flow magnitude (px), N × m × H × W, of an N × 2m × H × W input in [−1, 1] (±BOUND px)."""
+    return BOUND * np.hypot(x[:, 0::2], x[:, 1::2])
+
+
+def flow_weight(x: np.ndarray) -> np.ndarray:
+    """Mean flow magnitude (px) per sample: the optical-flow weight of Fig 4.7 and OFW."""
+    return flow_magnitude(x).reshape(len(x), -1).mean(1)
+
+
+def _on_device(model: Any, x: np.ndarray) -> torch.Tensor:
+    import torch
+
+    return torch.from_numpy(np.ascontiguousarray(x)).to(model.cfg.device)
 
 
 def method(name: str, needs: tuple[str, ...]) -> Callable[[Callable], Callable]:
@@ -40,43 +56,44 @@ def method(name: str, needs: tuple[str, ...]) -> Callable[[Callable], Callable]:
 
 
 @method("ofw", needs=())
-def _ofw(model: OCModel, x: torch.Tensor) -> np.ndarray:
-    from estimators.oneclass.model import flow_weight
-
-    return flow_weight(x.cpu().numpy())
+def _ofw(model: Any, x: np.ndarray) -> np.ndarray:
+    return flow_weight(x)
 
 
 @method("dcae", needs=("dcae",))
-def _dcae(model: OCModel, x: torch.Tensor) -> np.ndarray:
+def _dcae(model: Any, inputs: np.ndarray) -> np.ndarray:
     from estimators.oneclass import train as T
 
+    x = _on_device(model, inputs)
     return T.reconstruction_error(model.ae, x).cpu().numpy()
 
 
 @method("ocsvm", needs=("dcae", "ocsvm"))
-def _ocsvm(model: OCModel, x: torch.Tensor) -> np.ndarray:
+def _ocsvm(model: Any, inputs: np.ndarray) -> np.ndarray:
     from estimators.oneclass import train as T
 
+    x = _on_device(model, inputs)
     return -model._svm_decision(T.encode(model.ae.encoder, x).cpu())
 
 
 @method("dsvdd", needs=("dcae", "dsvdd"))
-def _dsvdd(model: OCModel, x: torch.Tensor) -> np.ndarray:
+def _dsvdd(model: Any, inputs: np.ndarray) -> np.ndarray:
     from estimators.oneclass import train as T
 
+    x = _on_device(model, inputs)
     return ((T.encode(model.dsvdd, x) - model.c) ** 2).sum(1).cpu().numpy()
 
 
-def _classifier(name: str) -> Callable[[OCModel, torch.Tensor], np.ndarray]:
+def _classifier(name: str) -> Callable[[Any, np.ndarray], np.ndarray]:
     """The score of a method whose classifier, on DSVDD's codes, was trained against its own
     generated codes."""
 
-    def score(model: OCModel, x: torch.Tensor) -> np.ndarray:
+    def score(model: Any, inputs: np.ndarray) -> np.ndarray:
         import torch
 
         from estimators.oneclass import train as T
 
-        codes = T.encode(model.dsvdd, x)
+        codes = T.encode(model.dsvdd, _on_device(model, inputs))
         return torch.cat([model.classifiers[name](v) for v in codes.split(512)]).cpu().numpy()
 
     return score

@@ -30,17 +30,6 @@ from estimators.oneclass.nets import DCAE, Classifier, Encoder, Generator
 from macrostate_mj.core.cache import TaskCache, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import atomic_path
-from macrostate_mj.vision.flow import BOUND
-
-
-def flow_magnitude(x: np.ndarray) -> np.ndarray:
-    """Flow magnitude (px), N × m × H × W, of an N × 2m × H × W input in [−1, 1] (±BOUND px)."""
-    return BOUND * np.hypot(x[:, 0::2], x[:, 1::2])
-
-
-def flow_weight(x: np.ndarray) -> np.ndarray:
-    """Mean flow magnitude (px) per sample: the optical-flow weight of Fig 4.7 and OFW."""
-    return flow_magnitude(x).reshape(len(x), -1).mean(1)
 
 
 @dataclass
@@ -65,9 +54,8 @@ class OCModel:
         if x.shape[1] != self.channels:
             raise UserError(f"model expects m = {self.channels // 2} but got inputs with m = "
                             f"{x.shape[1] // 2}; use --m {self.channels // 2}")
-        xt = torch.from_numpy(np.ascontiguousarray(x)).to(self.cfg.device)
         with torch.no_grad():
-            return METHODS[method].score(self, xt)
+            return METHODS[method].score(self, x)
 
     def _svm_decision(self, codes: torch.Tensor) -> np.ndarray:
         s = self.ocsvm

@@ -18,8 +18,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from estimators.oneclass.methods import METHODS, flow_weight
 from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
-from estimators.oneclass.model import METHODS, OCModel, Probe, fit, flow_weight
+from estimators.oneclass.model import OCModel, Probe, fit
 from estimators.oneclass.train import OCConfig
 from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.core.cache import run_tasks, task_key
