@@ -24,6 +24,12 @@ def render_threads(workers: int) -> int:
     return max(1, (os.cpu_count() or 1) // workers)
 
 
+def torch_threads(workers: int = 1) -> int:
+    """torch threads per worker of the one-class runs: the cores shared out, at most 2 (their
+    small convolutions gain little from more)."""
+    return max(1, min(2, render_threads(workers)))
+
+
 def _pin_render_threads(threads: int) -> None:
     """Worker initializer: runs before any GL context or torch exists in the worker, so each
     worker's renderer and torch use its share of the cores (two workers on two cores do not

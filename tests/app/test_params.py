@@ -2,7 +2,7 @@
 
 Each case asserts what a user sees: exit code 2, one line naming the option, no traceback, and
 nothing left behind. The options are read from the CLI itself, so an option is covered the day
-it is added, and one declared without the validation layer (`macrostate_mj.app.cli.params`)
+it is added, and one declared without the validation layer (`macrostate_mj.app.params`)
 fails `test_every_option_goes_through_the_validation_layer`.
 """
 

@@ -10,23 +10,18 @@ import sys
 
 import typer
 
+from macrostate_mj.app import params
 from macrostate_mj.app.cli import ants as _ants  # noqa: F401
 from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers commands)
-from macrostate_mj.app.cli import caging as _caging  # noqa: F401
 from macrostate_mj.app.cli import claims as _claims  # noqa: F401
 from macrostate_mj.app.cli import collect as _collect  # noqa: F401
 from macrostate_mj.app.cli import data as _data  # noqa: F401
 from macrostate_mj.app.cli import experiments as _experiments  # noqa: F401
-from macrostate_mj.app.cli import learned_tail as _learned_tail  # noqa: F401
 from macrostate_mj.app.cli import oc as _oc  # noqa: F401
-from macrostate_mj.app.cli import params
 from macrostate_mj.app.cli import retlo as _retlo  # noqa: F401
-from macrostate_mj.app.cli import retlo_sim as _retlo_sim  # noqa: F401
 from macrostate_mj.app.cli import scenario as _scenario  # noqa: F401
 from macrostate_mj.app.cli import sim as _sim  # noqa: F401
-from macrostate_mj.app.cli import sim2real as _sim2real  # noqa: F401
 from macrostate_mj.app.cli import soak as _soak  # noqa: F401
-from macrostate_mj.app.cli import srs as _srs  # noqa: F401
 from macrostate_mj.app.cli import sysid as _sysid  # noqa: F401
 from macrostate_mj.app.cli import track as _track  # noqa: F401
 from macrostate_mj.app.cli import view as _view  # noqa: F401

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import ants_app
-from macrostate_mj.app.cli.params import (
+from macrostate_mj.app.params import (
     MAX_SECONDS,
     Choice,
     Count,

@@ -13,8 +13,6 @@ app = typer.Typer(
 )
 train_app = typer.Typer(help="Train an estimator.", no_args_is_help=True)
 evaluate_app = typer.Typer(help="Evaluate a trained estimator.", no_args_is_help=True)
-experiment_app = typer.Typer(help="Reproduce a figure or table of the dissertation.",
-                             no_args_is_help=True)
 ants_app = typer.Typer(help="Simulated ant colony.", no_args_is_help=True)
 calibrate_app = typer.Typer(help="Refit a trained estimator's uncertainty on other data.",
                             no_args_is_help=True)
@@ -26,7 +24,6 @@ data_app = typer.Typer(help="The published real datasets: fetch and verify them.
 app.add_typer(train_app, name="train")
 app.add_typer(evaluate_app, name="evaluate")
 app.add_typer(calibrate_app, name="calibrate")
-app.add_typer(experiment_app, name="experiment")
 app.add_typer(ants_app, name="ants")
 app.add_typer(oc_app, name="oc")
 app.add_typer(data_app, name="data")

@@ -8,7 +8,7 @@ from rich.console import Console
 
 from macrostate_mj.app.bench import SUITES
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import Choice, Count, Scenario, Switch
+from macrostate_mj.app.params import Choice, Count, Scenario, Switch
 
 
 @app.command()

@@ -7,7 +7,7 @@ import tomllib
 from pathlib import Path
 
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import Choice, InputDir, Switch
+from macrostate_mj.app.params import Choice, InputDir, Switch
 
 CLAIMS = Path(__file__).parents[1] / "claims.toml"      # app/claims.toml: its chapters
 CHAPTERS = tuple(tomllib.loads(CLAIMS.read_text()))

@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import data_app
-from macrostate_mj.app.cli.params import DatasetNames, OutputDir
+from macrostate_mj.app.params import DatasetNames, OutputDir
 
 
 @data_app.command("fetch")

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import typer
 
 from estimators.oneclass import METHODS
-from macrostate_mj.app.cli.app import app, experiment_app, oc_app
-from macrostate_mj.app.cli.params import (
+from macrostate_mj.app.cli.app import app, oc_app
+from macrostate_mj.app.params import (
     MAX_WORKERS,
     Choice,
     Count,
@@ -24,6 +23,7 @@ from macrostate_mj.app.cli.params import (
     Switch,
 )
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.parallel import torch_threads
 from macrostate_mj.core.progress import stage_progress
 from macrostate_mj.vision.flow import METHODS as FLOW_METHODS
 
@@ -36,12 +36,6 @@ def _crop(text: str | None) -> tuple[int, int, int, int] | None:
     except ValueError:
         raise UserError(f"--crop {text!r} must be four integers x,y,w,h") from None
     return x, y, w, h
-
-
-def _default_threads(workers: int = 1) -> int:
-    """torch threads per process: the cores shared among the workers, at most 2 (small
-    convolutions gain little from more)."""
-    return max(1, min(2, (os.cpu_count() or 1) // workers))
 
 
 @app.command("flow")
@@ -86,7 +80,7 @@ def oc_train(
                                   "(0.05 = quick).", "--epoch-scale"),
     settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
                                        "recipe (e.g. cls_epochs=40); repeatable."),
-    threads: int = Count(_default_threads(), "torch CPU threads (results repeat for equal "
+    threads: int = Count(torch_threads(), "torch CPU threads (results repeat for equal "
                          "threads).", max=MAX_WORKERS),
     device: str = Device(),
     precision: str = Precision(),
@@ -133,68 +127,3 @@ def oc_evaluate(
     if baseline is not None:
         vs = report["vs_baseline"]["all"]
         typer.echo(f"  vs {baseline}: {vs['diff']:+.3f} (paired bootstrap p = {vs['p']:.3g})")
-
-
-@experiment_app.command("oc")
-def experiment_oc(
-    data: Path = InputDir(..., "Dataset folder (real or simulated)."),
-    out: Path = OutputDir(..., "Folder for tables, figures, Grad-CAM and results.json."),
-    splits: str = typer.Option("1,2,3", help="Comma-separated splits."),
-    ms: str = typer.Option("1,2,4", help="Comma-separated m values (flow pairs per input, "
-                           "Table 4.1)."),
-    seed: int = Seed(0, "The first training seed."),
-    seeds: int = Count(1, "Training seeds per (m, split): seed, seed+1, ... (tables give mean ± "
-                       "std over splits and seeds)."),
-    epoch_scale: float = Positive(1.0, "Scale every epoch/step count of the published recipe.",
-                                  "--epoch-scale"),
-    recipe: str = Choice("short", "Epoch and step counts: short (for a 2-core CPU) or "
-                         "published (the published code's; hours on a CPU).",
-                         ("short", "published")),
-    profile: str = Choice("full", "full: the recipe's counts on every train sample; quick: a "
-                          "smoke run (epoch scale x0.03, 200 train samples).", ("full", "quick")),
-    quick: bool = Switch(False, "Shorthand for --profile quick."),
-    settings: list[str] = typer.Option([], "--set", help="Research: NAME=VALUE on top of the "
-                                       "recipe (e.g. cls_epochs=40); repeatable."),
-    unstable: Path = InputDir(None, "Score these unstable samples instead of DATA/Unstable "
-                              "(a dev set; ids of the full colony, so bins hold)."),
-    threads: int = Count(None, "torch CPU threads per run (default: the cores over the "
-                         "workers, at most 2, so that workers do not fight over cores; results "
-                         "repeat for equal threads).", max=MAX_WORKERS, show_default=False),
-    device: str = Device(),
-    precision: str = Precision(),
-    workers: int = Count(1, "Local worker processes: one (m, split, seed) run each.",
-                         max=MAX_WORKERS),
-    ray: str = typer.Option(None, "--ray", help="Run the runs on Ray: local, auto or ADDRESS."),
-    probe_test: bool = Switch(False, "Research only: score the test and unstable samples after "
-                              "every DSVDD and classifier epoch and report what choosing the "
-                              "checkpoint on them would score (the published code's protocol); "
-                              "never used to select. Runs do not resume mid-run."),
-    overwrite: bool = Switch(False, "Replace earlier outputs."),
-) -> None:
-    """Reproduce Table 4.1, Table 4.2, Fig 4.7–4.10 (mean ± std) and Grad-CAM heatmaps, with
-    overlays where the unstable samples carry their frames (a dev set of flows has none)."""
-    try:
-        split_list = tuple(int(s) for s in splits.split(","))
-        m_list = tuple(int(s) for s in ms.split(","))
-    except ValueError:
-        raise UserError("--splits and --ms take comma-separated integers, e.g. 1,2,3") from None
-    from estimators.oneclass.train import OCConfig
-    from macrostate_mj.app.cli.experiments import launch
-    from macrostate_mj.app.experiments.oc import Config
-    from macrostate_mj.formats.hsants import open_dataset
-
-    d = open_dataset(data)
-    for k in split_list:
-        d.split(k)
-    for m in m_list:
-        if not 1 <= m <= d.subframes:
-            raise UserError(f"--ms has m = {m} but {data} has {d.subframes} sub-frames per sample")
-    quick = quick or profile == "quick"
-    if threads is None:
-        threads = _default_threads(workers)
-    cfg = OCConfig.recipe(recipe, seed=seed, threads=threads, device=device,
-                          precision=precision).scaled(
-        epoch_scale * (0.03 if quick else 1.0)).overridden(settings)
-    launch("oc", Config(data, split_list, m_list, cfg, 200 if quick else None,
-                        unstable=unstable, seeds=seeds, probe=probe_test), out, overwrite,
-           workers, ray)

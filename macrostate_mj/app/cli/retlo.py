@@ -7,40 +7,30 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from estimators.retlo import MODEL_KINDS, UNCERTAINTIES
-from macrostate_mj.app.cli.app import app, calibrate_app, evaluate_app, experiment_app, train_app
-from macrostate_mj.app.cli.experiments import launch
-from macrostate_mj.app.cli.params import (
-    MAX_WORKERS,
+from estimators.retlo import MODEL_KINDS
+from macrostate_mj.app.cli.app import app, calibrate_app, evaluate_app, train_app
+from macrostate_mj.app.params import (
+    CSV,
     Chained,
     Choice,
     Count,
-    Fraction,
+    History,
     InputFile,
     InputFileOr,
     InputFiles,
-    OutputDir,
     OutputFile,
     Positive,
     Precision,
+    PxPerCm,
     Seed,
     Switch,
+    Uncertainty,
 )
 from macrostate_mj.env.estimated import HEURISTIC
-from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 if TYPE_CHECKING:
     from estimators.retlo.chain import Module
 
-PX_HELP = "Camera pixels per cm of the data (the real ThymioLoc set and `collect`)."
-PxPerCm = Positive(DEFAULT_PX_PER_CM, PX_HELP, "--px-per-cm")
-Uncertainty = Choice("none", "none: a point estimate per robot; gaussian: a 2-D Gaussian per "
-                     "robot (mean and covariance), trained on its negative log-likelihood, "
-                     "whose calibration the reports then carry; gaussian-faithful: the same, "
-                     "its mean trained on the point model's loss.", UNCERTAINTIES)
-History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
-                max=24)
-CSV = (".csv",)
 
 
 @app.command()
@@ -243,68 +233,6 @@ def calibrate_retlo(
     typer.echo(f"checkpoint {out}  covariance scale {record['cov_scale']:.3g}, region radii² "
                f"(50 % / 90 %, per chain position from the Tail's side) {radii}; fitted on "
                f"{val.name}")
-
-
-@experiment_app.command("retlo")
-def experiment_retlo(
-    profile: str = Choice("full", "full: the published 3-robot files cross-validated in 5 "
-                          "blocks, 5 seeds of 60 epochs; quick: a smoke run (1 seed, 1 "
-                          "epoch).", ("full", "quick")),
-    quick: bool = Switch(False, "Shorthand for --profile quick."),
-    train: list[Path] = InputFile(None, "Training ThymioLoc CSV (repeatable); default: the "
-                                  "published Train.csv.", CSV, flag="--train"),
-    val: Path = InputFile(None, "Validation CSV; default: the published Val.csv.", CSV),
-    test: list[Path] = InputFile(None, "Test CSV, any team size (repeatable).", CSV,
-                                 flag="--test"),
-    holdout: float = Fraction(None, "Hold out this fraction of each training file as the "
-                              "3-robot test instead of cross-validating (--folds 0)."),
-    folds: int = Count(None, "Cross-validate (§2.6.2): pool the training and validation files "
-                       "in this many contiguous blocks; seed i is tested on block i mod K and "
-                       "trains and selects on the rest; 0: no cross-validation; default: the "
-                       "profile's (5), or 0 with --holdout.", min=0),
-    seeds: int = Count(None, "Training seeds per model (seed..seed+seeds-1); default: the "
-                       "profile's (5)."),
-    epochs: int = Count(None, "Number of epochs per training (cosine schedule, early stop); "
-                        "default: the profile's (60)."),
-    seed: int = Seed(0, "The first training seed."),
-    history: int = History,
-    unidirectional: bool = Switch(False, "A unidirectional LSTM (chapter 3's predictor, with "
-                                  "--cos-sin)."),
-    cos_sin: bool = Switch(False, "Angles as cos/sin pairs (chapter 3's predictor).",
-                           "--cos-sin/--radians"),
-    uncertainty: str = Uncertainty,
-    chained: bool = Chained,
-    split: bool = Switch(False, "Train each model twice, with and without chained Followers, "
-                         "and run the unchained one as the first module (whose Follower is "
-                         "measured), the chained one after it (docs)."),
-    px_per_cm: float = PxPerCm,
-    precision: str = Precision(),
-    workers: int = Count(1, "Local worker processes (one training each).", max=MAX_WORKERS),
-    ray: str = typer.Option(None, "--ray", help="Run the trainings on Ray: local, auto or "
-                            "ADDRESS."),
-    group: int = Count(1, "Seeds of one model trained together, this many at a time (FC: "
-                       "faster on a CPU, the LSTM little: `bench --only ensemble`).", max=64),
-    out: Path = OutputDir(..., "Output folder (trained models are cached in it)."),
-    overwrite: bool = Switch(False, "Replace existing outputs (cached models are kept)."),
-) -> None:
-    """Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a Fig 2.9 video."""
-    from dataclasses import replace
-
-    from estimators.retlo.heads import head_named
-    from estimators.retlo.models import ModelConfig
-    from macrostate_mj.app.experiments import profile as chosen
-
-    given = {"train": tuple(str(p) for p in train) if train else None,
-             "val": None if val is None else str(val), "test": tuple(str(p) for p in test or ()),
-             "holdout": holdout, "seeds": seeds, "epochs": epochs,
-             "folds": 0 if folds is None and holdout else folds}
-    config = replace(chosen("retlo", "quick" if quick else profile), seed=seed,
-                     px_per_cm=px_per_cm, group=group, head=head_named(uncertainty),
-                     chained=chained, split=split, precision=precision,
-                     model=ModelConfig(history=history, bidirectional=not unidirectional,
-                                       cos_sin=cos_sin),
-                     **{k: v for k, v in given.items() if v is not None})
-    launch("retlo", config, out, overwrite, workers, ray)
 
 
 def _load_predictor(models: list[str]) -> tuple[Module, str]:

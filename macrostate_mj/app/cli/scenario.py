@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import ScenarioArg
+from macrostate_mj.app.params import ScenarioArg
 
 if TYPE_CHECKING:
     from macrostate_mj.chain.scenario import ScenarioConfig

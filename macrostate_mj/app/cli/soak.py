@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import (
+from macrostate_mj.app.params import (
     MAX_SECONDS,
     MAX_WORKERS,
     Count,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from macrostate_mj.app.cli.app import app
-from macrostate_mj.app.cli.params import MAX_SECONDS, Count, Positive, Scenario, Seed
+from macrostate_mj.app.params import MAX_SECONDS, Count, Positive, Scenario, Seed
 
 
 @app.command()

@@ -11,10 +11,17 @@ Each module here is one experiment and exports:
   registers its module in `EXPERIMENTS` (`@register`) under the module's name (`retlo_sim` ->
   `retlo-sim`).
 
+Its command, `experiment NAME`, is generated from the module (`app.cli.experiments`): the
+docstring is its help, each `Config` field declared with `params.flag` a flag; optionally
+`PARALLEL` (its tasks spread over `--workers` and Ray), `FLAGS` and `configure(config,
+changes, ...)` (flags that are not one field: the profile's config, the fields' changes and
+these flags' values give more changes), and `validate(config)` (input checked before the folder
+is claimed).
+
 `execute` wraps `run` in the one run lifecycle (`core.run.Run`: the folder claimed, the manifest
 with the config, its hash, stage timings and how the run ended). Adding an experiment is one
-new module here and its test: `EXPERIMENTS` imports every module of this package on first read,
-and the CLI lists their names without importing them (`names`).
+new module here, its test and its docs row: `EXPERIMENTS` imports every module of this package
+on first read, and the CLI lists their names without importing them (`names`).
 """
 
 from __future__ import annotations
@@ -34,6 +41,15 @@ from macrostate_mj.core.registry import Registry
 from macrostate_mj.core.run import Run
 
 CACHE = "cache"          # an experiment's cached tasks, inside its output folder
+
+
+@dataclass(frozen=True)
+class Parallel:
+    """An experiment whose tasks spread over local workers (`--workers`, said what one runs)
+    and, with `ray`, over a Ray cluster (`--ray`); the results never depend on either."""
+
+    workers: str
+    ray: bool = True
 
 
 @dataclass

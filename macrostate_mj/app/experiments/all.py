@@ -1,4 +1,6 @@
-"""`experiment all`: every chapter's experiments in one command, each in its own sub-folder.
+"""`experiment all`: every chapter's experiments (ReTLo ch. 2, caging, sim-to-real, SRS ch. 3,
+one-class ch. 4) in one command with one profile, each in its own sub-folder; it resumes after
+an interruption and writes index.json.
 
 Each experiment of the registry runs with the same profile (`full` or `quick`) under its own
 run lifecycle in `<out>/<name>/`, with its own task cache there, on the command's workers or
@@ -12,11 +14,20 @@ still run. `index.json` lists what each produced, its status, config hash and wa
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from estimators.precision import precision_named
-from macrostate_mj.app.experiments import Progress, at_precision, execute, names, register, registry
+from macrostate_mj.app.experiments import (
+    Parallel,
+    Progress,
+    at_precision,
+    execute,
+    names,
+    register,
+    registry,
+)
+from macrostate_mj.app.params import Choice, Precision, flag
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.run import MANIFEST, config_hash, run_finished
@@ -35,8 +46,11 @@ class Config:
     """Which profile every experiment runs with, and optionally which experiments."""
 
     profile: str = "full"
-    only: tuple[str, ...] = ()       # empty: every experiment
-    precision: str = "fp32"          # every training's arithmetic, where it can be chosen
+    # empty: every experiment
+    only: tuple[str, ...] = field(default=(), metadata=flag(Choice(
+        None, "Run only this experiment (repeatable); default all.", MEMBERS, "--only")))
+    # every training's arithmetic, where it can be chosen
+    precision: str = field(default="fp32", metadata=flag(Precision()))
 
     def __post_init__(self) -> None:
         precision_named(self.precision)
@@ -47,6 +61,7 @@ class Config:
 
 
 PROFILES = {"full": Config("full"), "quick": Config("quick")}
+PARALLEL = Parallel("every experiment's tasks")
 
 
 @register

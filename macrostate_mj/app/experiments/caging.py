@@ -1,5 +1,6 @@
 """`experiment caging`: four Tails on `macrostate_mj/CagingTail-v0` (seed §2.5.4), through the
-Gymnasium API only.
+Gymnasium API only: success rate, time to cage, final spacing CV over the seeds, and Fig
+2.3-style snapshots.
 
 - passive: follows its neighbour (offset 0); the text says this team cannot cage;
 - retlo: runs the §2.5 three-MLP ReTLo estimator live at 1 Hz (`OnlineChain`, trained here on
@@ -11,6 +12,7 @@ Gymnasium API only.
   sensor has the object (the `object` observation), around the object;
 - oracle: the same Tail fed the Head's true position each second (privileged): the upper bound;
 - random: a new uniform offset within the action bounds every second.
+
 Per policy over the seeds: success rate (caged before the time limit), time to cage, the final
 spacing's coefficient of variation (mean ± std), and Fig 2.3-style snapshots of the first seed.
 
@@ -22,13 +24,14 @@ live head source and the estimator's runs `collectors.caging`'s, the recordings
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.params import Count, Positive, Seed, flag
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import show
@@ -46,13 +49,18 @@ PRODUCTS = ["results.json", "snapshots.png", "oracle_seed0.mp4", "retlo_seed0.mp
 
 @dataclass(frozen=True)
 class Config:
-    seeds: int = 20
-    time_limit: float = 90.0
-    epochs: int = 200          # the three MLPs (retlo-sim trains 500; 200 converge here)
+    seeds: int = field(default=20, metadata=flag(Count(None, "Episodes per Tail (seeds "
+                                                      "0..seeds-1).")))
+    time_limit: float = field(default=90.0, metadata=flag(Positive(
+        None, "Simulated seconds per episode.", max=3600.0)))
+    # the three MLPs (retlo-sim trains 500; 200 converge here)
+    epochs: int = field(default=200, metadata=flag(Count(None, "Epochs of the ReTLo Tail's "
+                                                         "three MLPs.")))
     train_steps: int = 800
     rehearsals: int = 40       # passive-Tail caging runs the estimator also learns from
     stride: int = 30           # the estimator's step in command ticks: 1 Hz (docs)
-    seed: int = 0
+    seed: int = field(default=0, metadata=flag(Seed(0, "Seed of the MLPs' training and the "
+                                                    "random Tail's draws.")))
 
 
 PROFILES = {"full": Config(),

@@ -24,13 +24,14 @@ caged, and their Wilcoxon signed-rank test.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from macrostate_mj.app.experiments import Progress, caging, register
+from macrostate_mj.app.params import Count, Positive, Seed, flag
 from macrostate_mj.core.cache import run_tasks
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import mean_std, show, wilcoxon_p
@@ -47,10 +48,13 @@ PRODUCTS = ["results.json"]
 
 @dataclass(frozen=True)
 class Config:
-    seeds: int = 20
-    time_limit: float = 90.0
+    seeds: int = field(default=20, metadata=flag(Count(None, "Episodes per arm.")))
+    time_limit: float = field(default=90.0, metadata=flag(Positive(
+        None, "Simulated seconds per episode.", max=3600.0)))
     stride: int = 30           # the head source's step in command ticks: 1 Hz, as caging's
-    first_seed: int = 0        # seeds first_seed .. first_seed + seeds - 1: all that draws
+    # seeds first_seed .. first_seed + seeds - 1: all that draws
+    first_seed: int = field(default=0, metadata=flag(Seed(0, "The first episode's seed (seeds "
+                                                          "first..first+seeds-1).")))
     epochs: int = 200          # the ReTLo arms' estimator, as `experiment caging` trains it
     train_steps: int = 800
     rehearsals: int = 40

@@ -20,13 +20,14 @@ from __future__ import annotations
 import hashlib
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.params import Choice, Count, InputFileOr, Positive, Seed, flag
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.stats import mean_std, show
@@ -43,21 +44,31 @@ SRS_SEED = 700            # that collection's seed: its own stream, apart from e
 
 @dataclass(frozen=True)
 class Config:
-    timesteps: int = 245_760        # 240 rollouts: ~35 min at ~115 steps/s on one core here
+    # 240 rollouts: ~35 min at ~115 steps/s on one core here
+    timesteps: int = field(default=245_760, metadata=flag(Count(None, "PPO timesteps.")))
     envs: int = 4                   # vector environments (what the rollouts hold)
     n_steps: int = 256              # per environment per rollout
     batch_size: int = 128
     save_every: int = 10_240
-    seeds: int = 20                 # evaluation seeds 0..seeds-1
+    seeds: int = field(default=20, metadata=flag(Count(
+        None, "Evaluation episodes per Tail (seeds 0..seeds-1, held out from training).",
+        max=500)))
     tune_seeds: int = 4
-    time_limit: float = 60.0
+    time_limit: float = field(default=60.0, metadata=flag(Positive(
+        None, "Simulated seconds per episode.", max=3600.0)))
     sigma: float = 0.75             # Rand-Only's σ, a fraction of the robot size (and SRS's)
     srs_ro_instances: int = 100     # SRS's RO phase, 3 robots of the env's scenario (§3.5)
     srs_k: int = 30                 # SRS's candidates per step
-    checkpoint: str | None = None   # a `train retlo` .pt or "heuristic2x"; None: the env's
-                                    # default estimator
-    policies: tuple[str, ...] = POLICIES
-    seed: int = 0
+    checkpoint: str | None = field(default=None, metadata=flag(InputFileOr(
+        None, "The Tail's frozen estimator: a ReTLo checkpoint from `train retlo`, or "
+        "heuristic2x.", (HEURISTIC,), (".pt",)), shown="the env's trained one "
+        "(macrostate_mj/assets/models)"))
+    policies: tuple[str, ...] = field(default=POLICIES, metadata=flag(Choice(
+        None, "Evaluate only this Tail (repeatable; passive always runs, the baseline of the "
+        "paired test).", POLICIES, "--policy"), parse=lambda chosen: (
+            "passive", *sorted(set(chosen) - {"passive"}, key=POLICIES.index))))
+    seed: int = field(default=0, metadata=flag(Seed(0, "Seed of the PPO training and the "
+                                                    "random Tail's draws.")))
 
     def __post_init__(self) -> None:
         for name in ("timesteps", "envs", "n_steps", "batch_size", "save_every", "seeds",
@@ -71,7 +82,7 @@ class Config:
         unknown = sorted(set(self.policies) - set(POLICIES))
         if unknown or "passive" not in self.policies:
             raise UserError(f"policies must include passive and name only "
-                            f"{', '.join(POLICIES)}; got {', '.join(self.policies)}", "policy")
+                            f"{', '.join(POLICIES)}; got {', '.join(self.policies)}", "policies")
         if self.seeds > TUNE_SEEDS:
             raise UserError(f"seeds must be at most {TUNE_SEEDS}: evaluation seeds 0..seeds-1 "
                             "stay below the tuning and training seeds", "seeds")
@@ -83,6 +94,7 @@ class Config:
                        save_every=self.save_every, time_limit=self.time_limit, seed=self.seed)
 
 
+PARALLEL = Parallel("the vector environments' processes; 1: all in this one", ray=False)
 PROFILES = {"full": Config(),
             "quick": Config(timesteps=512, envs=2, n_steps=128, batch_size=64, save_every=256,
                             seeds=2, tune_seeds=1, time_limit=20.0, srs_ro_instances=3,

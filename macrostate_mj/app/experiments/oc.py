@@ -1,6 +1,7 @@
 """`experiment oc`: Table 4.1 (m = 1, 2, 4), Table 4.2 and Fig 4.8 (mean ± std over the splits
 and seeds), Fig 4.7 (optical-flow weight over time), Fig 4.9/4.10 and Grad-CAM (Fig 4.11–4.13:
-heatmaps always, overlays only where the unstable samples carry their img frames).
+heatmaps always, overlays only where the unstable samples carry their img frames; a dev set of
+flows has none).
 
 Each (m, split, seed) is a cached task (`OUT/cache/oc-run/<key>/report.json`) keyed by the
 config, the run's coordinates and the bytes of its inputs; its training stages are cached beside
@@ -17,15 +18,29 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
+import typer
 
 from estimators.oneclass.methods import METHODS, flow_weight
 from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import OCModel, Probe, fit
 from estimators.oneclass.train import OCConfig
-from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.params import (
+    MAX_WORKERS,
+    Choice,
+    Count,
+    Device,
+    InputDir,
+    Positive,
+    Precision,
+    Seed,
+    Switch,
+    flag,
+)
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.parallel import torch_threads
 from macrostate_mj.core.paths import real_dataset
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
@@ -36,17 +51,45 @@ PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.
 
 
 
+QUICK_SCALE = 0.03      # the quick profile's share of every epoch and step count
+
+
+def _integers(flag_name: str) -> Callable[[str], tuple[int, ...]]:
+    def parse(text: str) -> tuple[int, ...]:
+        try:
+            return tuple(int(v) for v in text.split(","))
+        except ValueError:
+            raise UserError(f"{flag_name} takes comma-separated integers, e.g. 1,2,3") from None
+    return parse
+
+
 @dataclass(frozen=True)
 class Config:
-    data: Path = field(default_factory=lambda: real_dataset("OpticalFlows_HsAnts"))
-    splits: tuple[int, ...] = (1, 2, 3)
-    ms: tuple[int, ...] = (1, 2, 4)
+    data: Path = field(default_factory=lambda: real_dataset("OpticalFlows_HsAnts"),
+                       metadata=flag(InputDir(None, "Dataset folder (real or simulated)."),
+                                     default=...))
+    splits: tuple[int, ...] = field(default=(1, 2, 3), metadata=flag(
+        typer.Option(None, help="Comma-separated splits."), parse=_integers("--splits"), type=str))
+    ms: tuple[int, ...] = field(default=(1, 2, 4), metadata=flag(
+        typer.Option(None, help="Comma-separated m values (flow pairs per input, Table 4.1)."),
+        parse=_integers("--ms"), type=str))
     config: OCConfig = OCConfig()
     max_train: int | None = None  # subsample the stable train split (quick runs only)
     gradcam_samples: int = 6
-    unstable: Path | None = None   # unstable samples held apart (a dev set), else data/Unstable
-    seeds: int = 1                 # training seeds per (m, split): config.seed, config.seed + 1 ...
-    probe: bool = False            # research: score test data every epoch (`selection_on_test`)
+    # unstable samples held apart (a dev set), else data/Unstable
+    unstable: Path | None = field(default=None, metadata=flag(InputDir(
+        None, "Score these unstable samples instead of DATA/Unstable (a dev set; ids of the "
+        "full colony, so bins hold)."), default=None))
+    # training seeds per (m, split): config.seed, config.seed + 1 ...
+    seeds: int = field(default=1, metadata=flag(Count(
+        None, "Training seeds per (m, split): seed, seed+1, ... (tables give mean ± std over "
+        "splits and seeds).")))
+    # research: score test data every epoch (`selection_on_test`)
+    probe: bool = field(default=False, metadata=flag(Switch(
+        False, "Research only: score the test and unstable samples after every DSVDD and "
+        "classifier epoch and report what choosing the checkpoint on them would score (the "
+        "published code's protocol); never used to select. Runs do not resume mid-run.",
+        "--probe-test/--no-probe-test")))
 
     @property
     def seed(self) -> int:
@@ -59,7 +102,44 @@ PROFILES = {
     # m = 2 runs are results/oc_dev_dsvdd160_3x3's seed-1 third
     "full": Config(unstable=real_dataset("OpticalFlows_HsAnts-dev") / "Unstable",
                    config=OCConfig(seed=1)),
-    "quick": Config(config=OCConfig().scaled(0.03), max_train=200)}
+    "quick": Config(config=OCConfig().scaled(QUICK_SCALE), max_train=200)}
+PARALLEL = Parallel("one (m, split, seed) run each")
+# the one-class recipe (`OCConfig`): the command builds it from these, whatever the profile's
+FLAGS = {
+    "seed": Seed(0, "The first training seed."),
+    "recipe": Choice("short", "Epoch and step counts: short (for a 2-core CPU) or published "
+                     "(the published code's; hours on a CPU).", ("short", "published")),
+    "epoch_scale": Positive(1.0, "Scale every epoch/step count of the recipe (--quick scales "
+                            f"it by a further {QUICK_SCALE}).", "--epoch-scale"),
+    "settings": typer.Option([], "--set", help="Research: NAME=VALUE on top of the recipe "
+                             "(e.g. cls_epochs=40); repeatable."),
+    "threads": Count(None, "torch CPU threads per run (default: the cores over the workers, at "
+                     "most 2, so that workers do not fight over cores; results repeat for "
+                     "equal threads).", max=MAX_WORKERS, show_default=False),
+    "device": Device(),
+    "precision": Precision(),
+}
+
+
+def configure(config: Config, changes: dict, *, profile: str, workers: int, seed: int,
+              recipe: str, epoch_scale: float, settings: list[str], threads: int | None,
+              device: str, precision: str) -> dict:
+    """The command's recipe flags as the config's `OCConfig`."""
+    scale = epoch_scale * (QUICK_SCALE if profile == "quick" else 1.0)
+    recipe_config = OCConfig.recipe(recipe, seed=seed, threads=threads or torch_threads(workers),
+                                    device=device, precision=precision)
+    return {"config": recipe_config.scaled(scale).overridden(settings)}
+
+
+def validate(config: Config) -> None:
+    """The dataset holds the splits and sub-frames asked for (before the folder is claimed)."""
+    data = open_dataset(config.data)
+    for k in config.splits:
+        data.split(k)
+    for m in config.ms:
+        if not 1 <= m <= data.subframes:
+            raise UserError(f"--ms has m = {m} but {config.data} has {data.subframes} "
+                            "sub-frames per sample")
 RUN_VERSION = 1    # bump when a run's report changes for the same inputs
 DRIVER_MARK = ".driver"   # a folder in the stages folder: its file proves a worker sees it
 

@@ -1,4 +1,5 @@
-"""`experiment retlo`: Fig 2.7, Fig 2.8 and a Fig 2.9-style video from ThymioLoc files.
+"""`experiment retlo`: Fig 2.7 (mean ± std per model and team size), Fig 2.8 (step-wise) and a
+Fig 2.9-style video from ThymioLoc files.
 
 Every learned model is trained once per seed on the training files, selected on the validation
 file, and tested on every test file whatever its team size (the 3-robot module runs along
@@ -28,11 +29,25 @@ from estimators.retlo.api import evaluate, fit, predict, report
 from estimators.retlo.chain import Module, SplitChain, predict_chain
 from estimators.retlo.curves import inside_bias, largest_error_share
 from estimators.retlo.files import read_world, world_to_pixels
-from estimators.retlo.heads import POINT, Head
+from estimators.retlo.heads import POINT, Head, head_named
 from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
-from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.params import (
+    CSV,
+    Chained,
+    Count,
+    Fraction,
+    History,
+    InputFile,
+    Precision,
+    PxPerCm,
+    Seed,
+    Switch,
+    Uncertainty,
+    flag,
+)
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir, write_json_atomic
@@ -52,22 +67,46 @@ class Config:
     """What `experiment retlo` runs (the published 3-robot files by default); an invalid one
     cannot be built, so a bad flag fails before the output folder is touched."""
 
-    train: tuple[str, ...] = field(default_factory=lambda: (str(real_thymioloc("Train.csv")),))
-    val: str = field(default_factory=lambda: str(real_thymioloc("Val.csv")))
-    test: tuple[str, ...] = ()
-    holdout: float = 0.0   # fraction of each training file held out as a test set
-    seeds: int = 5         # training seeds per model: seed, seed + 1, ...
-    epochs: int = 60
-    px_per_cm: float = DEFAULT_PX_PER_CM
+    train: tuple[str, ...] = field(
+        default_factory=lambda: (str(real_thymioloc("Train.csv")),),
+        metadata=flag(InputFile(None, "Training ThymioLoc CSV (repeatable).", CSV,
+                                flag="--train"),
+                      parse=lambda paths: tuple(str(p) for p in paths), type=list[Path],
+                      shown="the published Train.csv"))
+    val: str = field(default_factory=lambda: str(real_thymioloc("Val.csv")),
+                     metadata=flag(InputFile(None, "Validation CSV.", CSV), parse=str,
+                                   type=Path, shown="the published Val.csv"))
+    test: tuple[str, ...] = field(default=(), metadata=flag(
+        InputFile(None, "Test CSV, any team size (repeatable).", CSV, flag="--test"),
+        parse=lambda paths: tuple(str(p) for p in paths), type=list[Path]))
+    # fraction of each training file held out as a test set
+    holdout: float = field(default=0.0, metadata=flag(Fraction(
+        None, "Hold out this fraction of each training file as the 3-robot test instead of "
+        "cross-validating (--folds 0).")))
+    # training seeds per model: seed, seed + 1, ...
+    seeds: int = field(default=5, metadata=flag(Count(None, "Training seeds per model "
+                                                      "(seed..seed+seeds-1).")))
+    epochs: int = field(default=60, metadata=flag(Count(
+        None, "Epochs per training (cosine schedule, early stop).")))
+    px_per_cm: float = field(default=DEFAULT_PX_PER_CM, metadata=flag(PxPerCm))
     video_instances: int = 3
     model: ModelConfig = ModelConfig()  # its kind is set per run; history, LSTM direction, angles
-    seed: int = 0
-    group: int = 1         # seeds of one kind trained together (`estimators.retlo.ensemble`)
+    seed: int = field(default=0, metadata=flag(Seed(0, "The first training seed.")))
+    # seeds of one kind trained together (`estimators.retlo.ensemble`)
+    group: int = field(default=1, metadata=flag(Count(
+        None, "Seeds of one model trained together, this many at a time (FC: faster on a "
+        "CPU, the LSTM little: `bench --only ensemble`).", max=64)))
     folds: int = 5         # cross-validate over train + val in this many blocks (0: none)
     head: Head = POINT     # GAUSSIAN: every learned model predicts a 2-D Gaussian per robot
-    chained: bool = True   # also train on chained Followers (`TrainConfig.chained`)
-    split: bool = False    # module 0 by a model trained without them (`chain.SplitChain`)
-    precision: str = "fp32"   # the trainings' arithmetic (`estimators.precision`)
+    # also train on chained Followers (`TrainConfig.chained`)
+    chained: bool = field(default=True, metadata=flag(Chained))
+    # module 0 by a model trained without them (`chain.SplitChain`)
+    split: bool = field(default=False, metadata=flag(Switch(
+        False, "Train each model twice, with and without chained Followers, and run the "
+        "unchained one as the first module (whose Follower is measured), the chained one after "
+        "it (docs).")))
+    # the trainings' arithmetic (`estimators.precision`)
+    precision: str = field(default="fp32", metadata=flag(Precision()))
 
     def __post_init__(self) -> None:
         if self.seeds < 1 or self.epochs < 1:
@@ -88,6 +127,30 @@ class Config:
 
 
 PROFILES = {"full": Config(), "quick": Config(seeds=1, epochs=1)}
+PARALLEL = Parallel("one training each")
+# settings that are not one field: the model's inputs, its head, and the folds' default
+FLAGS = {
+    "folds": Count(None, "Cross-validate (§2.6.2): pool the training and validation files in "
+                   "this many contiguous blocks; seed i is tested on block i mod K and trains "
+                   "and selects on the rest; 0: no cross-validation; default: the profile's "
+                   "(5), or 0 with --holdout.", min=0),
+    "history": History,
+    "unidirectional": Switch(False, "A unidirectional LSTM (chapter 3's predictor, with "
+                             "--cos-sin)."),
+    "cos_sin": Switch(False, "Angles as cos/sin pairs (chapter 3's predictor).",
+                      "--cos-sin/--radians"),
+    "uncertainty": Uncertainty,
+}
+
+
+def configure(config: Config, changes: dict, *, profile: str, workers: int, folds: int | None,
+              history: int, unidirectional: bool, cos_sin: bool, uncertainty: str) -> dict:
+    """The flags that are not one field, as changes to `config`."""
+    if folds is None:
+        folds = 0 if changes.get("holdout", config.holdout) else config.folds
+    return {"folds": folds, "head": head_named(uncertainty),
+            "model": ModelConfig(history=history, bidirectional=not unidirectional,
+                                 cos_sin=cos_sin)}
 
 
 def missing(cfg: Config) -> str | None:

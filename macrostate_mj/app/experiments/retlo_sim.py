@@ -1,4 +1,5 @@
-"""`experiment retlo-sim`: the simulation chapter (§2.5) on the robotarium scenario.
+"""`experiment retlo-sim`: the simulation chapter (§2.5) on the robotarium scenario: Fig 2.2,
+chained MLPs trained on 3 robots estimating 5- and 6-robot chains.
 
 Pipeline: 20 clean 3-robot treatments (5 Head presets × 4 k_t) → 5 noisy replicas → the three
 chained networks → the six cases of Fig 2.2 (straight with 6 robots, a curve with 5 and 6, the
@@ -15,7 +16,7 @@ the networks, their training and the chain estimates `estimators.retlo`'s, the f
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ from estimators.retlo.heuristic import estimate_heuristic
 from estimators.retlo.mlp import ChainedMLP, mse, train_mlp, training_pairs
 from estimators.retlo.report import chain_errors, one_step_errors, summarize, unseen_names
 from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.params import Count, Seed, flag
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import get_scenario
@@ -43,14 +45,18 @@ class Config:
     """What `experiment retlo-sim` runs; recorded in the manifest and in results.json. An
     invalid one cannot be built, so a bad flag fails before the output folder is touched."""
 
-    seed: int = 0
-    epochs: int = 500
+    seed: int = field(default=0, metadata=flag(Seed(0, "Seed of every random draw (noise, "
+                                                    "weights, batches).")))
+    epochs: int = field(default=500, metadata=flag(Count(None, "Training epochs of the three "
+                                                         "networks (§2.5.2.1).")))
     lr: float = 0.05
     momentum: float = 0.2
     batch: int = 128          # mini-batches: the seed's online updates (80k per epoch) are too
                               # slow on this CPU, and at lr 0.05 batches of 128 fit as well
-    train_steps: int = 800
-    test_steps: int = 1600
+    train_steps: int = field(default=800, metadata=flag(Count(
+        None, "Steps (30 Hz ticks) per training treatment.", max=10**6)))
+    test_steps: int = field(default=1600, metadata=flag(Count(
+        None, "Steps (30 Hz ticks) per test case.", max=10**6)))
     replicas: int = 5
     noise: float = 0.001
     comm_every: int = 150

@@ -42,9 +42,21 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
+import typer
 
 from collectors.runner import CollectRequest, collect, finished
-from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.params import (
+    MAX_SECONDS,
+    Chained,
+    Choice,
+    InputDir,
+    Positive,
+    Precision,
+    Scenario,
+    Seed,
+    flag,
+)
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, ShipsFiles, run_tasks, task_key
@@ -65,38 +77,71 @@ PLAIN = "none"      # a `randomize` candidate: no ranges (the fitted factors fix
 class Config:
     seeds: int = 5
     folds: int = 5
-    fractions: tuple[float, ...] = (0.1, 0.25, 0.5, 1.0)
+    fractions: tuple[float, ...] = field(default=(0.1, 0.25, 0.5, 1.0), metadata=flag(Positive(
+        None, "Train the real-data arms on this share of the real pool (repeatable).",
+        "--fraction", max=1.0), parse=lambda given: tuple(sorted(set(given)))))
     val_share: float = 0.15
     epochs: int = 60
     finetune_epochs: int = 30
     finetune_lr: float = 5e-4
-    mix_weight: float = 0.5        # the mixed arm: the lab data's share of the loss
+    mix_weight: float = field(default=0.5, metadata=flag(Positive(
+        None, "The mixed arm: the lab data's share of the loss, in (0, 1).", "--mix-weight",
+        max=1.0)))
     sim_minutes: float = 100.0
     sim_seed: int = 31
     episode_minutes: float = 5.0
-    seed: int = 0              # model i trains with seed + i
-    real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots")
-    scenario: ScenarioRef = "lab"   # the lab the collection is made in
-    sim: Path | None = None    # a lab collection's folder, instead of collecting one
+    seed: int = field(default=0, metadata=flag(Seed(0, "The first model seed: model i trains "
+                                                    "with seed+i and is tested on real fold i "
+                                                    "mod 5.")))
+    real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots",
+                       metadata=flag(InputDir(None, "Folder of the real ThymioLoc 3-robot "
+                                              "Train.csv and Val.csv."),
+                                     shown="the published ones (`data fetch retlo`)"))
+    # the lab the collection is made in
+    scenario: ScenarioRef = field(default="lab", metadata=flag(Scenario, default="lab"))
+    # a lab collection's folder, instead of collecting one
+    sim: Path | None = field(default=None, metadata=flag(InputDir(
+        None, "A lab collection folder (Train.csv, Val.csv) to use instead of collecting one "
+        "(`collect --scenario lab --robots 3 --split 80/20/0`).")))
     # the lab collection's domain randomization: none, one profile, or candidates (`PLAIN`
     # among them for none) chosen per fold on its real validation block
-    randomize: tuple[str, ...] = ()
-    arms: tuple[str, ...] = ARMS   # which arms to train (a fine-tuned arm trains the sim models)
-    chained: bool = True       # train on chained Followers too (`TrainConfig.chained`)
-    precision: str = "fp32"    # the trainings' arithmetic (`estimators.precision`)
+    randomize: tuple[str, ...] = field(default=(), metadata=flag(typer.Option(
+        None, "--randomize", help="A domain-randomization profile or JSON of factors for the "
+        "lab collection (e.g. sysid's fitted.json). Repeatable: each fold then picks the "
+        "candidate (`none` for no ranges) whose sim model does best on its own real validation "
+        "block."), default=(), shown="none (`experiment all` runs wider, as the docs' figure)"))
+    # which arms to train (a fine-tuned arm trains the sim models)
+    arms: tuple[str, ...] = field(default=ARMS, metadata=flag(Choice(
+        None, "Train only this arm (repeatable): `--arm sim` asks only how far a lab collection "
+        "carries.", ARMS, "--arm"), parse=lambda given: tuple(a for a in ARMS if a in given)))
+    # train on chained Followers too (`TrainConfig.chained`)
+    chained: bool = field(default=True, metadata=flag(Chained))
+    # the trainings' arithmetic (`estimators.precision`)
+    precision: str = field(default="fp32", metadata=flag(Precision()))
     # where the lab's factors come from (`FITS`): the scenario as written, a `sysid` fit on the
     # real Train.csv (what a lab with one real file does; under these folds it has seen the
     # test blocks), or one fit per fold on that fold's training blocks only (the nested
     # protocol). The first fit's lab data trains the sim arm and feeds the later arms; each
     # other fit trains a sim-only model of its own, on the same folds (`sim_by_fit`). With a
     # fit, `randomize` names the ranges drawn around the fitted factors.
-    fits: tuple[str, ...] = ("none",)
+    fits: tuple[str, ...] = field(default=("none",), metadata=flag(Choice(
+        None, "Where the lab's factors come from (repeatable: the first feeds every arm, each "
+        "other trains a sim-only model on the same folds): none (the scenario as written), "
+        "train (`sysid` on the real Train.csv, which these folds' test blocks are cut from), "
+        "fold (one fit per fold on its training blocks only: the nested protocol, what a "
+        "held-out test will show). With a fit, --randomize names the ranges drawn around it.",
+        FITS, "--fit")))
     sysid_first: int = 16
     sysid_refine: int = 8
     sysid_minutes: float = 30.0
     # groups of lab parameters (`collectors.randomize.PARAMETERS`) switched off in turn, each
     # group's sim-only models paired with the lab's (`ablations`)
-    ablate: tuple[tuple[str, ...], ...] = ()
+    ablate: tuple[tuple[str, ...], ...] = field(default=(), metadata=flag(typer.Option(
+        None, "--ablate", help="Switch these lab parameters off (comma-separated, e.g. "
+        "frame_hz,frame_jitter; repeatable, one group each): each group trains sim-only models "
+        "on a lab collected without them, paired with the lab's own over the seeds. Needs "
+        "--fit or --randomize."), parse=lambda groups: tuple(
+            tuple(n.strip() for n in g.split(",") if n.strip()) for g in groups)))
 
     @property
     def lab(self) -> ScenarioConfig:
@@ -107,6 +152,23 @@ class Config:
     def candidates(self) -> tuple[str, ...]:
         """The `randomize` candidates (`PLAIN` alone where none is named)."""
         return self.randomize or (PLAIN,)
+
+
+PARALLEL = Parallel("collection and trainings")
+# not a field's flag: given with --sim, it sizes nothing (`configure` refuses the pair)
+FLAGS = {"sim_minutes": Positive(None, "Minutes of lab data to collect.", "--sim-minutes",
+                                 max=MAX_SECONDS / 60)}
+
+
+def configure(config: Config, changes: dict, *, profile: str, workers: int,
+              sim_minutes: float | None) -> dict:
+    """The command's `--sim-minutes` (refused with `--sim`, whose folder it would not size)."""
+    if sim_minutes is None:
+        return {}
+    if changes.get("sim", config.sim) is not None:
+        raise UserError("--sim-minutes sizes the lab collection this command makes; drop it "
+                        "or --sim")
+    return {"sim_minutes": sim_minutes}
 
 
 PROFILES = {

@@ -1,4 +1,6 @@
-"""`experiment srs`: chapter 3 (§3.4–3.5) on our `webots` scenario, as a cached task graph.
+"""`experiment srs`: chapter 3 (§3.4–3.5) on our `webots` scenario, as a cached task graph:
+Table 3.1, Fig 3.4 (σ sweep), Fig 3.5a/b (policies over budgets), Fig 3.6 (step-wise, 5 robots)
+and Fig 3.7 (distance histograms); it resumes after an interruption.
 
 Datasets (3-robot teams, `config.train` instances each, Table 3.1): Passive, Rand-Only at every σ
 of Fig 3.4, and SRS with each pick policy (its first `ro_instances` are its RO phase). Dataset j
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -30,7 +32,8 @@ import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
-from macrostate_mj.app.experiments import Progress, register
+from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.params import Count, Precision, Seed, flag
 from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
@@ -61,13 +64,17 @@ class Config:
     k: int = 30
     epochs: int = 60
     episode_minutes: float = 5.0
-    seed: int = 0          # dataset j of every configuration is collected with seed*1000 + j
-    precision: str = "fp32"   # the models' training arithmetic (`estimators.precision`)
-    group: int = 1         # models trained together (`estimators.retlo.ensemble`): for a GPU;
-    #                        on a CPU chapter 3's LSTM gains little (`bench --only ensemble`)
+    seed: int = field(default=0, metadata=flag(Seed(0, "Experiment seed; dataset j of every "
+                                                    "configuration uses seed*1000+j.")))
+    # the models' training arithmetic (`estimators.precision`)
+    precision: str = field(default="fp32", metadata=flag(Precision()))
+    group: int = field(default=1, metadata=flag(Count(
+        None, "Models of one shape trained together, this many at a time (for a GPU; on a CPU "
+        "chapter 3's LSTM gains little: `bench --only ensemble`).", max=64)))
     scenario: ScenarioRef = "webots"   # every collection's world: a built-in, a file or a config
 
 
+PARALLEL = Parallel("collections and trainings")
 PROFILES = {
     "full": Config(),
     # the text's protocol with 3 model seeds a dataset (9 models a cell, as results/srs_full)

@@ -7,6 +7,8 @@ output a failed command created: bad input leaves nothing behind, and a run that
 interrupted keeps what it finished (its resumable shards, its poses up to the fault) but no
 empty folder. `tests/app/test_params.py` checks that every option of every command comes from
 here.
+An experiment's config declares its flags on its fields with the same factories (`flag`), and
+`experiment NAME` is generated from them (`app.cli.experiments`).
 """
 
 from __future__ import annotations
@@ -14,10 +16,14 @@ from __future__ import annotations
 import math
 import shutil
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import typer
+
+from estimators.retlo import UNCERTAINTIES
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 SEED_MAX = 2**63 - 1   # seeds travel through numpy, JSON and Parquet int64
 COUNT_MAX = 10**9      # a count beyond this is a typo (and would overflow what it sizes)
@@ -299,6 +305,42 @@ def Switch(default: bool, help: str, flag: str | None = None, **kw: Any) -> Any:
 
 
 Scenario = _scenario()
+CSV = (".csv",)
+PxPerCm = Positive(DEFAULT_PX_PER_CM, "Camera pixels per cm of the data (the real ThymioLoc set "
+                   "and `collect`).", "--px-per-cm")
+Uncertainty = Choice("none", "none: a point estimate per robot; gaussian: a 2-D Gaussian per "
+                     "robot (mean and covariance), trained on its negative log-likelihood, "
+                     "whose calibration the reports then carry; gaussian-faithful: the same, "
+                     "its mean trained on the point model's loss.", UNCERTAINTIES)
+History = Count(10, "Steps of history the module sees (ℓ; 10 in sections 2.6 and 3.3).",
+                max=24)
 Chained = Switch(True, "Also train on Followers carrying another instance's Head-estimate "
                  "error, as modules k >= 1 of a longer chain see them (docs: "
                  "decisions/chained-training).", "--chained/--no-chained")
+
+
+PROFILE = "the profile's"   # a flag not given leaves the profile's value
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A config field's command-line flag: its option, declared with a factory above (its own
+    default is replaced: not given, the field keeps the chosen profile's value, or `default`
+    where the command has always meant another), how the parsed value becomes the field's
+    (`parse`; a repeatable option arrives as a tuple), and what the help shows as its default
+    where the value itself would not read well (`shown`: a machine's path)."""
+
+    option: Any
+    parse: Callable[[Any], Any] | None = None
+    default: Any = PROFILE
+    shown: str | None = None
+    type: Any = None        # what the option parses, where not the field's type
+
+
+FLAG = "flag"     # the `dataclasses.field` metadata key a `Flag` travels under
+
+
+def flag(option: Any, parse: Callable[[Any], Any] | None = None, default: Any = PROFILE,
+         shown: str | None = None, type: Any = None) -> dict[str, Flag]:  # noqa: A002
+    """`field(metadata=...)` for a field the experiment's command sets (see `Flag`)."""
+    return {FLAG: Flag(option, parse, default, shown, type)}
