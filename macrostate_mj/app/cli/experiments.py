@@ -2,11 +2,12 @@
 
 An experiment declares its flags where its settings live: each `Config` field the command sets
 carries a `params.flag` (the option, with the one validation layer's checks); settings that are
-not one field are the module's `FLAGS`, whose values its `configure(config, changes, ...)` turns into more changes. The command
-adds what every run has (`--profile`, `--quick`, `--out`, `--overwrite`, and `--workers` and
-`--ray` where the module's `PARALLEL` says its tasks spread), calls the module's `validate`
-where it has one (bad input is refused before the folder is claimed) and launches the run. The
-commands are built on first use, so `macrostate-mj --help` imports no experiment.
+not one field are the module's `FLAGS`, whose values its `configure(config, changes, ...)`
+turns into more changes. The command adds what every run has (`--profile`, `--quick`, `--out`,
+`--overwrite`, and `--workers` and `--ray` where the module's `PARALLEL` says its tasks spread),
+calls the module's `validate` where it has one (bad input is refused before the folder is
+claimed) and launches the run. The commands are built on first use, so `macrostate-mj --help`
+imports no experiment.
 """
 
 from __future__ import annotations

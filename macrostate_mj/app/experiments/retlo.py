@@ -313,7 +313,7 @@ def _read(cfg: Config) -> tuple[list[Fold], list[dict]]:
     else:
         trains = []
         for path, world in zip(cfg.train, worlds, strict=False):
-            kept, held = _split(world, cfg.holdout)
+            kept, held = holdout_split(world, cfg.holdout)
             trains.append(kept)
             if len(held):
                 shared.append({"name": f"holdout of {Path(path).name}", "world": held})
@@ -322,7 +322,7 @@ def _read(cfg: Config) -> tuple[list[Fold], list[dict]]:
     return folds, shared
 
 
-def _split(world: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray]:
+def holdout_split(world: np.ndarray, fraction: float) -> tuple[np.ndarray, np.ndarray]:
     """(kept, held out) instances; a fixed seed so every run holds out the same ones."""
     order = np.random.default_rng(0).permutation(len(world))
     n_out = int(round(fraction * len(world)))
