@@ -33,6 +33,7 @@ from sphinx.util.docutils import SphinxRole
 
 from macrostate_mj.app.claims import dig, parse
 from macrostate_mj.app.provenance import read_index
+from macrostate_mj.core.stats import mean_std
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
@@ -575,19 +576,39 @@ def retlo_calibration(folder: str) -> Table:
             *rows]
 
 
+REFIT_KEYS = ("coverage_50", "coverage_90", "gaussian_coverage_50", "gaussian_coverage_90")
+
+
+def _arm(folder: str, arm: str) -> list[dict]:
+    """The `evaluate retlo` reports of one arm of a `calibrate retlo` comparison, a seed each
+    (`reports/<arm>_s<seed>.json`)."""
+    found = sorted((RESULTS / folder / "reports").glob(f"{arm}_s*.json"))
+    if not found:
+        raise ValueError(f"results/{folder}/reports holds no {arm}_s*.json")
+    return [json.loads(p.read_text()) for p in found]
+
+
+@source
+def refit(folder: str, arm: str, keypath: str, fmt: str = ".2f") -> Q:
+    """One figure of a `calibrate retlo` arm's reports, mean ± std over its seeds."""
+    ms = mean_std([float(dig(r, keypath)) for r in _arm(folder, arm)])  # type: ignore[arg-type]
+    return Q(ms["mean"], ms["std"], fmt, "")
+
+
 @source
 def retlo_refit(folder: str) -> Table:
     """`calibrate retlo` (results/retlo_lab5_calibrated): per arm and robot, the coverage of the
-    model's regions and of the plain Gaussian's χ² regions, mean ± std over model seeds."""
-    data = load(f"{folder}/summary.json")
+    model's regions and of the plain Gaussian's χ² regions, mean ± std over model seeds (each
+    seed's `evaluate retlo` report on the test chains)."""
     rows = [["regions fitted on", "robot", "coverage 50 %", "coverage 90 %", "Gaussian χ² 50 %",
              "Gaussian χ² 90 %"]]
     label = {"trained": "lab 3-robot validation (training)",
              "refitted": "lab 5-robot chains, seed 3 (calibrate retlo)"}
-    for arm, part in data.items():  # type: ignore[union-attr]
-        for who, cal in part["calibration"].items():
-            rows.append([label[arm], who, *(_stat(cal[k], ".2f") for k in (
-                "coverage_50", "coverage_90", "gaussian_coverage_50", "gaussian_coverage_90"))])
+    for arm in label:
+        reports = _arm(folder, arm)
+        for who in (w for w in reports[0]["calibration"] if w != "nll_unit"):
+            rows.append([label[arm], who, *(_stat(mean_std(
+                [r["calibration"][who][k] for r in reports]), ".2f") for k in REFIT_KEYS)])
     return rows
 
 
@@ -609,7 +630,7 @@ def retlo_fig29(folder: str) -> Table:
 @source
 def uncertainty(folder: str, split: str) -> Table:
     """Point against Gaussian ReTLo (and their ensemble): mean error (cm) and calibration."""
-    data = load(f"{folder}/summary.json")[split]  # type: ignore[index]
+    data = load(f"{folder}/results.json")[split]  # type: ignore[index]
     cal = data["gaussian_calibration"]
     rows = [["model", "mean error (cm)", "coverage_50", "coverage_90", "NLL"]]
     rows.append(["point", _ms(data["point_cm"], ".2f"), "", "", ""])

@@ -88,7 +88,7 @@ PROFILES = {
 
 
 @dataclass(frozen=True)
-class _Dataset:
+class Dataset:
     """One collection of the chapter, a `collect` run in its own folder."""
 
     out: Path
@@ -120,7 +120,7 @@ class _Dataset:
 
 
 @dataclass(frozen=True)
-class _SRSDataset(_Dataset):
+class _SRSDataset(Dataset):
     """An SRS collection: its RO phase at the Rand-Only σ, then the `pick` policy's choices."""
 
     policy: str = "random"
@@ -138,16 +138,16 @@ class _SRSDataset(_Dataset):
         return self.csv
 
 
-def _datasets(config: Config, data: Path) -> dict[str, list[_Dataset]]:
+def _datasets(config: Config, data: Path) -> dict[str, list[Dataset]]:
     """Every configuration's training datasets; dataset j of each uses seed*1000 + j."""
-    configs: dict[str, list[_Dataset]] = {}
+    configs: dict[str, list[Dataset]] = {}
     for j in range(config.datasets):
         s = config.seed * 1000 + j
         configs.setdefault("passive", []).append(
-            _Dataset(data / f"passive_d{j}", 3, config.train, s, "passive"))
+            Dataset(data / f"passive_d{j}", 3, config.train, s, "passive"))
         for sigma in config.sigmas:
             configs.setdefault(f"ro_{sigma:g}", []).append(
-                _Dataset(data / f"ro_{sigma:g}_d{j}", 3, config.train, s, "random", sigma))
+                Dataset(data / f"ro_{sigma:g}_d{j}", 3, config.train, s, "random", sigma))
         for pick in config.picks:
             configs.setdefault(f"srs_{pick}", []).append(
                 _SRSDataset(data / f"srs_{pick}_d{j}", 3, config.train, s, pick=pick))
@@ -233,8 +233,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     t0 = time.perf_counter()
     data = out / "data"
-    val = _Dataset(data / "val", 3, config.val, config.seed * 1000 + 500, "passive")
-    test = _Dataset(data / "test", config.test_robots, config.test, config.seed * 1000 + 900,
+    val = Dataset(data / "val", 3, config.val, config.seed * 1000 + 500, "passive")
+    test = Dataset(data / "test", config.test_robots, config.test, config.seed * 1000 + 900,
                     "passive")
     configs = _datasets(config, data)
     first = ["passive", f"ro_{RO_SIGMA:g}", "srs_med"]
@@ -322,7 +322,7 @@ def _results(config: Config, cells: list[_Cell]) -> dict:
     return out
 
 
-def _distances(sets: list[_Dataset], config: Config) -> dict[str, list[float]]:
+def _distances(sets: list[Dataset], config: Config) -> dict[str, list[float]]:
     """Fig 3.7: H–F and F–T distances (cm) in the first 66 % of a configuration's datasets
     (tracked instances)."""
     count = int(round(2 / 3 * config.train))
