@@ -157,3 +157,98 @@ def _differences(ours, committed, where: str) -> list[str]:
     return [d for key, value in committed.items()
             for d in (_differences(ours[key], value, f"{where}.{key}") if key in ours
                       else [f"{where}.{key}: not in ours"])]
+
+
+def _parsed(monkeypatch, capsys, *args: str):
+    """The config `experiment ARGS` would run, parsed by the generated command (not run)."""
+    import macrostate_mj.app.experiments as experiments
+    from clitools import cli_inprocess
+
+    seen = []
+    monkeypatch.setattr(experiments, "execute", lambda name, config, *a, **kw: seen.append(
+        config) or [])
+    code, _, err = cli_inprocess(capsys, "experiment", *args)
+    assert code == 0, err
+    return seen[0]
+
+
+def test_every_experiment_command_is_generated_from_its_module(capsys):
+    """`experiment NAME --help` for every registered experiment: its docstring's summary, each
+    flagged field's flag with the profiles' values as its default, every profile named."""
+    from dataclasses import fields
+
+    from clitools import cli_inprocess
+
+    from macrostate_mj.app.params import FLAG
+
+    for name, module in registry().items():
+        code, out, err = cli_inprocess(capsys, "experiment", name, "--help")
+        assert code == 0, err
+        text = " ".join(out.replace("│", " ").split())
+        assert all(p in text for p in module.PROFILES), name
+        assert "--out" in text and "--overwrite" in text, name
+        for f in fields(module.Config):
+            if FLAG in f.metadata:
+                option = f.metadata[FLAG].option
+                flag = next((d for d in option.param_decls if d.startswith("--")),
+                            "--" + f.name.replace("_", "-"))
+                assert flag.split("/")[0] in text, (name, f.name)
+
+
+def test_a_flag_not_given_keeps_the_profiles_value(monkeypatch, capsys, tmp_path):
+    from macrostate_mj.app.experiments import caging
+
+    out = str(tmp_path / "o")
+    quick = _parsed(monkeypatch, capsys, "caging", "--quick", "--out", out)
+    assert quick == caging.PROFILES["quick"]
+    given = _parsed(monkeypatch, capsys, "caging", "--profile", "quick", "--seeds", "3",
+                    "--seed", "4", "--out", out)
+    assert given == replace(caging.PROFILES["quick"], seeds=3, seed=4)
+    full = _parsed(monkeypatch, capsys, "caging", "--time-limit", "30", "--out", out)
+    assert full == replace(caging.PROFILES["full"], time_limit=30.0)
+
+
+def test_flags_that_are_not_one_field_go_through_configure(monkeypatch, capsys, tmp_path):
+    """retlo's --holdout without --folds means no cross-validation (one `replace`, so the
+    config never holds both); the model's inputs and head come from their flags."""
+    train = reference_data() / "ReTLo" / "Datasets" / "3Robots" / "Train.csv"
+    if not train.is_file():
+        pytest.skip("needs the real ThymioLoc files")
+    config = _parsed(monkeypatch, capsys, "retlo", "--holdout", "0.25", "--history", "5",
+                     "--cos-sin", "--uncertainty", "gaussian", "--out", str(tmp_path / "o"))
+    assert (config.folds, config.holdout, config.model.history, config.model.cos_sin,
+            config.head.name) == (0, 0.25, 5, True, "gaussian")
+
+
+def test_each_training_variant_of_ch3_gap_changes_only_its_own_setting():
+    from estimators.retlo.models import ModelConfig
+    from estimators.retlo.train import TrainConfig
+    from macrostate_mj.app.experiments.ch3_gap import VARIANTS
+
+    ours = TrainConfig(model=ModelConfig(history=10, bidirectional=False, cos_sin=True))
+    changed = {}
+    for name, variant in VARIANTS.items():
+        mine = variant(ours)
+        changed[name] = {f for f in ("feedback", "chained", "mirror") if getattr(mine, f)
+                         != getattr(ours, f)} | {f for f in ("mark_estimates", "rotate")
+                                                  if getattr(mine.model, f)
+                                                  != getattr(ours.model, f)}
+    assert changed == {"ours": set(), "no_feedback": {"feedback"}, "no_chained": {"chained"},
+                       "no_mirror": {"mirror"}, "no_mark": {"mark_estimates"},
+                       "compass_frame": {"rotate"},
+                       "text_like": {"feedback", "chained", "mirror", "mark_estimates",
+                                     "rotate"}}
+
+
+def test_experiment_uncertainty_quick_scores_both_heads_and_the_ensemble(tmp_path):
+    real = reference_data() / "ReTLo" / "Datasets" / "3Robots"
+    if not (real / "Train.csv").is_file():
+        pytest.skip("needs the real ThymioLoc files")
+    res = cli("experiment", "uncertainty", "--quick", "--out", str(tmp_path / "u"))
+    assert res.returncode == 0, res.stderr
+    results = json.loads((tmp_path / "u" / "results.json").read_text())
+    for part in ("held", "val"):
+        r = results[part]
+        assert len(r["point_cm"]) == len(r["gaussian_cm"]) == 2
+        assert 0 <= r["ensemble_calibration"]["coverage_90"] <= 1
+    assert results["n_instances"]["held"] == 70
