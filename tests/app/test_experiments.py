@@ -161,8 +161,9 @@ def _differences(ours, committed, where: str) -> list[str]:
 
 def _parsed(monkeypatch, capsys, *args: str):
     """The config `experiment ARGS` would run, parsed by the generated command (not run)."""
-    import macrostate_mj.app.experiments as experiments
     from clitools import cli_inprocess
+
+    import macrostate_mj.app.experiments as experiments
 
     seen = []
     monkeypatch.setattr(experiments, "execute", lambda name, config, *a, **kw: seen.append(

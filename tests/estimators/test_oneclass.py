@@ -478,10 +478,10 @@ def test_a_probe_watches_every_epoch_and_never_chooses(fitted):
 @pytest.mark.parametrize(("cores", "workers", "threads"),
                          [(2, 1, 2), (2, 2, 1), (3, 2, 1), (16, 4, 2), (1, 8, 1)])
 def test_experiment_oc_shares_the_cores_among_its_workers(monkeypatch, cores, workers, threads):
-    from macrostate_mj.app.cli import oc
+    from macrostate_mj.core import parallel
 
-    monkeypatch.setattr(oc.os, "cpu_count", lambda: cores)
-    assert oc._default_threads(workers) == threads
+    monkeypatch.setattr(parallel.os, "cpu_count", lambda: cores)
+    assert parallel.torch_threads(workers) == threads
 
 
 def test_a_worker_that_does_not_see_the_drivers_folders_is_refused_in_one_line(tmp_path):

@@ -290,13 +290,6 @@ def test_experiment_srs_quick_runs_resumes_and_keeps_its_invariants(tmp_path):
     assert manifest["models_trained"] == 1 and manifest["status"] == "finished"
 
 
-def test_experiment_srs_profiles_are_the_cli_choices():
-    from macrostate_mj.app.cli.srs import PROFILE_NAMES
-    from macrostate_mj.app.experiments.srs import PROFILES
-
-    assert set(PROFILE_NAMES) == set(PROFILES)
-
-
 def test_srs_models_trained_as_a_group_report_as_when_trained_alone(tmp_path):
     """`--group K`: the chapter's models of one shape train together (estimators.retlo.ensemble),
     each report within float rounding of its model trained alone."""

@@ -36,8 +36,6 @@ from macrostate_mj.app.params import (
     Switch,
 )
 
-FIXED = ("profile", "quick", "workers", "ray", "out", "overwrite")   # every command's own
-
 
 class _Commands(MutableMapping):
     """The group's commands: those added as usual, then each experiment's, built when named."""
