@@ -86,9 +86,11 @@ def experiment_list() -> None:
     """Name every experiment with its profiles and what it reproduces."""
     from macrostate_mj.app.experiments import registry
 
-    for name, module in registry().items():
-        typer.echo(f"{name:<12} profiles: {', '.join(module.PROFILES):<22} "
-                   f"{summary(module)}")
+    found = registry()
+    width = max(len(", ".join(m.PROFILES)) for m in found.values())
+    for name, module in found.items():
+        typer.echo(f"{name:<12} profiles: {', '.join(module.PROFILES):<{width}}  "
+                   f"{_help(module)}")
 
 
 def summary(module: ModuleType) -> str:
@@ -125,12 +127,14 @@ def _shown(value: Any) -> str:
 
 
 def _profile_default(module: ModuleType, name: str, f: Flag) -> str:
-    """What the help shows as a field flag's default: the profiles' values (one when alike)."""
+    """What the help shows as a field flag's default: the profiles' values (one when alike),
+    or the flag's own, said to hold whatever the profile."""
+    show = (lambda v: ",".join(map(str, v))) if f.type is str else _shown
     if f.default is not PROFILE:
-        return f.shown or _shown(f.default)
+        return f"{f.shown or show(f.default)}, whatever the profile"
     if f.shown:
         return f.shown
-    values = {p: _shown(getattr(config, name)) for p, config in module.PROFILES.items()}
+    values = {p: show(getattr(config, name)) for p, config in module.PROFILES.items()}
     if len(set(values.values())) == 1:
         return next(iter(values.values()))
     return "; ".join(f"{p}: {v}" for p, v in values.items())
@@ -150,16 +154,22 @@ def _annotation(hint: Any) -> Any:
 
 
 def _profiles_help(module: ModuleType) -> str:
-    """Each profile by what it changes from `full` (generated, so it cannot go stale)."""
+    """Each profile by what it changes from `full` (generated, so it cannot go stale): as the
+    flag that would set it, or as `name=value` where only the profile does."""
     full = module.PROFILES["full"]
-    parts = [f"{name}: {', '.join(_changes(config, full)) or 'the defaults below'}"
+    options = {f.name: f.metadata[FLAG].option for f in fields(module.Config) if FLAG in
+               f.metadata} | dict(getattr(module, "FLAGS", {}))
+    flags = {name: next((d.split("/")[0] for d in option.param_decls if d.startswith("--")),
+                        f"--{name.replace('_', '-')}") for name, option in options.items()}
+    parts = [f"{name}: {', '.join(_changes(config, full, flags)) or 'the dissertation sizes'}"
              for name, config in module.PROFILES.items()]
-    return f"The settings the flags start from; {'; '.join(parts)}."
+    return (f"The settings the flags start from ({'; '.join(parts)}); a flag not given keeps "
+            "the profile's value unless its default says otherwise.")
 
 
-def _changes(config: Any, full: Any, prefix: str = "") -> list[str]:
-    """"name value" for each setting of `config` that differs from `full`'s, nested configs
-    by their own settings."""
+def _changes(config: Any, full: Any, flags: dict[str, str], prefix: str = "") -> list[str]:
+    """What `config` sets differently from `full`: "--flag value" for a setting with a flag
+    (`flags`, by field name), "name=value" otherwise, nested configs by their own settings."""
     changed = []
     for f in fields(config):
         mine, theirs = getattr(config, f.name), getattr(full, f.name)
@@ -167,9 +177,11 @@ def _changes(config: Any, full: Any, prefix: str = "") -> list[str]:
             continue
         name = prefix + f.name.replace("_", "-")
         if is_dataclass(mine) and type(mine) is type(theirs):
-            changed += _changes(mine, theirs, f"{name}.")
+            changed += _changes(mine, theirs, {}, f"{name}.")
+        elif f.name in flags:
+            changed.append(f"{flags[f.name]} {_shown(mine)}")
         else:
-            changed.append(f"{name} {_shown(mine)}")
+            changed.append(f"{name}={_shown(mine)}")
     return changed
 
 
@@ -220,7 +232,11 @@ def command(name: str, module: ModuleType) -> Callable[..., None]:
 
     def run(**given: Any) -> None:
         from macrostate_mj.app.experiments import profile
+        from macrostate_mj.core.errors import UserError
 
+        if given.get("quick") and given["profile"] not in ("full", "quick"):
+            raise UserError(f"means --profile quick; drop it or --profile "
+                            f"{given['profile']}", "quick")
         chosen = "quick" if given.get("quick") else given["profile"]
         config = profile(name, chosen)
         changes = {}

@@ -1,6 +1,5 @@
-"""`experiment all`: every chapter's experiments (ReTLo ch. 2, caging, sim-to-real, SRS ch. 3,
-one-class ch. 4) in one command with one profile, each in its own sub-folder; it resumes after
-an interruption and writes index.json.
+"""`experiment all`: every experiment of the registry in one command with one profile (`full`
+or `quick`), each in its own sub-folder; it resumes after an interruption and writes index.json.
 
 Each experiment of the registry runs with the same profile (`full` or `quick`) under its own
 run lifecycle in `<out>/<name>/`, with its own task cache there, on the command's workers or
@@ -48,7 +47,8 @@ class Config:
     profile: str = "full"
     # empty: every experiment
     only: tuple[str, ...] = field(default=(), metadata=flag(Choice(
-        None, "Run only this experiment (repeatable); default all.", MEMBERS, "--only")))
+        None, "Run only this experiment (repeatable).", MEMBERS, "--only"),
+        shown="every experiment"))
     # every training's arithmetic, where it can be chosen
     precision: str = field(default="fp32", metadata=flag(Precision()))
 

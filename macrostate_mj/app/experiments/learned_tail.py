@@ -61,8 +61,8 @@ class Config:
     srs_k: int = 30                 # SRS's candidates per step
     checkpoint: str | None = field(default=None, metadata=flag(InputFileOr(
         None, "The Tail's frozen estimator: a ReTLo checkpoint from `train retlo`, or "
-        "heuristic2x.", (HEURISTIC,), (".pt",)), shown="the env's trained one "
-        "(macrostate_mj/assets/models)"))
+        "heuristic2x.", (HEURISTIC,), (".pt",)), shown="the env's trained one, in "
+        "macrostate_mj/assets/models"))
     policies: tuple[str, ...] = field(default=POLICIES, metadata=flag(Choice(
         None, "Evaluate only this Tail (repeatable; passive always runs, the baseline of the "
         "paired test).", POLICIES, "--policy"), parse=lambda chosen: (

@@ -79,7 +79,7 @@ class Config:
     # unstable samples held apart (a dev set), else data/Unstable
     unstable: Path | None = field(default=None, metadata=flag(InputDir(
         None, "Score these unstable samples instead of DATA/Unstable (a dev set; ids of the "
-        "full colony, so bins hold)."), default=None))
+        "full colony, so bins hold)."), default=None, shown="DATA/Unstable"))
     # training seeds per (m, split): config.seed, config.seed + 1 ...
     seeds: int = field(default=1, metadata=flag(Count(
         None, "Training seeds per (m, split): seed, seed+1, ... (tables give mean ± std over "
@@ -106,7 +106,8 @@ PROFILES = {
 PARALLEL = Parallel("one (m, split, seed) run each")
 # the one-class recipe (`OCConfig`): the command builds it from these, whatever the profile's
 FLAGS = {
-    "seed": Seed(0, "The first training seed."),
+    "seed": Seed(0, "The first training seed (whatever the profile: the recipe flags build "
+                 "the recipe)."),
     "recipe": Choice("short", "Epoch and step counts: short (for a 2-core CPU) or published "
                      "(the published code's; hours on a CPU).", ("short", "published")),
     "epoch_scale": Positive(1.0, "Scale every epoch/step count of the recipe (--quick scales "

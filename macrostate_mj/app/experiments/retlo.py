@@ -132,8 +132,8 @@ PARALLEL = Parallel("one training each")
 FLAGS = {
     "folds": Count(None, "Cross-validate (§2.6.2): pool the training and validation files in "
                    "this many contiguous blocks; seed i is tested on block i mod K and trains "
-                   "and selects on the rest; 0: no cross-validation; default: the profile's "
-                   "(5), or 0 with --holdout.", min=0),
+                   "and selects on the rest; 0: no cross-validation; not given: the "
+                   "profile's, or 0 with --holdout.", min=0),
     "history": History,
     "unidirectional": Switch(False, "A unidirectional LSTM (chapter 3's predictor, with "
                              "--cos-sin)."),

@@ -96,7 +96,7 @@ class Config:
     real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots",
                        metadata=flag(InputDir(None, "Folder of the real ThymioLoc 3-robot "
                                               "Train.csv and Val.csv."),
-                                     shown="the published ones (`data fetch retlo`)"))
+                                     shown="the published ones, `data fetch retlo`"))
     # the lab the collection is made in
     scenario: ScenarioRef = field(default="lab", metadata=flag(Scenario, default="lab"))
     # a lab collection's folder, instead of collecting one
@@ -109,7 +109,8 @@ class Config:
         None, "--randomize", help="A domain-randomization profile or JSON of factors for the "
         "lab collection (e.g. sysid's fitted.json). Repeatable: each fold then picks the "
         "candidate (`none` for no ranges) whose sim model does best on its own real validation "
-        "block."), default=(), shown="none (`experiment all` runs wider, as the docs' figure)"))
+        "block. The full profile's wider (as the docs' figure) is what `experiment all` "
+        "runs."), default=(), shown="none"))
     # which arms to train (a fine-tuned arm trains the sim models)
     arms: tuple[str, ...] = field(default=ARMS, metadata=flag(Choice(
         None, "Train only this arm (repeatable): `--arm sim` asks only how far a lab collection "

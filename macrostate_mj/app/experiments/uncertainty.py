@@ -25,6 +25,7 @@ from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.experiments.retlo import TrainTask, holdout_split
 from macrostate_mj.app.params import Count, Fraction, InputDir, Precision, Seed, flag
 from macrostate_mj.core.cache import run_tasks
+from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import real_dataset
 from macrostate_mj.core.stats import mean_std
@@ -40,7 +41,7 @@ class Config:
     real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots",
                        metadata=flag(InputDir(None, "Folder of the real ThymioLoc 3-robot "
                                               "Train.csv and Val.csv."),
-                                     shown="the published ones (`data fetch retlo`)"))
+                                     shown="the published ones, `data fetch retlo`"))
     holdout: float = field(default=0.25, metadata=flag(Fraction(
         None, "The share of Train.csv held out as the independent test.")))
     seeds: int = field(default=5, metadata=flag(Count(None, "Model seeds per head "
@@ -48,6 +49,11 @@ class Config:
     epochs: int = field(default=60, metadata=flag(Count(None, "Epochs per training.")))
     seed: int = field(default=0, metadata=flag(Seed(0, "The first model seed.")))
     precision: str = field(default="fp32", metadata=flag(Precision()))
+
+    def __post_init__(self) -> None:
+        if not 0 < self.holdout < 0.9:
+            raise UserError(f"--holdout must be in (0, 0.9): the held-out share is the "
+                            f"independent test; got {self.holdout}", "holdout")
 
 
 PROFILES = {"full": Config(), "quick": Config(seeds=2, epochs=1)}
