@@ -162,6 +162,19 @@ def _resolve_scenario() -> Callable[[Any], Any]:
     return resolve
 
 
+def Scenarios(help: str) -> Any:  # noqa: N802
+    """`--scenario`, repeatable: each a built-in's name or a scenario file, resolved once while
+    parsing (a bad one fails naming the option)."""
+    resolve = _resolve_scenario()
+
+    def each(values: Any) -> Any:
+        return values if values is None else [resolve(v) for v in values]
+
+    each.role = "choice"  # type: ignore[attr-defined]
+    return typer.Option(None, "--scenario", callback=each, help=f"{help} A built-in scenario "
+                        "or a scenario file (.toml; `scenario show lab` prints one).")
+
+
 def DatasetNames() -> Any:  # noqa: N802
     """Published datasets as a command's arguments, by name (`all` for every one)."""
     def check(v: str) -> None:

@@ -79,6 +79,8 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "experiment learned-tail": ["--out", str(out)],
         "experiment list": [],
         "experiment all": ["--out", str(out)],
+        "experiment ch3-gap": ["--out", str(out)],
+        "experiment uncertainty": ["--real", d, "--out", str(out)],
         "scenario show": ["lab"],
         "scenario check": ["lab"],
         "experiment sim2real": ["--real", d, "--out", str(out)],

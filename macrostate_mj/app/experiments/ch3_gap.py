@@ -21,11 +21,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
-import typer
-
 from estimators.retlo.files import read_world
 from macrostate_mj.app.experiments import Parallel, Progress, register, srs
-from macrostate_mj.app.params import Count, Seed, flag
+from macrostate_mj.app.params import Count, Scenarios, Seed, flag
 from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import run_tasks
 from macrostate_mj.core.io import write_json_atomic
@@ -50,9 +48,8 @@ DATASET_SEEDS = {"train": 0, "val": 500, "test": 900}
 
 @dataclass(frozen=True)
 class Config:
-    scenarios: tuple[ScenarioRef, ...] = field(default=("webots",), metadata=flag(typer.Option(
-        None, "--scenario", help="A built-in scenario or a scenario file (.toml), repeatable; "
-        "the training variants run on the first.")))
+    scenarios: tuple[ScenarioRef, ...] = field(default=("webots",), metadata=flag(Scenarios(
+        "Repeatable; the training variants run on the first.")))
     train: int = 100
     val: int = 50
     test: int = 50
