@@ -628,6 +628,23 @@ def retlo_fig29(folder: str) -> Table:
 
 
 @source
+def ch3_gap(folder: str) -> Table:
+    """`experiment ch3-gap`: each model's 5-robot error, its validation error, and its Head
+    error per 3-robot module given true inputs (cm; one dataset and one model each)."""
+    data = load(f"{folder}/results.json")
+    first = next(iter(data["scenarios"]))  # type: ignore[index]
+    rows: Table = []
+    for part, label in (("scenarios", "scenario"), ("variants", f"training on {first}")):
+        for name, r in data[part].items():  # type: ignore[index]
+            if part == "variants" and name == "ours":
+                continue                    # the first scenario's row already
+            rows.append([label, name, f"{r['all_cm']:.1f}", f"{r['best_val_cm']:.1f}",
+                         *(f"{v:.1f}" for v in r["modules_cm"].values())])
+    modules = list(data["scenarios"][first]["modules_cm"])  # type: ignore[index]
+    return [["", "", "5-robot error", "validation", *modules], *rows]
+
+
+@source
 def uncertainty(folder: str, split: str) -> Table:
     """Point against Gaussian ReTLo (and their ensemble): mean error (cm) and calibration."""
     data = load(f"{folder}/results.json")[split]  # type: ignore[index]

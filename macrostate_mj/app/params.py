@@ -7,6 +7,7 @@ output a failed command created: bad input leaves nothing behind, and a run that
 interrupted keeps what it finished (its resumable shards, its poses up to the fault) but no
 empty folder. `tests/app/test_params.py` checks that every option of every command comes from
 here.
+
 An experiment's config declares its flags on its fields with the same factories (`flag`), and
 `experiment NAME` is generated from them (`app.cli.experiments`).
 """
