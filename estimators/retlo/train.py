@@ -332,8 +332,8 @@ def recalibrate(net: RetloNet, val_world: np.ndarray, seed: int) -> tuple[float,
     what places the 50 % and the 90 % region both). Why: Σ is fitted
     on training samples, whose errors a network drives below those it makes on new chains, so
     it comes out overconfident (real 3-robot LSTM, held-out instances: 72-74 % inside its
-    90 % region before, 85-88 % after; results/retlo_uncertainty); one scalar fitted on the set
-    that already selects the checkpoint corrects the scale and keeps Σ's shape (Kuleshov et
+    90 % region before the scale, 85-88 % after, measured when it was added); one scalar
+    fitted on the set that already selects the checkpoint corrects the scale and keeps Σ's shape (Kuleshov et
     al. 2018; Levi et al. 2019). The real errors are heavier-tailed than a Gaussian, so the
     likelihood's scale then over-covers the 50 % region (64-68 %): hence the radii. They come
     from the chains that also selected the checkpoint (never the test), so the test's coverage

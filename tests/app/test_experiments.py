@@ -117,7 +117,8 @@ REPRODUCES = {("caging", "full"): ("caging", ()),
               ("learned-tail", "full"): ("learned_tail", ()),
               ("retlo", "full"): ("retlo_fig27_rerun", ("test",)),
               ("srs", "full"): ("srs_text", ()), ("srs", "full-seeds"): ("srs_full", ()),
-              ("sim2real", "full"): ("s2r_mixed", ()), ("oc", "full"): ("oc_dev_table41", ())}
+              ("sim2real", "full"): ("s2r_mixed", ()), ("oc", "full"): ("oc_dev_table41", ()),
+              ("uncertainty", "full"): ("retlo_uncertainty", ())}
 
 
 def _plain(value):
