@@ -326,21 +326,20 @@ def train(train_worlds: list[np.ndarray], val_world: np.ndarray, cfg: TrainConfi
 
 
 def recalibrate(net: RetloNet, val_world: np.ndarray, seed: int) -> tuple[float, Regions]:
-    """The factor s² on every covariance that maximises the likelihood of the validation
-    chains, closed loop as at test time: s² = mean Mahalanobis² / 2 (2-D); and the radii of
-    the p-regions, the quantiles of those chains' Mahalanobis² under s²Σ (`gaussian.Regions`:
-    what places the 50 % and the 90 % region both). Why: Σ is fitted
-    on training samples, whose errors a network drives below those it makes on new chains, so
-    it comes out overconfident (real 3-robot LSTM, held-out instances: 72-74 % inside its
-    90 % region before the scale, 85-88 % after, measured when it was added); one scalar
-    fitted on the set that already selects the checkpoint corrects the scale and keeps Σ's shape (Kuleshov et
-    al. 2018; Levi et al. 2019). The real errors are heavier-tailed than a Gaussian, so the
-    likelihood's scale then over-covers the 50 % region (64-68 %): hence the radii. They come
-    from the chains that also selected the checkpoint (never the test), so the test's coverage
-    is a fair check of them. On chains longer than 3 robots the Monte Carlo particles are drawn
-    from the scaled Σ, which moves the later modules' estimates: the radii come from a second
-    pass with the scale in place, as the model will then run. Radii are kept per chain position
-    (`gaussian.Regions`): 3-robot chains give one, the Head's."""
+    """The factor s² on every covariance that maximises the likelihood of the validation chains,
+    closed loop as at test time: s² = mean Mahalanobis² / 2 (2-D); and the radii of the p-regions,
+    the quantiles of those chains' Mahalanobis² under s²Σ (`gaussian.Regions`: what places the 50 %
+    and the 90 % region both). Why: Σ is fitted on training samples, whose errors a network drives
+    below those it makes on new chains, so it comes out overconfident (real 3-robot LSTM, held-out
+    instances: 72-74 % inside its 90 % region before the scale, 85-88 % after, measured when it was
+    added); one scalar fitted on the set that already selects the checkpoint corrects the scale and
+    keeps Σ's shape (Kuleshov et al. 2018; Levi et al. 2019). The real errors are heavier-tailed
+    than a Gaussian, so the likelihood's scale then over-covers the 50 % region (64-68 %): hence the
+    radii. They come from the chains that also selected the checkpoint (never the test), so the
+    test's coverage is a fair check of them. On chains longer than 3 robots the Monte Carlo
+    particles are drawn from the scaled Σ, which moves the later modules' estimates: the radii come
+    from a second pass with the scale in place, as the model will then run. Radii are kept per chain
+    position (`gaussian.Regions`): 3-robot chains give one, the Head's."""
     net.cov_scale = 1.0
     d2 = _validation_d2(net, val_world, seed)
     scale = float(np.mean(np.concatenate(d2)) / 2)
