@@ -72,8 +72,7 @@ def bench_sim(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5,
               seconds: float = 60.0) -> list[dict]:
     """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
     wheel commands from the same start state: the physics cost alone, same contacts."""
-    cfg = scenario
-    world = build_world(cfg, robots)
+    world = build_world(scenario, robots)
     dt = world.model.opt.timestep
     steps = int(round(seconds / dt))
     sim = ChainSim(world)
@@ -81,7 +80,7 @@ def bench_sim(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5,
     def ours() -> None:
         sim.reset(np.random.default_rng(0))
         log = PoseLog(world.names)
-        sim.run(seconds, [Every(1 / cfg.log_hz, log.append, sim.log_phase)])
+        sim.run(seconds, [Every(1 / scenario.log_hz, log.append, sim.log_phase)])
 
     start, ticks = record_commands(sim, seconds, np.random.default_rng(0))
 
@@ -89,7 +88,7 @@ def bench_sim(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5,
         replay_bare(world.model, start, ticks, steps)
 
     t_ours, t_bare = best_of_pair(ours, bare)
-    tag = f"{cfg.name}, {robots} robots, dt={dt}"
+    tag = f"{scenario.name}, {robots} robots, dt={dt}"
     return [
         figure("sim_steps_per_s", steps / t_ours, "steps/s", steps / t_bare,
                limit_name="bare mj_step(nstep) on the same model", config=tag),

@@ -93,12 +93,6 @@ def experiment_list() -> None:
                    f"{_help(module)}")
 
 
-def summary(module: ModuleType) -> str:
-    """The first paragraph of an experiment module's docstring, less its "`experiment x`:"."""
-    doc = (module.__doc__ or "").strip().split("\n\n")[0].split(":", 1)[-1]
-    return " ".join(doc.split())
-
-
 def launch(name: str, config: Any, out: Path, overwrite: bool, workers: int = 1,
            ray: str | None = None) -> None:
     """Run experiment `name` under the run lifecycle with a bar per stage; print its lines."""
@@ -268,5 +262,6 @@ def command(name: str, module: ModuleType) -> Callable[..., None]:
 def _help(module: ModuleType) -> str:
     """The command's help: the first paragraph of the module's docstring (which the module's
     own documentation continues), less its "`experiment x`:"."""
-    text = summary(module)
+    doc = (module.__doc__ or "").strip().split("\n\n")[0].split(":", 1)[-1]
+    text = " ".join(doc.split())
     return text[:1].upper() + text[1:]
