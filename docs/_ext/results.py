@@ -33,7 +33,7 @@ from sphinx.util.docutils import SphinxRole
 
 from macrostate_mj.app.claims import dig, parse
 from macrostate_mj.app.provenance import read_index
-from macrostate_mj.core.stats import mean_std
+from macrostate_mj.core.stats import mean_std, paired_interval
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
@@ -119,6 +119,34 @@ def above(path: str, keypath: str, base: str, base_keypath: str, fmt: str = ".1f
     a, b = (float(dig(load(f), k)["mean"])  # type: ignore[index]
             for f, k in ((path, keypath), (base, base_keypath)))
     return Q(100 * (a / b - 1), None, fmt, "%")
+
+
+@dataclass(frozen=True)
+class Paired:
+    """A paired difference over seeds: its mean and 95 % t interval, and what it decides."""
+
+    mean: float
+    low: float
+    high: float
+    n: int
+    fmt: str = ".2f"
+    unit: str = ""
+
+    def __str__(self) -> str:
+        verdict = "inconclusive" if self.low <= 0 <= self.high else "decided"
+        f, u = self.fmt, f" {self.unit}" if self.unit else ""
+        return (f"{self.mean:+{f}}{u} [{self.low:+{f}}, {self.high:+{f}}], {self.n} seeds: "
+                f"{verdict}")
+
+
+@source
+def paired(path: str, keypath: str, base_keypath: str, fmt: str = ".2f", unit: str = "") -> Paired:
+    """Two per-seed lists of one results file, paired: the mean of their differences (the first
+    minus the second) and its 95 % t interval (`core.stats.paired_interval`)."""
+    data = load(path)
+    a, b = (dig(data, k) for k in (keypath, base_keypath))
+    d = paired_interval([x - y for x, y in zip(a, b, strict=True)])  # type: ignore[arg-type]
+    return Paired(d["mean"], d["low"], d["high"], d["n"], fmt, unit)  # type: ignore[arg-type]
 
 
 @source
