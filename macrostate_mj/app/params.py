@@ -358,3 +358,8 @@ def flag(option: Any, parse: Callable[[Any], Any] | None = None, default: Any = 
          shown: str | None = None, type: Any = None) -> dict[str, Flag]:  # noqa: A002
     """`field(metadata=...)` for a field the experiment's command sets (see `Flag`)."""
     return {FLAG: Flag(option, parse, default, shown, type)}
+
+
+# the real 3-robot ThymioLoc folder an experiment reads (`field(metadata=REAL_FOLDER)`)
+REAL_FOLDER = flag(InputDir(None, "Folder of the real ThymioLoc 3-robot Train.csv and Val.csv."),
+                   shown="the published ones, `data fetch retlo`")

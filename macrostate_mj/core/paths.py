@@ -52,6 +52,6 @@ def real_dataset(folder: str) -> Path:
     return reference_data(folder) / folder
 
 
-def real_thymioloc(name: str) -> Path:
-    """A published ThymioLoc 3-robot file (Train.csv, Val.csv)."""
+def real_thymioloc(name: str = "") -> Path:
+    """A published ThymioLoc 3-robot file (Train.csv, Val.csv), or their folder."""
     return real_dataset("ReTLo") / "Datasets" / "3Robots" / name

@@ -43,7 +43,7 @@ VARIANTS: dict[str, Callable[[Any], Any]] = {
 # each 3-robot module of a 5-robot chain (file order H, F1, F2, F3, T) and the robots it sees
 TRIPLES = {"module0 (F2 from F3,T)": [2, 3, 4], "module1 (F1 from F2,F3)": [1, 2, 3],
            "module2 (H from F1,F2)": [0, 1, 2]}
-DATASET_SEEDS = {"train": 0, "val": 500, "test": 900}
+DATASET_SEEDS = {"train": 0, "val": srs.VAL_SEED, "test": srs.TEST_SEED}   # as `experiment srs`
 
 
 @dataclass(frozen=True)

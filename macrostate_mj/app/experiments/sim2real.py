@@ -48,6 +48,7 @@ from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.params import (
     MAX_SECONDS,
+    REAL_FOLDER,
     Chained,
     Choice,
     InputDir,
@@ -62,7 +63,7 @@ from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.cache import Outcome, ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
-from macrostate_mj.core.paths import real_dataset
+from macrostate_mj.core.paths import real_thymioloc
 from macrostate_mj.core.stats import cv_blocks, mean_std, paired_interval
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
@@ -93,10 +94,7 @@ class Config:
     seed: int = field(default=0, metadata=flag(Seed(0, "The first model seed: model i trains "
                                                     "with seed+i and is tested on real fold i "
                                                     "mod 5.")))
-    real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots",
-                       metadata=flag(InputDir(None, "Folder of the real ThymioLoc 3-robot "
-                                              "Train.csv and Val.csv."),
-                                     shown="the published ones, `data fetch retlo`"))
+    real: Path = field(default_factory=real_thymioloc, metadata=REAL_FOLDER)
     # the lab the collection is made in
     scenario: ScenarioRef = field(default="lab", metadata=flag(Scenario, default="lab"))
     # a lab collection's folder, instead of collecting one

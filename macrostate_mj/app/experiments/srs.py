@@ -74,6 +74,8 @@ class Config:
     scenario: ScenarioRef = "webots"   # every collection's world: a built-in, a file or a config
 
 
+# the validation and test sets' collection seeds, past every training dataset's (seed*1000 + j)
+VAL_SEED, TEST_SEED = 500, 900
 PARALLEL = Parallel("collections and trainings")
 PROFILES = {
     "full": Config(),
@@ -233,8 +235,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     t0 = time.perf_counter()
     data = out / "data"
-    val = Dataset(data / "val", 3, config.val, config.seed * 1000 + 500, "passive")
-    test = Dataset(data / "test", config.test_robots, config.test, config.seed * 1000 + 900,
+    val = Dataset(data / "val", 3, config.val, config.seed * 1000 + VAL_SEED, "passive")
+    test = Dataset(data / "test", config.test_robots, config.test, config.seed * 1000 + TEST_SEED,
                     "passive")
     configs = _datasets(config, data)
     first = ["passive", f"ro_{RO_SIGMA:g}", "srs_med"]

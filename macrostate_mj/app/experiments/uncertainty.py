@@ -23,11 +23,11 @@ from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, load_checkpoint
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.experiments.retlo import TrainTask, holdout_split
-from macrostate_mj.app.params import Count, Fraction, InputDir, Precision, Seed, flag
+from macrostate_mj.app.params import REAL_FOLDER, Count, Fraction, Precision, Seed, flag
 from macrostate_mj.core.cache import run_tasks
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic
-from macrostate_mj.core.paths import real_dataset
+from macrostate_mj.core.paths import real_thymioloc
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
@@ -38,10 +38,7 @@ PARTICLES = 32      # `evaluate retlo`'s Monte Carlo draws (3-robot data draws n
 
 @dataclass(frozen=True)
 class Config:
-    real: Path = field(default_factory=lambda: real_dataset("ReTLo") / "Datasets" / "3Robots",
-                       metadata=flag(InputDir(None, "Folder of the real ThymioLoc 3-robot "
-                                              "Train.csv and Val.csv."),
-                                     shown="the published ones, `data fetch retlo`"))
+    real: Path = field(default_factory=real_thymioloc, metadata=REAL_FOLDER)
     holdout: float = field(default=0.25, metadata=flag(Fraction(
         None, "The share of Train.csv held out as the independent test.")))
     seeds: int = field(default=5, metadata=flag(Count(None, "Model seeds per head "
