@@ -6,7 +6,9 @@ profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by
 [0.8, 1.2]. The `ABSOLUTE` parameters, whose scenario value is zero by default, are added in
 their own unit instead (`frame_jitter: (0, 0.1)` delays each frame by up to 0-0.1 s more,
 `follow_start: 0.01` lets a rear robot wait 1 cm more before it sets off, `follow_hold: 0.3`
-makes one that is nearer the robot ahead than 0.3 m closer than d stop rather than back off).
+makes one that is nearer the robot ahead than 0.3 m closer than d stop rather than back off,
+`head_turn_speed: 1` drives the Head through its turns at full speed); `max_turn: 0.5` halves
+the turn a Psi Head may take toward its next waypoint (a factor, capped at 180 degrees).
 Draws come from the episode's own stream (`EpisodeSpec.rng(3)`), so a randomized collection is
 still bit-identical for any worker count. A profile is a built-in name or a JSON
 file `{"k_f": [0.8, 1.2], ...}`; a bare number fixes a factor (`{"k_f": 1.1}`: what
@@ -36,9 +38,11 @@ MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
 TIMING = ("frame_hz", "frame_jitter")     # the camera's frames (`ScenarioConfig.camera_hz`)
 SPREAD = ("wheel_spread", "marker_offset")   # how the robots differ (`ScenarioConfig`)
-PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING, *SPREAD)
+HEAD = ("head_turn_speed", "max_turn")      # how the Head drives: through turns, and how far
+#                                             it turns for its next waypoint (a Psi planner)
+PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING, *SPREAD, *HEAD)
 # added in their unit (s, m, a share), not factors: zero by default
-ABSOLUTE = ("frame_jitter", "follow_start", "follow_hold", *SPREAD)
+ABSOLUTE = ("frame_jitter", "follow_start", "follow_hold", *SPREAD, "head_turn_speed")
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
@@ -158,7 +162,14 @@ def check_fits(profile: Randomization, cfg: ScenarioConfig) -> None:
 
 def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
     cfg = replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
-    cfg = replace(cfg, **{k: getattr(cfg, k) + f for k, f in factors.items() if k in SPREAD})
+    cfg = replace(cfg, **{k: getattr(cfg, k) + f for k, f in factors.items()
+                          if k in (*SPREAD, "head_turn_speed")})
+    if "max_turn" in factors:
+        if not hasattr(cfg.planner, "max_turn"):
+            raise UserError(f"--randomize: max_turn turns a Psi Head's waypoints; {cfg.name}'s "
+                            f"planner is {type(cfg.planner).__name__}: leave max_turn out")
+        cfg = replace(cfg, planner=replace(
+            cfg.planner, max_turn=min(180.0, cfg.planner.max_turn * factors["max_turn"])))
     if "frame_hz" in factors or "frame_jitter" in factors:
         cfg = replace(cfg, frame_hz=cfg.camera_hz * factors.get("frame_hz", 1.0),
                       frame_jitter=cfg.frame_jitter + factors.get("frame_jitter", 0.0))

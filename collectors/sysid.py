@@ -6,10 +6,11 @@ gains, the heading gain, the Head's and the chain's speed caps, the lab wait rul
 tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`),
 the camera's frame rate; and values added to the scenario's zero: the frames' timing jitter
 (s), the rear robots' start gap (m), the wheels' radius spread and the markers' offset (m).
-Not fitted but set in every candidate: rear robots that stop rather than back off from the
-robot ahead (`follow_hold` = the spacing; the real ones could not reverse, seed §2.6.2.1), so
-that a fitted lab's parked chain stands still (with stiff gains and wheels that differ, one
-that may back off turns on the spot).
+The rear robots' rule when nearer than d to the robot ahead (`follow_hold`: how much nearer
+before they back off; the real ones could not reverse, seed §2.6.2.1) and how the Head drives
+(`head_turn_speed`, `max_turn`) are fitted too, under one constraint: a candidate whose parked
+chain does not stand still (`chain.parked`; with stiff gains, a rear robot that may back off
+turns on the spot) is refused, whatever its score.
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
@@ -37,6 +38,7 @@ from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import SCENARIOS, ResolvesScenario
 from macrostate_mj.core.cache import TaskCache, task_key
+from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import write_json_atomic, write_text_atomic
 from macrostate_mj.core.run import config_hash
 from macrostate_mj.formats import motion_stats
@@ -55,13 +57,20 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 # parked chain still; how the robots differ (each wheel's radius, each marker's place).
 # The `ABSOLUTE` ones' boxes are in their units (s, m) from 0 (the scenario as written), the
 # others' factors; a jitter stays under the fastest frame period (1 / (4 Hz x 1.6) = 0.156 s).
+# The rear robots' rule when nearer than d to the robot ahead (`follow_hold`, m: from backing
+# off at once, 0, to stopping, the lab's spacing) and how the Head drives (through its turns,
+# `head_turn_speed`; how far it turns for its next waypoint, `max_turn`: 45-180 degrees) are
+# fitted too; a candidate whose parked chain does not stand still (`chain.parked`) is refused
+# whatever its score.
 BOUNDS: dict[str, tuple[float, float]] = {
     "k_f": (0.6, 10.0), "k_t": (0.6, 10.0), "k_omega": (0.6, 1.6), "head_speed": (0.6, 1.6),
     "chain_speed": (0.3, 1.6), "wait_slack": (0.6, 1.6), "marker_jitter": (0.6, 1.6),
     "head_jitter_scale": (0.5, 1.6), "frame_hz": (0.6, 1.6), "frame_jitter": (0.0, 0.15),
-    "follow_start": (0.0, 0.04), "wheel_spread": (0.0, 0.05), "marker_offset": (0.0, 0.01)}
+    "follow_start": (0.0, 0.04), "wheel_spread": (0.0, 0.05), "marker_offset": (0.0, 0.01),
+    "follow_hold": (0.0, 0.3), "head_turn_speed": (0.0, 1.0), "max_turn": (0.25, 1.0)}
 FITTED = tuple(BOUNDS)
 SCORE_VERSION = 1          # bump when the motion features or the score change
+PARKED_VERSION = 1         # bump when `chain.parked`'s check changes
 
 
 @dataclass(frozen=True)
@@ -120,8 +129,7 @@ def point(fitted: dict[str, float]) -> np.ndarray:
 
 def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray:
     """Points of the box (k, len(FITTED)): stage 1 over the whole box (point 0 = no change to
-    the fitted values; every candidate, point 0 too, has the hold rule), or stage 2 around
-    `centre`."""
+    the fitted values), or stage 2 around `centre`."""
     lo, hi = box()
     if centre is None:
         pts = _sobol(cfg.first - 1, cfg.seed)
@@ -154,7 +162,34 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
                                           "folder": str(folder)}).encode()}
 
     key = task_key("sysid-score", SCORE_VERSION, made_of, [real_poses])
-    return json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
+    scored = json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
+    return scored | {"parked": parked_check(factors, out, cfg)}
+
+
+def parked_check(factors: dict[str, float], out: Path, cfg: SysidConfig) -> dict:
+    """Does the candidate's lab park its chain still (`chain.parked`: teams of 3 and 5)?
+    Cached by the factors and the scenario, like the candidate's collection."""
+    from collectors.randomize import randomized_scenario
+    from macrostate_mj.chain.parked import parks_still
+
+    made_of = {"factors": factors, "scenario": identity(cfg)["scenario_hash"]}
+
+    def compute() -> dict[str, bytes]:
+        result = parks_still(randomized_scenario(cfg.scenario, factors))
+        return {"parked.json": json.dumps(result, sort_keys=True).encode()}
+
+    key = task_key("sysid-parked", PARKED_VERSION, made_of)
+    cache = TaskCache(out / "cache")
+    return json.loads((cache.cached("sysid-parked", key, compute) / "parked.json").read_text())
+
+
+def best_still(tried: list[dict]) -> dict:
+    """The best-scoring candidate whose parked chain stands still; one line if none does."""
+    still = [c for c in tried if c["parked"]["still"]]
+    if not still:
+        raise UserError(f"sysid: none of {len(tried)} candidates parks its chain still (the "
+                        "scenario's own values among them); check the scenario's gains")
+    return min(still, key=lambda c: c["score"])
 
 
 def real_poses(path: Path, robots: int) -> np.ndarray:
@@ -178,18 +213,16 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
     real = motion_stats.features(train, DEFAULT_PX_PER_CM)
     held = motion_stats.features(val, DEFAULT_PX_PER_CM)
     total, tried = cfg.first + cfg.refine, []
-    rule = {"follow_hold": cfg.scenario.spacing}
 
     def run(points: np.ndarray) -> None:
         for x in points:
-            tried.append(evaluate(values(x) | rule, out, cfg, real, train))
+            tried.append(evaluate(values(x), out, cfg, real, train))
             if progress is not None:
                 progress(len(tried), total)
 
     run(candidates(cfg))
-    best = min(tried, key=lambda c: c["score"])
-    run(candidates(cfg, point(best["factors"])))
-    best = min(tried, key=lambda c: c["score"])
+    run(candidates(cfg, point(best_still(tried)["factors"])))
+    best = best_still(tried)
     before = tried[0]
     report = {"config": identity(cfg), "fitted": best["factors"], "candidates": tried,
               "train": {"before": before["score"], "after": best["score"]}, "val": {},

@@ -205,16 +205,24 @@ def unicycle_from_holonomic(u: np.ndarray, theta: float, k_omega: float, v_max: 
 
 
 def unicycle_commands(u: np.ndarray, theta: np.ndarray, k_omega: float, v_max: np.ndarray,
-                      allow_reverse: np.ndarray, deadband: float = 0.005
-                      ) -> tuple[np.ndarray, np.ndarray]:
+                      allow_reverse: np.ndarray, deadband: float = 0.005,
+                      turn_speed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """`unicycle_from_holonomic` for n robots at once: u (n, 2), theta, v_max, allow_reverse
     (n,) -> v, omega (n,). Elementwise ufuncs only, so each robot's numbers are bit for bit
-    those of the one-robot call (the chain's control tick costs one call, not n)."""
+    those of the one-robot call (the chain's control tick costs one call, not n).
+
+    `turn_speed` (n,), each in [0, 1]: the share of its speed a robot keeps while it turns
+    toward a reference less than 90 degrees off its heading, v = |u| (s + (1 - s) cos e):
+    0 is the text's tracking (v = |u| cos e, slowing in every turn), 1 drives through a turn
+    at full speed, as the real Head does (`ScenarioConfig.head_turn_speed`)."""
     speed = np.hypot(u[:, 0], u[:, 1])
     still = speed < deadband
     speed = np.minimum(speed, v_max)
     e = wrap_angle(np.arctan2(u[:, 1], u[:, 0]) - theta)
     v = speed * np.cos(e)
+    if turn_speed is not None and np.any(turn_speed > 0):
+        v = np.where((turn_speed > 0) & (v > 0),
+                     speed * (turn_speed + (1 - turn_speed) * np.cos(e)), v)
     back = allow_reverse & (v < 0)
     e = np.where(back, wrap_angle(e + np.pi), e)
     v = np.where(allow_reverse, v, np.maximum(v, 0.0))

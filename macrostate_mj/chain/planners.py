@@ -79,12 +79,19 @@ class GridPlanner:
 
     A waypoint not reached within `timeout` seconds (blocked by the Head's own chain, whose
     robots it steers around) counts as reached, so the team never deadlocks. Cells whose
-    centre lies within `margin` of an obstacle are never chosen, nor points that do."""
+    centre lies within `margin` of an obstacle are never chosen, nor points that do. With
+    `max_turn` under 180 (degrees) a waypoint more than that off the Head's heading is drawn
+    again (up to `REDRAWS` times, then the least turn drawn is kept): Psi alone may send the
+    Head back into its own chain, which the real chains never show (their spacing stays
+    above 27 cm; docs: decisions/sysid)."""
+
+    REDRAWS = 20
 
     grid: Grid
     margin: float
     reach_radius: float
     timeout: float = 20.0
+    max_turn: float = 180.0
     memory: list[int] = field(default_factory=lambda: [-1, -1])
     target: np.ndarray | None = None
     twist: tuple[float, float] | None = None
@@ -102,7 +109,21 @@ class GridPlanner:
         reached = np.linalg.norm(head_pose[:2] - self.target) < self.reach_radius
         if reached or t - self._drawn_at > self.timeout:
             self.memory = [self.grid.cell_of(self.target), self.memory[0]]
-            self.target, self._drawn_at = self._draw(rng), t
+            self.target, self._drawn_at = self._ahead(head_pose, rng), t
+
+    def _ahead(self, head_pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The next waypoint: Psi's draw, redrawn while it lies more than `max_turn` off the
+        Head's heading (no redraw, so no extra draw, at 180)."""
+        best, least = None, np.inf
+        for _ in range(self.REDRAWS if self.max_turn < 180.0 else 1):
+            p = self._draw(rng)
+            off = p - head_pose[:2]
+            turn = abs(float(wrap_angle(np.arctan2(off[1], off[0]) - head_pose[2])))
+            if turn < least:
+                best, least = p, turn
+            if np.degrees(turn) <= self.max_turn:
+                break
+        return best
 
     def _draw(self, rng: np.random.Generator) -> np.ndarray:
         cells = psi_candidates(self.grid, *self.memory)
@@ -247,16 +268,22 @@ class PlannerSpec(Protocol):
 
 @dataclass(frozen=True)
 class PsiGrid:
-    """Psi on a cols x rows grid (lab, seed §2.6.2.2)."""
+    """Psi on a cols x rows grid (lab, seed §2.6.2.2); `max_turn` (degrees, up to 180: no
+    limit) keeps the Head's next waypoint within that turn of its heading."""
 
     grid: tuple[int, int]
+    max_turn: float = 180.0
 
     def __post_init__(self) -> None:
         Grid((1.0, 1.0), self.grid)          # refused when read, not at the first waypoint
+        if not (isinstance(self.max_turn, int | float) and 0 < self.max_turn <= 180):
+            raise UserError(f"planner.max_turn must be an angle in (0, 180] degrees, got "
+                            f"{self.max_turn!r}")
 
     def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
               obstacles: tuple[Obstacle, ...] = ()) -> Planner:
-        return GridPlanner(Grid(arena, self.grid), margin, reach_radius, obstacles=obstacles)
+        return GridPlanner(Grid(arena, self.grid), margin, reach_radius, obstacles=obstacles,
+                           max_turn=self.max_turn)
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ LAYOUT: dict[str, dict[str, str]] = {
     "chain": {"spacing": "spacing", "head_speed": "head_speed", "chain_speed": "chain_speed",
               "k_f": "k_f", "k_t": "k_t", "k_omega": "k_omega", "allow_reverse": "allow_reverse",
               "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
-              "avoid_gain": "avoid_gain"},
+              "avoid_gain": "avoid_gain", "head_turn_speed": "head_turn_speed"},
     "rates": {"command_hz": "command_hz", "log_hz": "log_hz", "frame_hz": "frame_hz",
               "frame_jitter": "frame_jitter"},
     "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale",
@@ -114,6 +114,11 @@ class ScenarioConfig:
     #                                 its own speed and curves a little
     marker_offset: float = 0.0      # each robot's marker sits off its body's centre by
     #                                 N(0, offset) m per body axis, drawn per episode
+    head_turn_speed: float = 0.0    # the share of its speed the Head keeps while turning
+    #                                 toward a waypoint less than 90 deg off its heading: 0
+    #                                 slows it by the cosine of its heading error (seed §2.3's
+    #                                 unicycle tracking), 1 drives through at full speed (the
+    #                                 real Head's speed hardly dips: docs, decisions/sysid)
 
     @property
     def camera_hz(self) -> float:
@@ -203,6 +208,10 @@ class ScenarioConfig:
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise UserError(f"{self.name}: {named(key)} must be a non-negative finite "
                                 f"number, got {v!r}", key)
+        v = self.head_turn_speed
+        if not (isinstance(v, int | float) and 0 <= v <= 1):
+            raise UserError(f"{self.name}: {named('head_turn_speed')} must be a share in "
+                            f"[0, 1], got {v!r}", "head_turn_speed")
 
     def as_made(self) -> ScenarioConfig:
         """The scenario as a run's outputs depend on it, for cache keys and run identities: the

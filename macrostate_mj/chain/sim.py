@@ -187,6 +187,7 @@ class ChainSim:
         # Speed caps and reversing per robot: the Head drives at most head_speed, forward only.
         self._v_max = np.array([self.cfg.head_speed] + [self.cfg.chain_speed] * (self.n - 1))
         self._reverse = np.array([False] + [self.cfg.allow_reverse] * (self.n - 1))
+        self._turn_speed = np.array([self.cfg.head_turn_speed] + [0.0] * (self.n - 1))
         self.monitor = PhysicsMonitor(world)
         # Health checks at least this often (physics steps); events bound the stretches too.
         self.check_steps = 10**9
@@ -257,7 +258,8 @@ class ChainSim:
         vel = self.reference_velocities(poses)
         if self.mission is not None:
             self.mission.adjust(self.time, poses, vel, cfg.spacing, cfg.k_f, cfg.head_speed)
-        v, omega = unicycle_commands(vel, poses[:, 2], cfg.k_omega, self._v_max, self._reverse)
+        v, omega = unicycle_commands(vel, poses[:, 2], cfg.k_omega, self._v_max, self._reverse,
+                                     turn_speed=self._turn_speed)
         if self.planner.twist is not None and self.mission is None:
             v[0], omega[0] = self.planner.twist
             if path_blocked(poses[:, :2], 0, poses[0, 2], cfg.avoid_radius):

@@ -35,7 +35,10 @@ def test_candidates_start_from_the_scenario_and_stay_in_the_box():
     first = candidates(cfg)
     assert first.shape == (8, len(FITTED)) and np.array_equal(first[0], np.zeros(len(FITTED)))
     lo, hi = box()
-    assert np.all((first >= lo) & (first <= hi)) and np.all(lo <= 0) and np.all(hi > 0)
+    assert np.all((first >= lo) & (first <= hi)) and np.all(lo <= 0) and np.all(hi >= lo)
+    # the box reaches past the scenario's value but where the value is already a bound: a
+    # Psi Head's turn is at most 180 degrees, as written
+    assert {k for k, h in zip(FITTED, hi, strict=True) if h <= 0} == {"max_turn"}
     factor = np.array([k not in ABSOLUTE for k in FITTED])
     assert np.all(lo[factor] < 0) and np.all(lo[~factor] == 0)       # 0: as the lab is written
     assert values(first[0]) == {k: (0.0 if k in ABSOLUTE else 1.0) for k in FITTED}
