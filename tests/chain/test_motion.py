@@ -10,12 +10,13 @@ from macrostate_mj.chain.motion import (
     chain_velocities,
     follower_velocity,
     tail_velocity,
+    unicycle_commands,
     unicycle_from_holonomic,
     waiting_follower_velocity,
     wheel_speeds,
     wrap_angle,
 )
-from macrostate_mj.chain.planners import CellPlanner, Grid, GridPlanner, psi_candidates
+from macrostate_mj.chain.planners import CellPlanner, Grid, GridPlanner, PsiGrid, psi_candidates
 
 
 def test_wrap_angle_range_and_pi():
@@ -120,6 +121,50 @@ def test_grid_planner_draws_waypoints_in_candidate_cells_inside_margin():
         assert planner.memory[1] == latest
         # The reached waypoint lay in a candidate cell of the previous memory (or its clip).
         assert planner.memory[0] in cand or np.any(np.abs(pose[:2]) >= [1.1 - 1e-9, 0.8 - 1e-9])
+
+
+def test_psi_with_a_largest_turn_keeps_the_head_heading_on_and_draws_as_before_at_180():
+    """At 180 degrees (the text's Psi) the planner draws exactly what it drew before the key;
+    below it, a waypoint more than `max_turn` off the Head's heading is drawn again."""
+    grid = Grid((2.5, 1.9), (12, 8))
+
+    def route(max_turn: float, legacy: bool = False) -> list[tuple[float, float]]:
+        rng = np.random.default_rng(3)
+        planner = GridPlanner(grid, margin=0.15, reach_radius=0.06) if legacy else \
+            GridPlanner(grid, margin=0.15, reach_radius=0.06, max_turn=max_turn)
+        pose = np.array([0.0, 0.0, 0.0])
+        planner.reset(pose, rng)
+        turns = []
+        for _ in range(300):
+            heading = np.arctan2(*(planner.target - pose[:2])[::-1])
+            pose = np.array([*planner.target, heading])       # arrived, facing its way
+            planner.update(pose, 0.0, rng)
+            off = planner.target - pose[:2]
+            turns.append(abs(np.degrees(wrap_angle(np.arctan2(off[1], off[0]) - heading))))
+        return turns
+
+    assert route(180.0) == route(180.0, legacy=True)
+    free, kept = np.array(route(180.0)), np.array(route(60.0))
+    assert np.mean(free > 60) > 0.2                    # Psi alone turns far, often
+    # (near walls no candidate cell may lie within the turn: the least turn drawn is kept)
+    assert np.mean(kept > 60) < np.mean(free > 60) / 3, (np.mean(kept > 60), np.mean(free > 60))
+    with pytest.raises(ValueError, match="max_turn must be an angle"):
+        PsiGrid((12, 8), max_turn=0.0)
+
+
+def test_a_head_that_keeps_its_speed_through_turns():
+    """turn_speed 0 is the text's v = |u| cos e; 1 keeps |u| through any turn under 90
+    degrees; a reference behind a robot that may not reverse stops it either way."""
+    u = np.array([[0.05 * np.cos(1.0), 0.05 * np.sin(1.0)], [-0.05, 0.0]])
+    theta, v_max, rev = np.zeros(2), np.full(2, 0.1), np.zeros(2, bool)
+    v0, w0 = unicycle_commands(u, theta, 1.2, v_max, rev)
+    assert v0[0] == pytest.approx(0.05 * np.cos(1.0)) and v0[1] == 0.0
+    same, _ = unicycle_commands(u, theta, 1.2, v_max, rev, turn_speed=np.zeros(2))
+    assert np.array_equal(same, v0)
+    v1, w1 = unicycle_commands(u, theta, 1.2, v_max, rev, turn_speed=np.ones(2))
+    assert v1[0] == pytest.approx(0.05) and v1[1] == 0.0 and np.array_equal(w1, w0)
+    half, _ = unicycle_commands(u, theta, 1.2, v_max, rev, turn_speed=np.full(2, 0.5))
+    assert half[0] == pytest.approx(0.05 * (0.5 + 0.5 * np.cos(1.0)))
 
 
 def test_cell_planner_redraws_on_entering_a_new_cell():

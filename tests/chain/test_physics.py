@@ -94,6 +94,10 @@ def test_a_parked_chain_of_robots_that_differ_stands_still():
                      followers=WaitForBehind(0.06, hold=base.spacing, start=0.011))
     for cfg, seeds in ((base, (0,)), (fitted, (0, 1, 2))):
         assert parked(cfg, 3, seeds).still, (cfg.k_f, seeds)
+    # the check can fail: five such robots that back off at once from the robot ahead turn
+    # on the spot (55 degrees in the minute watched), which `sysid` refuses
+    backs_off = replace(fitted, followers=WaitForBehind(0.06))
+    assert not parked(backs_off, 5).still
     # wheels that differ leave a parked robot upright: it neither creeps nor turns (wheels of
     # other sizes tilted it, and it crept up to 6 mm in 5 s)
     sim = ChainSim(build_world(fitted, 2), planner=FixedWaypoint((0.0, 0.0)))

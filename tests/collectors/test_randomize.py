@@ -122,9 +122,26 @@ def test_absolute_parameters_add_to_the_scenario_and_their_extremes_are_checked(
         Randomization.parse(str(profile))
 
 
+def test_the_heads_driving_is_drawn_where_it_lives():
+    """`head_turn_speed` adds to the scenario's share (0 as written); `max_turn` scales a Psi
+    Head's largest turn, capped at 180 degrees; a lab whose Head is not Psi's refuses it."""
+    lab = get_scenario("lab")
+    assert lab.head_turn_speed == 0.0 and lab.planner.max_turn == 180.0
+    cfg = randomized_scenario(lab, {"head_turn_speed": 0.7, "max_turn": 0.5})
+    assert cfg.head_turn_speed == 0.7 and cfg.planner.max_turn == 90.0
+    assert cfg.planner.grid == lab.planner.grid
+    assert randomized_scenario(lab, {"max_turn": 1.3}).planner.max_turn == 180.0
+    with pytest.raises(UserError, match="max_turn turns a Psi Head"):
+        randomized_scenario(get_scenario("webots"), {"max_turn": 0.5})
+    with pytest.raises(UserError, match="head_turn_speed .* must be a share in"):
+        randomized_scenario(lab, {"head_turn_speed": 1.5})
+
+
 @pytest.mark.parametrize(("key", "value"), [("frame_jitter", 0.3), ("frame_hz", -1.0),
                                             ("wheel_spread", float("nan")),
-                                            ("marker_offset", 0.5)])
+                                            ("marker_offset", 0.5),
+                                            ("head_turn_speed", float("nan")),
+                                            ("head_turn_speed", -0.1)])
 def test_the_new_keys_refuse_bad_values_from_python_in_one_line(key, value):
     with pytest.raises(ValueError, match=f"{key} \\(.* in a scenario file\\) must be"):
         get_scenario("lab").with_overrides(**{key: value})

@@ -11,6 +11,7 @@ from collectors.randomize import ABSOLUTE
 from collectors.sysid import (
     FITTED,
     SysidConfig,
+    best_still,
     box,
     candidates,
     identity,
@@ -94,3 +95,13 @@ def test_the_refit_profile_is_the_committed_fit():
 
     fitted = Path(__file__).resolve().parents[2] / "results" / "sysid_refit" / "fitted.json"
     assert REFIT == json.loads(fitted.read_text())
+
+
+def test_the_fit_keeps_only_candidates_whose_parked_chain_stands_still():
+    """The best score loses to a worse one whose parked chain stands still; with none still
+    the fit stops in one line."""
+    moving = {"score": 1.0, "parked": {"still": False}, "factors": {"k_f": 9.0}}
+    still = {"score": 2.0, "parked": {"still": True}, "factors": {"k_f": 1.0}}
+    assert best_still([moving, still]) is still
+    with pytest.raises(ValueError, match="none of 1 candidates parks its chain still"):
+        best_still([moving])
