@@ -84,6 +84,9 @@ MEANINGS = {
     "chain.reach_radius": "a waypoint counts as reached within it, m",
     "chain.avoid_radius": "robots repel each other within it, m",
     "chain.avoid_gain": "strength of that repulsion",
+    "chain.head_turn_speed": "the share of its speed the Head keeps while turning toward a "
+                             "waypoint under 90 degrees off (0: slows by the cosine, as the "
+                             "text's tracking; 1: full speed)",
     "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
     "rates.frame_hz": "the camera's frame rate, Hz (auto: the command rate)",
     "rates.frame_jitter": "each frame's delay after its nominal instant, uniform up to it, s",
@@ -116,6 +119,8 @@ MEANINGS = {
     "look.headlight_ambient": "0-1", "look.headlight_diffuse": "0-1",
     "planner.kind": "the Head's planner: psi_grid (the lab's cell walk), cell_walk, preset_twists",
     "planner.grid": "[columns, rows] of the planner's grid",
+    "planner.max_turn": "psi_grid: the largest turn toward the Head's next waypoint, degrees "
+                        "(180: Psi as written)",
     "planner.presets": "the Head's (v, ω) schedule of the preset planner",
     "followers.kind": "follower rule: two_neighbours or wait_for_behind",
     "followers.slack": "wait while the robot behind lags more than d + slack, m",

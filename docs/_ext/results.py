@@ -141,10 +141,14 @@ class Paired:
 
 @source
 def paired(path: str, keypath: str, base_keypath: str, fmt: str = ".2f", unit: str = "") -> Paired:
-    """Two per-seed lists of one results file, paired: the mean of their differences (the first
-    minus the second) and its 95 % t interval (`core.stats.paired_interval`)."""
+    """Two per-seed lists (or {seed: value} maps, paired by seed) of one results file: the
+    mean of their differences (the first minus the second) and its 95 % t interval
+    (`core.stats.paired_interval`)."""
     data = load(path)
     a, b = (dig(data, k) for k in (keypath, base_keypath))
+    if isinstance(a, dict) and isinstance(b, dict):
+        seeds = sorted(a, key=str)
+        a, b = [a[s] for s in seeds], [b[s] for s in seeds]
     d = paired_interval([x - y for x, y in zip(a, b, strict=True)])  # type: ignore[arg-type]
     return Paired(d["mean"], d["low"], d["high"], d["n"], fmt, unit)  # type: ignore[arg-type]
 
