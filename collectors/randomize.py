@@ -62,6 +62,11 @@ PROFILES: dict[str, dict[str, tuple[float, float] | float]] = {
     "wider": {**WIDE, "k_f": (0.8, 1.3), "k_t": (0.8, 1.6), "head_speed": (0.8, 1.6),
               "chain_speed": (0.8, 1.5), "wait_slack": (0.7, 1.5)},
 }
+# `wider`, with a Head that keeps half to all of its speed through its turns and turns at
+# most 72-180 degrees for its next waypoint (a Psi lab): the real Head's steady speed and the
+# real chains that never fold (docs: decisions/sysid).
+PROFILES["wider-head"] = {**PROFILES["wider"], "head_turn_speed": (0.5, 1.0),
+                          "max_turn": (0.4, 1.0)}
 # The `lab` refit (`sysid`, results/sysid_refit): stiff rear robots capped near the Head's speed,
 # a quieter Head marker. Not the lab's defaults, since with these gains a parked rear robot turns
 # on the spot at the smallest pull (docs: decisions/sysid); `refit` fixes the factors,
