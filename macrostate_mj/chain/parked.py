@@ -23,8 +23,8 @@ MOVED_M = 0.002         # a parked robot moves less than this (m) ...
 TURNED_DEG = 1.0        # ... and turns less than this (degrees) while watched
 SEEDS = (0, 1, 2)       # start seeds (the wheels drawn per episode differ by seed)
 TEAMS = (3, 5)          # the real deployments' sizes: a rule that parks 3 robots still may
-#                         not park 5 (the fitted lab of results/s2r_nested_still: 3 still,
-#                         5 moved 2.7 cm and turned 17 degrees)
+#                         not park 5 (the stiff factors of the parked-chain physics test: 3
+#                         still, 5 moved 2.7 cm and turned 17 degrees)
 
 
 @dataclass(frozen=True)
