@@ -175,6 +175,15 @@ def srs_cell(folder: str, config: str, budget: str, metric: str) -> Q:
 
 
 @source
+def count(path: str, keypath: str, value: str) -> Q:
+    """How many entries of a list or {key: value} map in a results file equal `value` (e.g.
+    the folds that chose one range candidate)."""
+    entries = dig(load(path), keypath)
+    values = entries.values() if isinstance(entries, dict) else entries
+    return Q(sum(str(v) == value for v in values), None, "d")  # type: ignore[union-attr]
+
+
+@source
 def quantile(path: str, keypath: str, q: str, fmt: str = ".1f", unit: str = "") -> Q:
     """A quantile of a list of numbers in a results file."""
     values = sorted(float(v) for v in dig(load(path), keypath))  # type: ignore[union-attr]
