@@ -90,7 +90,8 @@ def rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
     world = build_world(ARENA, 6)
     sim = ChainSim(world, mission=CagingMission(caging))
     return _rehearse(sim, runs, seconds, [np.arange(sim.n)],
-                     lambda rng: start_poses(caging, sim.n, sim.cfg.spacing, rng))
+                     lambda rng: start_poses(caging, sim.n, sim.cfg.spacing, rng,
+                                             sim.cfg.arena))
 
 
 def team_rehearsal_runs(runs: int, seconds: float) -> np.ndarray:

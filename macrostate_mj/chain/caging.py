@@ -116,16 +116,24 @@ def cage_report(positions: np.ndarray, cfg: CagingConfig) -> dict:
     return report
 
 
-def start_poses(cfg: CagingConfig, n: int, spacing: float, rng: np.random.Generator
-                ) -> np.ndarray:
+def start_poses(cfg: CagingConfig, n: int, spacing: float, rng: np.random.Generator,
+                arena: tuple[float, float] | None = None) -> np.ndarray:
     """A straight chain along the bottom-left wall, Tail in the corner (±3 cm), heading right
     within ±10°: where the Head meets the object, and how the chain bends, vary with the draw.
-    Head first."""
+    Head first. Given the `arena`, a chain drawn heading into a wall (about 1 draw in 180 for
+    6 GRITSBots in the robotarium) heads the mirrored way instead; every other draw is as
+    before."""
     tail = np.asarray(cfg.start_corner, float) + rng.uniform(-0.03, 0.03, 2)
     phi = rng.uniform(-np.radians(10), np.radians(10))
-    along = np.array([np.cos(phi), np.sin(phi)])
-    xy = tail + np.arange(n)[::-1, None] * spacing * along
-    return np.column_stack([xy, np.full(n, phi)])
+
+    def line(phi: float) -> np.ndarray:
+        xy = tail + np.arange(n)[::-1, None] * spacing * np.array([np.cos(phi), np.sin(phi)])
+        return np.column_stack([xy, np.full(n, phi)])
+
+    poses = line(phi)
+    if arena is not None and np.any(np.abs(poses[:, :2]) > np.asarray(arena) / 2):
+        poses = line(-phi)
+    return poses
 
 
 class CagingMission:

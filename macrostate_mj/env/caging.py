@@ -85,7 +85,8 @@ class CagingTask(TailTask):
 
     def start_poses(self, rng: np.random.Generator) -> np.ndarray:
         """The team's start (Head first), drawn from `rng`."""
-        return start_poses(self.caging, self.sim.n, self.sim.cfg.spacing, rng)
+        return start_poses(self.caging, self.sim.n, self.sim.cfg.spacing, rng,
+                           self.sim.cfg.arena)
 
     def after_step(self, physics: dm_mujoco.Physics) -> None:
         super().after_step(physics)
