@@ -41,8 +41,10 @@ SPREAD = ("wheel_spread", "marker_offset")   # how the robots differ (`ScenarioC
 HEAD = ("head_turn_speed", "max_turn")      # how the Head drives: through turns, and how far
 #                                             it turns for its next waypoint (a Psi planner)
 PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING, *SPREAD, *HEAD)
-# added in their unit (s, m, a share), not factors: zero by default
-ABSOLUTE = ("frame_jitter", "follow_start", "follow_hold", *SPREAD, "head_turn_speed")
+# added in their unit (s, m, a share), not factors: zero by default; `ADDED` the scenario's
+# own fields among them (the rest live in the frame timing and the follower rule)
+ADDED = (*SPREAD, "head_turn_speed")
+ABSOLUTE = ("frame_jitter", "follow_start", "follow_hold", *ADDED)
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
@@ -167,8 +169,7 @@ def check_fits(profile: Randomization, cfg: ScenarioConfig) -> None:
 
 def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> ScenarioConfig:
     cfg = replace(cfg, **{k: getattr(cfg, k) * f for k, f in factors.items() if k in SCENARIO})
-    cfg = replace(cfg, **{k: getattr(cfg, k) + f for k, f in factors.items()
-                          if k in (*SPREAD, "head_turn_speed")})
+    cfg = replace(cfg, **{k: getattr(cfg, k) + f for k, f in factors.items() if k in ADDED})
     if "max_turn" in factors:
         if not hasattr(cfg.planner, "max_turn"):
             raise UserError(f"--randomize: max_turn turns a Psi Head's waypoints; {cfg.name}'s "
