@@ -102,7 +102,8 @@ def team_rehearsal_runs(runs: int, seconds: float) -> np.ndarray:
     branches = split_branches(6, 2)
     sim = BranchedSim(world, branches, mission=TeamCaging(caging, ring_order(branches)))
     return _rehearse(sim, runs, seconds, branches,
-                     lambda rng: team_start_poses(caging, branches, sim.cfg.spacing, rng))
+                     lambda rng: team_start_poses(caging, branches, sim.cfg.spacing, rng,
+                                                  sim.cfg.arena))
 
 
 def _rehearse(sim: ChainSim, runs: int, seconds: float, chains: list[np.ndarray],

@@ -83,13 +83,14 @@ class BranchedSim(ChainSim):
 
 
 def team_start_poses(cfg: CagingConfig, branches: list[np.ndarray], spacing: float,
-                     rng: np.random.Generator) -> np.ndarray:
-    """The one-chain start of as many robots (`chain.caging.start_poses`, the same draws, so a
-    seed puts the Head where it puts the one-chain Head), chain A trailing straight back from
-    the Head along that line, chain B at `SPLAY_DEG` from it toward the arena's middle; each
-    robot facing the one ahead."""
+                     rng: np.random.Generator,
+                     arena: tuple[float, float] | None = None) -> np.ndarray:
+    """The one-chain start of as many robots (`chain.caging.start_poses`, the same draws and
+    the same mirror given the `arena`, so a seed puts the Head where it puts the one-chain
+    Head), chain A trailing straight back from the Head along that line, chain B at
+    `SPLAY_DEG` from it toward the arena's middle; each robot facing the one ahead."""
     n = int(max(b.max() for b in branches)) + 1
-    line = start_poses(cfg, n, spacing, rng)
+    line = start_poses(cfg, n, spacing, rng, arena)
     head, phi = line[0, :2], line[0, 2]
     out = np.zeros((n, 3))
     out[0] = line[0]

@@ -144,4 +144,5 @@ class TeamCagingTask(CagingTask):
         return cls(sim, caging, history, observe, random)
 
     def start_poses(self, rng: np.random.Generator) -> np.ndarray:
-        return team_start_poses(self.caging, self.sim.branches, self.sim.cfg.spacing, rng)
+        return team_start_poses(self.caging, self.sim.branches, self.sim.cfg.spacing, rng,
+                                self.sim.cfg.arena)

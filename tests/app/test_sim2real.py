@@ -150,11 +150,30 @@ def test_sim_minutes_with_a_given_sim_folder_is_refused(tmp_path):
               str(tmp_path), "--scenario", "webots", "--out", str(tmp_path / "out"))
     assert_clean_error(res, "--scenario")
     assert not (tmp_path / "out").exists()
-    for bad in ("1.5", "0"):
-        res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), "--fraction", bad,
+    for flag, bad in (("--fraction", "1.5"), ("--fraction", "0"), ("--mix-weight", "1"),
+                      ("--mix-weight", "nan")):
+        res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), flag, bad,
                   "--out", str(tmp_path / "out"))
-        assert_clean_error(res, "--fraction")
+        assert_clean_error(res, flag)
         assert not (tmp_path / "out").exists()
+
+
+def test_the_mixed_arm_keeps_the_weight_best_on_the_real_validation_block():
+    """Of several `--mix-weight`s, each seed and share keeps the model with the lowest
+    validation error, whatever its test error; one weight keeps the reports as they were."""
+    def mixed(seed, f, w, val, test):
+        return {"arm": "mixed", "seed": seed, "fraction": f, "mix_weight": w,
+                "best_val_cm": val, "head_cm": test}
+    real = {"arm": "real", "seed": 0, "fraction": 0.5, "best_val_cm": 1.0, "head_cm": 1.0}
+    reports = [real, mixed(0, 0.5, 0.25, 5.0, 3.0), mixed(0, 0.5, 0.5, 4.0, 9.0),
+               mixed(1, 0.5, 0.25, 4.0, 4.0), mixed(1, 0.5, 0.5, 4.0, 1.0)]
+    config = replace(PROFILES["quick"], fractions=(0.5,), mix_weight=(0.25, 0.5))
+    kept, mixes = sim2real.choose_mix(reports, config)
+    assert kept == [real, reports[2], reports[3]]          # seed 1: the first of equals
+    assert mixes["0.5"]["chosen_by_seed"] == {"0": 0.5, "1": 0.25}
+    assert mixes["0.5"]["weights"]["0.25"]["head_cm_by_seed"] == {"0": 3.0, "1": 4.0}
+    one = [real, reports[1], reports[3]]
+    assert sim2real.choose_mix(one, replace(config, mix_weight=(0.25,))) == (one, {})
 
 
 def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():

@@ -30,6 +30,17 @@ def test_the_team_is_a_head_leading_two_chains_that_ring_through_it():
     for chain in (a, b):
         gaps = np.linalg.norm(np.diff(start[chain, :2], axis=0), axis=1)
         assert np.allclose(gaps, 0.08)
+    # given the arena, a line drawn out through a wall is mirrored for the team as for one
+    # chain: every robot inside, the Head still where the one-chain Head starts
+    arena, half, mirrored = (1.2, 0.7), np.array([0.6, 0.35]), 0
+    for seed in range(600):
+        team = team_start_poses(CagingConfig(), [a, b], 0.08, np.random.default_rng(seed),
+                                arena)
+        line = start_poses(CagingConfig(), 6, 0.08, np.random.default_rng(seed), arena)
+        assert np.all(np.abs(team[:, :2]) <= half) and np.array_equal(team[0], line[0])
+        mirrored += not np.array_equal(team, team_start_poses(
+            CagingConfig(), [a, b], 0.08, np.random.default_rng(seed)))
+    assert mirrored >= 1
 
 
 def test_pettingzoo_api_and_seed_tests_pass():

@@ -12,7 +12,8 @@ is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Fou
   Train.csv and Val.csv);
 - real: trained on a fraction of the pool, selected on the real validation block;
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`);
-- mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`).
+- mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`; name
+  several and each seed and fraction keeps the one best on the real validation block).
 Where the lab's factors come from (`fits`, `--fit`): the scenario as written; a `sysid` fit on
 the real Train.csv (leaky under these folds, whose test blocks it has seen); or the nested
 protocol, one fit per fold on that fold's training and validation blocks alone, so the
@@ -85,9 +86,12 @@ class Config:
     epochs: int = 60
     finetune_epochs: int = 30
     finetune_lr: float = 5e-4
-    mix_weight: float = field(default=0.5, metadata=flag(Positive(
-        None, "The mixed arm: the lab data's share of the loss, in (0, 1).", "--mix-weight",
-        max=1.0)))
+    # the mixed arm's lab share of the loss; with several, each seed and share keeps the
+    # weight whose model does best on the real validation block that stopped it (`mixes`)
+    mix_weight: tuple[float, ...] = field(default=(0.5,), metadata=flag(Positive(
+        None, "The mixed arm: the lab data's share of the loss, in (0, 1). Repeatable: each "
+        "seed and share then keeps the weight whose model does best on its real validation "
+        "block.", "--mix-weight", max=1.0), parse=lambda given: tuple(sorted(set(given)))))
     sim_minutes: float = 100.0
     sim_seed: int = 31
     episode_minutes: float = 5.0
@@ -210,6 +214,10 @@ def validate(config: Config) -> np.ndarray:
 
     if config.sim is not None and config.lab != get_scenario("lab"):
         raise UserError("--scenario names the lab this command collects in; drop it or --sim")
+    for weight in config.mix_weight:
+        if not 0.0 < weight < 1.0:
+            raise UserError(f"--mix-weight {weight:g}: the lab data's share of the mixed arm's "
+                            "loss must be in (0, 1)")
     pooled = read_real(config.real)
     unknown = [a for a in config.arms if a not in ARMS]
     if unknown or not config.arms:
@@ -247,9 +255,6 @@ def validate(config: Config) -> np.ndarray:
     if unknown or any(not group for group in config.ablate):
         raise UserError(f"--ablate {', '.join(unknown) or '(empty)'}: name parameters of "
                         f"{', '.join(PARAMETERS)}, comma-separated")
-    if not 0.0 < config.mix_weight < 1.0:
-        raise UserError(f"--mix-weight {config.mix_weight:g}: the lab data's share of the "
-                        "mixed arm's loss must be in (0, 1)")
     return pooled
 
 
@@ -427,8 +432,9 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     # the mixed arm alone trains sim models only to choose its lab data or to ablate it
     sim_models = "sim" in config.arms or "finetune" in config.arms or choose or \
         bool(config.ablate)
+    per_share = len(later) + ("mixed" in later) * (len(config.mix_weight) - 1)
     total = config.seeds * (sim_models * len(labs) * len(config.candidates)
-                            + len(later) * len(config.fractions) + len(config.ablate))
+                            + per_share * len(config.fractions) + len(config.ablate))
     blocks, first = [], []
     for i in range(config.seeds):
         s = config.seed + i
@@ -460,9 +466,12 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
             checkpoint = sim["folder"] / "model.pt" if sim else None
             for f in config.fractions:
                 count = max(1, int(np.ceil(f * len(pool))))
-                second += [({"arm": arm, "fraction": f, "count": count, "seed": s},
-                            _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab))
-                           for arm in later]
+                second += [({"arm": arm, "fraction": f, "count": count, "seed": s,
+                             **({"mix_weight": w} if arm == "mixed" else {})},
+                            _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab,
+                                      w))
+                           for arm in later
+                           for w in (config.mix_weight if arm == "mixed" else (None,))]
         done |= _train(second, progress, total, done)
         third = [({"ablate": group, "seed": s},
                   ModelTask("sim", s, config.epochs, lab / "Train.csv", lab / "Val.csv",
@@ -472,8 +481,9 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                      config, group, labs, chosen, out, progress), strict=True)
                  if lab is not None]
         done |= _train(third, progress, total, done)
-    reports = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
-               for meta, task in second]
+    reports, mixes = choose_mix([
+        {**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
+        for meta, task in second], config)
     # the first fit's chosen sim models are the sim arm; the other fits' are kept apart
     picked = [{k: v for k, v in r.items() if k != "folder"} for r in chosen.values()]
     others = [r for r in picked if r["fit"] != config.fits[0]]
@@ -488,6 +498,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         results["ablations"] = by_ablation(
             [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
              for meta, task in third], chosen, config)
+    if mixes:
+        results["mixes"] = mixes
     if fits:
         results["fits"] = fits
     write_json_atomic(out / "results.json", results)
@@ -530,9 +542,10 @@ def _ablated_labs(config: Config, group: tuple[str, ...], labs: dict, chosen: di
 
 
 def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.ndarray,
-              test: np.ndarray, checkpoint: Path | None, sim: Path | None) -> ModelTask:
+              test: np.ndarray, checkpoint: Path | None, sim: Path | None,
+              mix_weight: float | None = None) -> ModelTask:
     """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`, or
-    mixed with the lab Train.csv in `sim`."""
+    mixed with the lab Train.csv in `sim`, which weighs `mix_weight` of its loss."""
     how = {"chained": config.chained, "precision": config.precision}
     if arm == "real":
         return ModelTask(arm, seed, config.epochs, train, val, test, **how)
@@ -540,7 +553,33 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
         return ModelTask(arm, seed, config.finetune_epochs, train, val, test,
                          config.finetune_lr, checkpoint, **how)
     return ModelTask(arm, seed, config.epochs, train, val, test, mix=sim / "Train.csv",
-                     mix_weight=config.mix_weight, **how)
+                     mix_weight=mix_weight, **how)
+
+
+def choose_mix(reports: list[dict], config: Config) -> tuple[list[dict], dict]:
+    """The reports with one mixed model per seed and share: of the `mix_weight`s, the one best
+    on the real validation block that stopped its training (`best_val_cm`; the first of
+    equals; the test block takes no part). With several weights, also per share the weight
+    each seed kept and every weight's Head error (`mixes`)."""
+    best: dict[tuple[int, float], dict] = {}
+    for r in (r for r in reports if r["arm"] == "mixed"):
+        kept = best.get((r["seed"], r["fraction"]))
+        if kept is None or r["best_val_cm"] < kept["best_val_cm"]:
+            best[r["seed"], r["fraction"]] = r
+    chosen = [r for r in reports if r["arm"] != "mixed" or best[r["seed"], r["fraction"]] is r]
+    if len(config.mix_weight) < 2:
+        return chosen, {}
+    mixes = {}
+    for f in config.fractions:
+        cells = {w: [r for r in reports if r["arm"] == "mixed" and r["fraction"] == f
+                     and r["mix_weight"] == w] for w in config.mix_weight}
+        mixes[f"{f:g}"] = {
+            "chosen_by_seed": {str(s): r["mix_weight"] for (s, g), r in best.items() if g == f},
+            "weights": {f"{w:g}": {"best_val_cm": mean_std([r["best_val_cm"] for r in c]),
+                                   "head_cm": mean_std([r["head_cm"] for r in c]),
+                                   "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in c}}
+                        for w, c in cells.items()}}
+    return chosen, mixes
 
 
 def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
@@ -664,6 +703,10 @@ def summary_lines(results: dict) -> list[str]:
         counts = Counter(ranges["chosen_by_seed"].values())
         lines.append(f"--randomize chosen per fold ({fit}): " + ", ".join(
             f"{Path(r).name} {n}x" for r, n in counts.most_common()))
+    for f, cell in results.get("mixes", {}).items():
+        counts = Counter(cell["chosen_by_seed"].values())
+        lines.append(f"mixed at {float(f) * 100:.0f} % real, lab share chosen per seed: " +
+                     ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
     for name, cell in results.get("ablations", {}).items():
         d = cell["minus_lab"]
         if d["mean"] is None:
