@@ -89,7 +89,7 @@ def test_experiment_sim2real_quick(stand_in, tmp_path, monkeypatch):
     class Stop(Exception):
         pass
 
-    def collect(req):
+    def collect(req, progress=None):
         collected.append(req)
         raise Stop
 

@@ -266,7 +266,8 @@ def _collect(config: Config, out: Path, progress: Progress, randomize: str | Non
                          overwrite=True, episode_minutes=config.episode_minutes,
                          randomize=randomize)
     if not finished(req):
-        collect(req)
+        collect(req, lambda _, minutes, resumed: progress.report(
+            f"lab data {out.name}", minutes, config.sim_minutes, resumed))
     return out
 
 
