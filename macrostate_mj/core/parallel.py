@@ -10,6 +10,8 @@ import logging
 import os
 import re
 import socket
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -30,12 +32,24 @@ def torch_threads(workers: int = 1) -> int:
     return max(1, min(2, render_threads(workers)))
 
 
-def _pin_render_threads(threads: int) -> None:
+def _start_worker(threads: int, parent: int) -> None:
     """Worker initializer: runs before any GL context or torch exists in the worker, so each
     worker's renderer and torch use its share of the cores (two workers on two cores do not
-    fight). An LP_NUM_THREADS or OMP_NUM_THREADS the user exported wins."""
+    fight; an LP_NUM_THREADS or OMP_NUM_THREADS the user exported wins); and ends the worker
+    once the `parent` that started it is gone (killed, say), rather than leave it computing
+    as an orphan. Cached work is written atomically, so what it had half done is lost only."""
     os.environ.setdefault("LP_NUM_THREADS", str(threads))
     os.environ.setdefault("OMP_NUM_THREADS", str(threads))
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+
+
+PARENT_POLL_S = 1.0     # how often a worker checks that its parent is alive
 
 
 def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
@@ -51,8 +65,8 @@ def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
     from concurrent.futures.process import BrokenProcessPool
 
     with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
-                             initializer=_pin_render_threads,
-                             initargs=(render_threads(workers),)) as pool:
+                             initializer=_start_worker,
+                             initargs=(render_threads(workers), os.getpid())) as pool:
         futures = [pool.submit(fn, t) for t in tasks]
         try:
             for fut in as_completed(futures):
