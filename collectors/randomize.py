@@ -69,6 +69,14 @@ PROFILES: dict[str, dict[str, tuple[float, float] | float]] = {
 # real chains that never fold (docs: decisions/sysid).
 PROFILES["wider-head"] = {**PROFILES["wider"], "head_turn_speed": (0.5, 1.0),
                           "max_turn": (0.4, 1.0)}
+# `wider-head`, with rear robots that stop and go like the real ones: stiff gains (Follower
+# 1.5-5x, Tail 1-2x) capped near the Head's speed (0.45-1x the chain's), stopping rather than
+# backing off when close (`follow_hold` = the spacing); `-slow` also draws the Head's speed
+# nearer the real Head's (docs: reproduction/beyond).
+PROFILES["wider-rear"] = {**PROFILES["wider-head"], "k_f": (1.5, 5.0), "k_t": (1.0, 2.0),
+                          "chain_speed": (0.45, 1.0), "follow_hold": 0.3}
+PROFILES["wider-rear-slow"] = {**PROFILES["wider-rear"], "head_speed": (0.75, 1.15)}
+PROFILES["wider-head-slow"] = {**PROFILES["wider-head"], "head_speed": (0.75, 1.15)}
 # The `lab` refit (`sysid`, results/sysid_refit): stiff rear robots capped near the Head's speed,
 # a quieter Head marker. Not the lab's defaults, since with these gains a parked rear robot turns
 # on the spot at the smallest pull (docs: decisions/sysid); `refit` fixes the factors,
