@@ -163,7 +163,9 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
 
     key = task_key("sysid-score", SCORE_VERSION, made_of, [real_poses])
     scored = json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
-    return scored | {"parked": parked_check(factors, out, cfg)}
+    # the folder as named in this run: a score cached by a run elsewhere (copied, moved)
+    # names that run's folder
+    return scored | {"folder": str(folder), "parked": parked_check(factors, out, cfg)}
 
 
 def parked_check(factors: dict[str, float], out: Path, cfg: SysidConfig) -> dict:

@@ -2,6 +2,8 @@
 for the real files, so no reference data is needed)."""
 
 import json
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,6 +86,15 @@ def test_a_tiny_fit_end_to_end(tmp_path):
     res = cli(*args, "--robots", "5", "--out", str(tmp_path / "bad"))
     assert res.returncode == 2 and "robots" in res.stderr and res.stderr.count("\n") == 1
     assert not (tmp_path / "bad").exists()
+    # a fit moved elsewhere resumes there from its cache: nothing is collected again, and its
+    # candidates are read from where they now are
+    moved = tmp_path / "moved"
+    shutil.move(out, moved)
+    res = cli(*args, "--out", str(moved), "--overwrite")
+    assert res.returncode == 0, res.stderr
+    again = json.loads((moved / "fit.json").read_text())
+    assert again["train"] == fit["train"] and again["val"] == fit["val"]
+    assert all(Path(c["folder"]).parent == moved / "candidates" for c in again["candidates"])
 
 
 def test_the_refit_profile_is_the_committed_fit():
