@@ -21,7 +21,7 @@ from macrostate_mj.formats import motion_stats
 SHAPED_BY: dict[str, tuple[str, ...]] = {
     "spacing_cm": ("k_f", "k_t", "wait_slack", "follow_start"),
     "speed_cm_s": ("head_speed", "chain_speed", "k_f", "k_t", "wait_slack", "follow_start",
-                   "frame_hz", "frame_jitter", "wheel_spread"),
+                   "frame_hz", "frame_jitter", "wheel_spread", "head_turn_speed"),
     "turn_deg_s": ("k_omega", "marker_jitter", "head_jitter_scale", "wheel_spread",
                    "marker_offset"),
     "heading_change_deg": ("k_omega", "marker_jitter", "head_jitter_scale", "wheel_spread",
@@ -32,7 +32,7 @@ SHAPED_BY: dict[str, tuple[str, ...]] = {
                   "psf_sigma_px", "frame_jitter"),
     "wait_share": ("wait_slack", "follow_start", "chain_speed", "k_f"),
     "speed_acf": ("frame_hz", "frame_jitter", "marker_jitter", "head_jitter_scale", "k_f",
-                  "k_t"),
+                  "k_t", "head_turn_speed"),
     "turn_acf": ("k_omega", "marker_jitter", "head_jitter_scale", "frame_hz", "frame_jitter"),
 }
 assert all(set(v) <= set(PARAMETERS) for v in SHAPED_BY.values())
