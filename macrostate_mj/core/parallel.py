@@ -32,6 +32,9 @@ def torch_threads(workers: int = 1) -> int:
     return max(1, min(2, render_threads(workers)))
 
 
+PARENT_POLL_S = 1.0     # how often a worker checks that its parent is alive
+
+
 def _start_worker(threads: int, parent: int) -> None:
     """Worker initializer: runs before any GL context or torch exists in the worker, so each
     worker's renderer and torch use its share of the cores (two workers on two cores do not
@@ -47,9 +50,6 @@ def _start_worker(threads: int, parent: int) -> None:
         os._exit(1)
 
     threading.Thread(target=watch, name="watch-parent", daemon=True).start()
-
-
-PARENT_POLL_S = 1.0     # how often a worker checks that its parent is alive
 
 
 def local_results(fn: Callable[[Any], Any], tasks: Sequence[Any], workers: int
