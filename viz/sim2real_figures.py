@@ -19,7 +19,8 @@ def plot_curve(results: dict, path: str | os.PathLike) -> None:
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     for arm, label, style in (("real", "real only", "o-"),
                               ("finetune", "sim pre-trained, fine-tuned", "s-"),
-                              ("mixed", "sim and real mixed", "^-")):
+                              ("mixed", "sim and real mixed", "^-"),
+                              ("finetune-mixed", "sim pre-trained, fine-tuned mixed", "d-")):
         if arm not in results["arms"]:          # results written before the mixed arm
             continue
         cells = results["arms"][arm]

@@ -469,17 +469,19 @@ def s2r_ranges(folder: str) -> Table:
 
 @source
 def s2r_mixes(folder: str) -> Table:
-    """The mixed arm's lab shares (`--mix-weight`), chosen per seed and real share on the real
+    """The mixing arms' lab shares (`--mix-weight`), chosen per seed and real share on the real
     validation block: each weight's error there and on the test blocks (mean ± std over the
     seeds) and for how many seeds it was kept."""
     data = load(f"{folder}/results.json")
-    rows = [["real data", "lab share of the loss", "validation block, mean error (cm)",
+    rows = [["arm", "real data", "lab share of the loss", "validation block, mean error (cm)",
              "test block, Head (cm)", "kept for"]]
-    for share, cell in data["mixes"].items():  # type: ignore[index,union-attr]
-        kept = [f"{w:g}" for w in cell["chosen_by_seed"].values()]
-        for weight, w in cell["weights"].items():
-            rows.append([f"{float(share) * 100:.0f} %", weight, _stat(w["best_val_cm"], ".2f"),
-                         _stat(w["head_cm"], ".2f"), f"{kept.count(weight)} / {len(kept)}"])
+    for arm, shares in data["mixes"].items():  # type: ignore[index,union-attr]
+        for share, cell in shares.items():
+            kept = [f"{w:g}" for w in cell["chosen_by_seed"].values()]
+            for weight, w in cell["weights"].items():
+                rows.append([arm, f"{float(share) * 100:.0f} %", weight,
+                             _stat(w["best_val_cm"], ".2f"), _stat(w["head_cm"], ".2f"),
+                             f"{kept.count(weight)} / {len(kept)}"])
     return rows
 
 

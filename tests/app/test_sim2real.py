@@ -170,10 +170,31 @@ def test_the_mixed_arm_keeps_the_weight_best_on_the_real_validation_block():
     config = replace(PROFILES["quick"], fractions=(0.5,), mix_weight=(0.25, 0.5))
     kept, mixes = sim2real.choose_mix(reports, config)
     assert kept == [real, reports[2], reports[3]]          # seed 1: the first of equals
-    assert mixes["0.5"]["chosen_by_seed"] == {"0": 0.5, "1": 0.25}
-    assert mixes["0.5"]["weights"]["0.25"]["head_cm_by_seed"] == {"0": 3.0, "1": 4.0}
+    assert mixes["mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.5, "1": 0.25}
+    assert mixes["mixed"]["0.5"]["weights"]["0.25"]["head_cm_by_seed"] == {"0": 3.0, "1": 4.0}
     one = [real, reports[1], reports[3]]
     assert sim2real.choose_mix(one, replace(config, mix_weight=(0.25,))) == (one, {})
+    # the fine-tuned mixing arm chooses its own weight, apart from the mixed arm's
+    both = [*reports, {**reports[1], "arm": "finetune-mixed", "best_val_cm": 1.0},
+            {**reports[2], "arm": "finetune-mixed"}]
+    kept, mixes = sim2real.choose_mix(both, replace(config, arms=sim2real.ARMS))
+    assert kept[-1] == both[5] and set(mixes) == {"mixed", "finetune-mixed"}
+    assert mixes["finetune-mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.25}
+
+
+def test_the_fine_tuned_mixing_arm_starts_from_the_sim_model_and_mixes_the_lab_in(tmp_path):
+    chains, lab, init = np.zeros((4, 16, 3, 3)), tmp_path / "lab", tmp_path / "sim.pt"
+    lab.mkdir()
+    (lab / "Train.csv").write_text("lab rows")             # keys read their inputs' bytes
+    init.write_bytes(b"a checkpoint")
+    config = PROFILES["quick"]
+    task = sim2real._arm_task("finetune-mixed", config, 0, chains, chains, chains, init, lab,
+                              0.75)
+    assert (task.init, task.mix, task.mix_weight) == (init, lab / "Train.csv", 0.75)
+    assert (task.epochs, task.lr) == (config.finetune_epochs, config.finetune_lr)
+    plain = sim2real._arm_task("finetune", config, 0, chains, chains, chains, init, lab, None)
+    assert plain.mix is None and plain.key() != task.key()
+    assert "finetune-mixed" not in config.arms          # trained only when named
 
 
 def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():

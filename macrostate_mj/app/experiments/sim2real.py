@@ -13,7 +13,10 @@ is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Fou
 - real: trained on a fraction of the pool, selected on the real validation block;
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`);
 - mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`; name
-  several and each seed and fraction keeps the one best on the real validation block).
+  several and each seed and fraction keeps the one best on the real validation block);
+- finetune-mixed: the seed's sim model trained further on the same fraction with the lab
+  Train.csv mixed in, as the mixed arm mixes it (pre-trained on the lab, then fine-tuned
+  without forgetting it).
 Where the lab's factors come from (`fits`, `--fit`): the scenario as written; a `sysid` fit on
 the real Train.csv (leaky under these folds, whose test blocks it has seen); or the nested
 protocol, one fit per fold on that fold's training and validation blocks alone, so the
@@ -69,7 +72,8 @@ from macrostate_mj.core.stats import cv_blocks, mean_std, paired_interval
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png"]
-ARMS = ("sim", "real", "finetune", "mixed")
+ARMS = ("sim", "real", "finetune", "mixed", "finetune-mixed")
+MIXING = ("mixed", "finetune-mixed")      # the arms that mix the lab data into the loss
 REAL_FILES = ("Train.csv", "Val.csv")
 FITS = ("none", "train", "fold")
 PLAIN = "none"      # a `randomize` candidate: no ranges (the fitted factors fixed, or the lab)
@@ -114,9 +118,10 @@ class Config:
         "block. The full profile's wider (as the docs' figure) is what `experiment all` "
         "runs."), default=(), shown="none"))
     # which arms to train (a fine-tuned arm trains the sim models)
-    arms: tuple[str, ...] = field(default=ARMS, metadata=flag(Choice(
+    arms: tuple[str, ...] = field(default=ARMS[:4], metadata=flag(Choice(
         None, "Train only this arm (repeatable): `--arm sim` asks only how far a lab collection "
-        "carries.", ARMS, "--arm"), parse=lambda given: tuple(a for a in ARMS if a in given)))
+        "carries. All but finetune-mixed when none is named.", ARMS, "--arm"),
+        parse=lambda given: tuple(a for a in ARMS if a in given)))
     # train on chained Followers too (`TrainConfig.chained`)
     chained: bool = field(default=True, metadata=flag(Chained))
     # the trainings' arithmetic (`estimators.precision`)
@@ -431,9 +436,9 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     later = [a for a in ARMS[1:] if a in config.arms]
     choose = len(config.candidates) > 1
     # the mixed arm alone trains sim models only to choose its lab data or to ablate it
-    sim_models = "sim" in config.arms or "finetune" in config.arms or choose or \
+    sim_models = bool({"sim", "finetune", "finetune-mixed"} & set(config.arms)) or choose or \
         bool(config.ablate)
-    per_share = len(later) + ("mixed" in later) * (len(config.mix_weight) - 1)
+    per_share = sum(len(config.mix_weight) if a in MIXING else 1 for a in later)
     total = config.seeds * (sim_models * len(labs) * len(config.candidates)
                             + per_share * len(config.fractions) + len(config.ablate))
     blocks, first = [], []
@@ -468,11 +473,11 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
             for f in config.fractions:
                 count = max(1, int(np.ceil(f * len(pool))))
                 second += [({"arm": arm, "fraction": f, "count": count, "seed": s,
-                             **({"mix_weight": w} if arm == "mixed" else {})},
+                             **({"mix_weight": w} if arm in MIXING else {})},
                             _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab,
                                       w))
                            for arm in later
-                           for w in (config.mix_weight if arm == "mixed" else (None,))]
+                           for w in (config.mix_weight if arm in MIXING else (None,))]
         done |= _train(second, progress, total, done)
         third = [({"ablate": group, "seed": s},
                   ModelTask("sim", s, config.epochs, lab / "Train.csv", lab / "Val.csv",
@@ -545,41 +550,45 @@ def _ablated_labs(config: Config, group: tuple[str, ...], labs: dict, chosen: di
 def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.ndarray,
               test: np.ndarray, checkpoint: Path | None, sim: Path | None,
               mix_weight: float | None = None) -> ModelTask:
-    """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`, or
-    mixed with the lab Train.csv in `sim`, which weighs `mix_weight` of its loss."""
+    """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`,
+    mixed with the lab Train.csv in `sim` (which weighs `mix_weight` of its loss), or both."""
     how = {"chained": config.chained, "precision": config.precision}
     if arm == "real":
         return ModelTask(arm, seed, config.epochs, train, val, test, **how)
-    if arm == "finetune":
+    mix = {} if arm == "finetune" else {"mix": sim / "Train.csv", "mix_weight": mix_weight}
+    if arm in ("finetune", "finetune-mixed"):
         return ModelTask(arm, seed, config.finetune_epochs, train, val, test,
-                         config.finetune_lr, checkpoint, **how)
-    return ModelTask(arm, seed, config.epochs, train, val, test, mix=sim / "Train.csv",
-                     mix_weight=mix_weight, **how)
+                         config.finetune_lr, checkpoint, **mix, **how)
+    return ModelTask(arm, seed, config.epochs, train, val, test, **mix, **how)
 
 
 def choose_mix(reports: list[dict], config: Config) -> tuple[list[dict], dict]:
-    """The reports with one mixed model per seed and share: of the `mix_weight`s, the one best
-    on the real validation block that stopped its training (`best_val_cm`; the first of
-    equals; the test block takes no part). With several weights, also per share the weight
-    each seed kept and every weight's Head error (`mixes`)."""
-    best: dict[tuple[int, float], dict] = {}
-    for r in (r for r in reports if r["arm"] == "mixed"):
-        kept = best.get((r["seed"], r["fraction"]))
+    """The reports with one model per mixing arm, seed and share: of the `mix_weight`s, the one
+    best on the real validation block that stopped its training (`best_val_cm`; the first of
+    equals; the test block takes no part). With several weights, also per arm and share the
+    weight each seed kept and every weight's Head error (`mixes`)."""
+    best: dict[tuple[str, int, float], dict] = {}
+    for r in (r for r in reports if r["arm"] in MIXING):
+        kept = best.get((r["arm"], r["seed"], r["fraction"]))
         if kept is None or r["best_val_cm"] < kept["best_val_cm"]:
-            best[r["seed"], r["fraction"]] = r
-    chosen = [r for r in reports if r["arm"] != "mixed" or best[r["seed"], r["fraction"]] is r]
+            best[r["arm"], r["seed"], r["fraction"]] = r
+    chosen = [r for r in reports
+              if r["arm"] not in MIXING or best[r["arm"], r["seed"], r["fraction"]] is r]
     if len(config.mix_weight) < 2:
         return chosen, {}
-    mixes = {}
-    for f in config.fractions:
-        cells = {w: [r for r in reports if r["arm"] == "mixed" and r["fraction"] == f
-                     and r["mix_weight"] == w] for w in config.mix_weight}
-        mixes[f"{f:g}"] = {
-            "chosen_by_seed": {str(s): r["mix_weight"] for (s, g), r in best.items() if g == f},
-            "weights": {f"{w:g}": {"best_val_cm": mean_std([r["best_val_cm"] for r in c]),
-                                   "head_cm": mean_std([r["head_cm"] for r in c]),
-                                   "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in c}}
-                        for w, c in cells.items()}}
+    mixes: dict[str, dict] = {}
+    for arm in (a for a in MIXING if a in config.arms):
+        for f in config.fractions:
+            cells = {w: [r for r in reports if (r["arm"], r["fraction"]) == (arm, f)
+                         and r["mix_weight"] == w] for w in config.mix_weight}
+            mixes.setdefault(arm, {})[f"{f:g}"] = {
+                "chosen_by_seed": {str(s): r["mix_weight"]
+                                   for (a, s, g), r in best.items() if (a, g) == (arm, f)},
+                "weights": {f"{w:g}": {
+                    "best_val_cm": mean_std([r["best_val_cm"] for r in c]),
+                    "head_cm": mean_std([r["head_cm"] for r in c]),
+                    "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in c}}
+                    for w, c in cells.items()}}
     return chosen, mixes
 
 
@@ -704,10 +713,11 @@ def summary_lines(results: dict) -> list[str]:
         counts = Counter(ranges["chosen_by_seed"].values())
         lines.append(f"--randomize chosen per fold ({fit}): " + ", ".join(
             f"{Path(r).name} {n}x" for r, n in counts.most_common()))
-    for f, cell in results.get("mixes", {}).items():
-        counts = Counter(cell["chosen_by_seed"].values())
-        lines.append(f"mixed at {float(f) * 100:.0f} % real, lab share chosen per seed: " +
-                     ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
+    for arm, shares in results.get("mixes", {}).items():
+        for f, cell in shares.items():
+            counts = Counter(cell["chosen_by_seed"].values())
+            lines.append(f"{arm} at {float(f) * 100:.0f} % real, lab share chosen per seed: " +
+                         ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
     for name, cell in results.get("ablations", {}).items():
         d = cell["minus_lab"]
         if d["mean"] is None:
