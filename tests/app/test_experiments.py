@@ -148,7 +148,7 @@ def test_the_full_profile_is_the_config_of_the_committed_results_it_reproduces(n
 
 def _differences(ours, committed, where: str) -> list[str]:
     """Where a setting the committed config records (nested configs too) differs from ours."""
-    if isinstance(committed, str) and isinstance(ours, list | tuple):
+    if isinstance(committed, str | int | float) and isinstance(ours, list | tuple):
         ours = ours[0] if len(ours) == 1 else ours    # a setting made repeatable since
     if not isinstance(committed, dict):
         return [] if _plain(ours) == _plain(committed) else [
