@@ -158,13 +158,12 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
         if not finished(req):
             collect(req)
         rows = motion_stats.compare(_features(folder / "instances.csv"), real)
-        return {"score.json": json.dumps({"factors": factors, "score": score(rows),
-                                          "folder": str(folder)}).encode()}
+        return {"score.json": json.dumps({"factors": factors, "score": score(rows)}).encode()}
 
     key = task_key("sysid-score", SCORE_VERSION, made_of, [real_poses])
     scored = json.loads((cache.cached("sysid-score", key, compute) / "score.json").read_text())
-    # the folder as named in this run: a score cached by a run elsewhere (copied, moved)
-    # names that run's folder
+    # the folder as named in this run (a score cached by a run elsewhere, copied or moved,
+    # may name that run's)
     return scored | {"folder": str(folder), "parked": parked_check(factors, out, cfg)}
 
 

@@ -41,6 +41,7 @@ from __future__ import annotations
 import json
 import tempfile
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
@@ -459,11 +460,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         done = _train(first, progress, total)
         sims = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text()),
                  "folder": done[id(task)].folder} for meta, task in first]
-        chosen: dict[tuple[str, int], dict] = {}
-        for r in sims:          # per fit and seed, the candidate best on the real validation
-            best = chosen.get((r["fit"], r["seed"]))     # block (the first of equals)
-            if best is None or r["select_head_cm"] < best["select_head_cm"]:
-                chosen[r["fit"], r["seed"]] = r
+        # per fit and seed, the candidate best on the real validation block
+        chosen = best_by(sims, lambda r: (r["fit"], r["seed"]), "select_head_cm")
         second: list[tuple[dict, ModelTask]] = []
         for i, (s, pool, val, test) in enumerate(blocks):
             sim = chosen.get((config.fits[0], s))
@@ -562,16 +560,24 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
     return ModelTask(arm, seed, config.epochs, train, val, test, **mix, **how)
 
 
+def best_by(rows: list[dict], key: Callable[[dict], tuple], score: str) -> dict[tuple, dict]:
+    """Per `key`, the row of lowest `score` (the first of equals): how both the ranges and the
+    mixed arm's share are chosen on the real validation block."""
+    best: dict[tuple, dict] = {}
+    for r in rows:
+        kept = best.get(key(r))
+        if kept is None or r[score] < kept[score]:
+            best[key(r)] = r
+    return best
+
+
 def choose_mix(reports: list[dict], config: Config) -> tuple[list[dict], dict]:
     """The reports with one model per mixing arm, seed and share: of the `mix_weight`s, the one
     best on the real validation block that stopped its training (`best_val_cm`; the first of
     equals; the test block takes no part). With several weights, also per arm and share the
     weight each seed kept and every weight's Head error (`mixes`)."""
-    best: dict[tuple[str, int, float], dict] = {}
-    for r in (r for r in reports if r["arm"] in MIXING):
-        kept = best.get((r["arm"], r["seed"], r["fraction"]))
-        if kept is None or r["best_val_cm"] < kept["best_val_cm"]:
-            best[r["arm"], r["seed"], r["fraction"]] = r
+    best = best_by([r for r in reports if r["arm"] in MIXING],
+                   lambda r: (r["arm"], r["seed"], r["fraction"]), "best_val_cm")
     chosen = [r for r in reports
               if r["arm"] not in MIXING or best[r["arm"], r["seed"], r["fraction"]] is r]
     if len(config.mix_weight) < 2:
