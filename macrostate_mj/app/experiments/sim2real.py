@@ -9,7 +9,8 @@ is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Fou
 (`arms` picks some: `sim` alone asks only how far a lab collection carries):
 - sim: trained and selected on a lab collection only (`collect --scenario SCENARIO --robots 3
   --split 80/20/0 [--randomize PROFILE]`, a `collect` run in `data/sim`, or `--sim DIR` with
-  Train.csv and Val.csv);
+  Train.csv and Val.csv); with `sim_select` "real", trained on it and selected on the fold's
+  real validation block;
 - real: trained on a fraction of the pool, selected on the real validation block;
 - finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`);
 - mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`; name
@@ -77,6 +78,7 @@ ARMS = ("sim", "real", "finetune", "mixed", "finetune-mixed")
 MIXING = ("mixed", "finetune-mixed")      # the arms that mix the lab data into the loss
 REAL_FILES = ("Train.csv", "Val.csv")
 FITS = ("none", "train", "fold")
+SIM_SELECT = ("lab", "real")    # what chooses a sim model's checkpoint (`Config.sim_select`)
 PLAIN = "none"      # a `randomize` candidate: no ranges (the fitted factors fixed, or the lab)
 
 
@@ -125,6 +127,13 @@ class Config:
         parse=lambda given: tuple(a for a in ARMS if a in given)))
     # train on chained Followers too (`TrainConfig.chained`)
     chained: bool = field(default=True, metadata=flag(Chained))
+    # what chooses each sim model's checkpoint: the lab's Val.csv (sim data only, the text's
+    # protocol), or the fold's real validation block (what a lab with a real file can do; the
+    # test block still takes no part)
+    sim_select: str = field(default="lab", metadata=flag(Choice(
+        None, "What stops each sim model's training and picks its checkpoint: the lab "
+        "collection's Val.csv, or the fold's real validation block (the test block takes no "
+        "part either way).", SIM_SELECT, "--sim-select")))
     # the trainings' arithmetic (`estimators.precision`)
     precision: str = field(default="fp32", metadata=flag(Precision()))
     # where the lab's factors come from (`FITS`): the scenario as written, a `sysid` fit on the
@@ -452,7 +461,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
             first += [({"arm": "sim", "fit": fit, "randomize": r, "fraction": 0.0, "count": 0,
                         "seed": s},
                        ModelTask("sim", s, config.epochs, lab[i] / "Train.csv",
-                                 lab[i] / "Val.csv", pooled[test], chained=config.chained,
+                                 pooled[val] if config.sim_select == "real"
+                                 else lab[i] / "Val.csv", pooled[test], chained=config.chained,
                                  precision=config.precision,
                                  select=pooled[val] if choose else None))
                       for fit, by_range in labs.items() for r, lab in by_range.items()]
