@@ -390,3 +390,24 @@ def test_ablations_that_cannot_be_measured_are_refused_or_said(stand_in, tmp_pat
                        ({"arms": ("real",)}, "add --arm sim")):
         with pytest.raises(UserError, match=words):
             sim2real.validate(replace(config, **bad))
+
+
+def test_sim_models_are_picked_on_the_lab_or_on_the_real_validation_block(tmp_path):
+    """`--sim-select real` stops a sim model's training on the fold's real validation block
+    (the test block still takes no part); the default, the lab's Val.csv, keeps its keys."""
+    lab, val, test = tmp_path / "lab", np.zeros((4, 16, 3, 3)), np.ones((4, 16, 3, 3))
+    lab.mkdir()
+    for name in ("Train.csv", "Val.csv"):
+        (lab / name).write_text(name)                    # keys read their inputs' bytes
+    plain = sim2real._sim_task(PROFILES["quick"], 0, lab, val, test, choose=False)
+    assert (plain.train, plain.val, plain.select) == (lab / "Train.csv", lab / "Val.csv", None)
+    assert plain.key() == sim2real.ModelTask("sim", 0, PROFILES["quick"].epochs,
+                                             lab / "Train.csv", lab / "Val.csv", test).key()
+    real = sim2real._sim_task(replace(PROFILES["quick"], sim_select="real"), 0, lab, val, test,
+                              choose=True)
+    assert real.val is val and real.select is val and real.test is test
+    assert real.key() != plain.key()
+    res = cli("experiment", "sim2real", "--quick", "--sim-select", "test",
+              "--out", str(tmp_path / "bad"))
+    assert_clean_error(res, "--sim-select")
+    assert not (tmp_path / "bad").exists()

@@ -460,11 +460,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         if sim_models:
             first += [({"arm": "sim", "fit": fit, "randomize": r, "fraction": 0.0, "count": 0,
                         "seed": s},
-                       ModelTask("sim", s, config.epochs, lab[i] / "Train.csv",
-                                 pooled[val] if config.sim_select == "real"
-                                 else lab[i] / "Val.csv", pooled[test], chained=config.chained,
-                                 precision=config.precision,
-                                 select=pooled[val] if choose else None))
+                       _sim_task(config, s, lab[i], pooled[val], pooled[test], choose))
                       for fit, by_range in labs.items() for r, lab in by_range.items()]
     with progress.stage("models"):
         done = _train(first, progress, total)
@@ -553,6 +549,17 @@ def _ablated_labs(config: Config, group: tuple[str, ...], labs: dict, chosen: di
         profile = {k: v for k, v in own.items() if k not in group}
         folders.append(_drawn_lab(config, profile, "ablate", out, progress))
     return folders
+
+
+def _sim_task(config: Config, seed: int, lab: Path, val: np.ndarray, test: np.ndarray,
+              choose: bool) -> ModelTask:
+    """A sim-only model: trained on the lab's Train.csv, its checkpoint picked on the lab's
+    Val.csv or on the fold's real validation block (`sim_select`); scored on `val` too where
+    it is one of several candidates (`choose`)."""
+    picked_on = val if config.sim_select == "real" else lab / "Val.csv"
+    return ModelTask("sim", seed, config.epochs, lab / "Train.csv", picked_on, test,
+                     chained=config.chained, precision=config.precision,
+                     select=val if choose else None)
 
 
 def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.ndarray,
