@@ -411,3 +411,5 @@ def test_sim_models_are_picked_on_the_lab_or_on_the_real_validation_block(tmp_pa
               "--out", str(tmp_path / "bad"))
     assert_clean_error(res, "--sim-select")
     assert not (tmp_path / "bad").exists()
+    with pytest.raises(UserError, match="--sim-select"):     # from Python, the same check
+        sim2real.validate(replace(PROFILES["quick"], sim_select="test"))

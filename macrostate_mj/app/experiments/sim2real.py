@@ -233,6 +233,8 @@ def validate(config: Config) -> np.ndarray:
         if not 0.0 < weight < 1.0:
             raise UserError(f"--mix-weight {weight:g}: the lab data's share of the mixed arm's "
                             "loss must be in (0, 1)")
+    if config.sim_select not in SIM_SELECT:
+        raise UserError(f"--sim-select {config.sim_select}: choose {' or '.join(SIM_SELECT)}")
     pooled = read_real(config.real)
     unknown = [a for a in config.arms if a not in ARMS]
     if unknown or not config.arms:
