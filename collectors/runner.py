@@ -135,8 +135,10 @@ class EpisodeTask:
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec
         cfg = spec.scenario.as_made()
-        made = {"spec": {k: v for k, v in asdict(spec).items() if k != "scenario"},
-                "scenario": cfg}
+        fields = {k: v for k, v in asdict(spec).items() if k != "scenario"}
+        if spec.randomize is not None:      # drawn by its ranges, wherever its file lies
+            fields["randomize"] = {"ranges": fields["randomize"]["ranges"]}
+        made = {"spec": fields, "scenario": cfg}
         spread = cfg.wheel_spread > 0 or spec.randomize is not None and any(
             name == "wheel_spread" and high > 0 for name, _, high in spec.randomize.ranges)
         if spread:     # wheels that differ turn their commanded rate, not their shape, since
@@ -185,10 +187,15 @@ def _parquet_bytes(table: pa.Table) -> bytes:
 
 def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
     """What a collection's outputs depend on (not where or how fast it runs): its run's
-    identity, so a resumed run may change --workers but not the collection."""
-    identity = {k: v for k, v in asdict(req).items() if k not in (*NOT_IDENTITY, "scenario")}
+    identity, so a resumed run may change --workers but not the collection. A randomization
+    profile counts by its ranges, not by the path of its file: a folder moved with its
+    profile beside it resumes."""
+    identity = {k: v for k, v in asdict(req).items()
+                if k not in (*NOT_IDENTITY, "scenario", "randomize")}
+    drawn = specs[0].randomize
     return {"request": identity,
             "scenario": asdict(req.scenario.as_made()),
+            "randomize": None if drawn is None else [list(r) for r in drawn.ranges],
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
 

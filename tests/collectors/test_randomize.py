@@ -165,3 +165,29 @@ def test_episodes_with_wheels_that_differ_are_keyed_apart_from_those_made_before
     drawn = EpisodeSpec(get_scenario("lab"), 3, 60.0, 5.0, 1, 0,
                         randomize=Randomization(name="x", ranges=(("wheel_spread", 0.0, 0.02),)))
     assert EpisodeTask(drawn).key() != key(drawn)
+
+
+def test_a_profile_counts_by_its_ranges_not_by_where_its_file_lies(tmp_path):
+    """A collection drawn from a profile file is finished for another copy of that file (a run
+    folder moved with its profile beside it: `experiment sim2real` resumes it instead of
+    simulating it again), and its episodes keep their keys; other ranges are another
+    collection."""
+    from collectors.runner import CollectRequest, EpisodeTask, finished, plan
+
+    first, moved = tmp_path / "a.json", tmp_path / "elsewhere" / "a.json"
+    moved.parent.mkdir()
+    for path in (first, moved):
+        path.write_text(json.dumps({"k_f": [0.9, 1.1]}))
+    res = cli("collect", "--robots", "3", "--minutes", "0.5", "--episode-minutes", "0.25",
+              "--seed", "4", "--out", str(tmp_path / "run"), "--randomize", str(first))
+    assert res.returncode == 0, res.stderr
+
+    def request(profile):
+        return CollectRequest(get_scenario("lab"), 3, 0.5, 4, tmp_path / "run",
+                              episode_minutes=0.25, randomize=str(profile))
+
+    assert finished(request(first)) and finished(request(moved))
+    assert [EpisodeTask(s).key() for s in plan(request(first))] == \
+        [EpisodeTask(s).key() for s in plan(request(moved))]
+    moved.write_text(json.dumps({"k_f": [0.9, 1.2]}))
+    assert not finished(request(moved))
