@@ -485,11 +485,9 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                            for arm in later
                            for w in (config.mix_weight if arm in MIXING else (None,))]
         done |= _train(second, progress, total, done)
-        third = [({"ablate": group, "seed": s},
-                  ModelTask("sim", s, config.epochs, lab / "Train.csv", lab / "Val.csv",
-                            test, chained=config.chained, precision=config.precision))
+        third = [({"ablate": group, "seed": s}, _sim_task(config, s, lab, val, test, False))
                  for group in config.ablate
-                 for (s, _, _, test), lab in zip(blocks, _ablated_labs(
+                 for (s, _, val, test), lab in zip(blocks, _ablated_labs(
                      config, group, labs, chosen, out, progress), strict=True)
                  if lab is not None]
         done |= _train(third, progress, total, done)
