@@ -385,21 +385,33 @@ def s2r_pairs(base: str, other: str) -> Table:
 def s2r_sim(real: str, *folders: str) -> Table:
     """Sim-only runs (`experiment sim2real --arm sim`) on different lab data: each one's
     real-fold Head error, its ratio to `real`'s real-only arm on all of the pool (the same
-    folds and seeds), and on how many folds it beats the first run."""
+    folds and seeds), on how many folds it beats the first run, and its difference from the
+    first paired over the seeds (95 % interval). A run's minutes of lab data and its
+    checkpoints' choice are named where they are not the default (100 min, the lab's Val)."""
     data = load(f"{real}/results.json")
     full = data["arms"]["real"]["1"]["head_cm"]["mean"]  # type: ignore[index]
     rows = [["lab data (--randomize)", "sim only, Head (cm)", "÷ real only (100 %)",
-             "folds better than the first"]]
+             "folds better than the first", "minus the first (cm)"]]
     runs = [load(f"{folder}/results.json") for folder in folders]
     first = runs[0]["arms"]["sim"]["0"]["head_cm_by_seed"]  # type: ignore[index]
     for i, run in enumerate(runs):
-        profile, cell = run["profile"]["randomize"], run["arms"]["sim"]["0"]  # type: ignore[index]
+        profile, cell = run["profile"], run["arms"]["sim"]["0"]  # type: ignore[index]
         ms, by_seed = cell["head_cm"], cell["head_cm_by_seed"]
         better = sum(by_seed[s] < first[s] for s in first)
-        names = [profile] if isinstance(profile, str) else profile or []   # older runs: one
-        rows.append([nodes.literal(text=" or ".join(Path(p).name for p in names) or "none"),
-                     f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
-                     f"{better} / {len(first)}" if i else ""])
+        names = profile["randomize"]
+        names = [names] if isinstance(names, str) else names or []   # older runs: one
+        how = [f"{profile['sim_minutes']:g} min"] if profile.get("sim_minutes", 100) != 100 \
+            else []
+        if profile.get("sim_select", "lab") != "lab":
+            how.append("checkpoint on the real validation block")
+        d = paired_interval([by_seed[s] - first[s] for s in first])
+        label = nodes.inline()
+        label += nodes.literal(text=" or ".join(Path(p).name for p in names) or "none")
+        if how:
+            label += nodes.Text(f" ({', '.join(how)})")
+        rows.append([label, f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
+                     f"{better} / {len(first)}" if i else "",
+                     str(Paired(d["mean"], d["low"], d["high"], d["n"])) if i else ""])  # type: ignore[arg-type]
     return rows
 
 
