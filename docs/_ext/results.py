@@ -143,9 +143,15 @@ class Paired:
 def paired(path: str, keypath: str, base_keypath: str, fmt: str = ".2f", unit: str = "") -> Paired:
     """Two per-seed lists (or {seed: value} maps, paired by seed) of one results file: the
     mean of their differences (the first minus the second) and its 95 % t interval
-    (`core.stats.paired_interval`)."""
-    data = load(path)
-    a, b = (dig(data, k) for k in (keypath, base_keypath))
+    (`core.stats.paired_interval`). `path` may join several runs' files with `+` (other seeds
+    of the same folds): their {seed: value} maps pool, a seed named twice refused."""
+    runs = [load(p) for p in path.split("+")]
+    a, b = (dig(runs[0], k) for k in (keypath, base_keypath))
+    for run in runs[1:]:
+        more = [dig(run, k) for k in (keypath, base_keypath)]
+        if any(set(m) & set(have) for m, have in zip(more, (a, b), strict=True)):  # type: ignore[arg-type]
+            raise ValueError(f"{path}: a seed appears in more than one run")
+        a, b = {**a, **more[0]}, {**b, **more[1]}  # type: ignore[dict-item]
     if isinstance(a, dict) and isinstance(b, dict):
         seeds = sorted(a, key=str)
         a, b = [a[s] for s in seeds], [b[s] for s in seeds]

@@ -255,3 +255,23 @@ def test_the_claims_command_and_the_pages_agree_row_for_row(text_build, capsys):
         shown_ours = row[3].split(" ")[0]         # as printed: its rounding bounds the gap
         decimals = len(shown_ours.partition(".")[2])
         assert abs(float(shown_ours) - claim["ours"]) <= 0.5 * 10 ** -decimals + 1e-12, row
+
+
+def test_a_paired_difference_pools_the_seeds_of_several_runs(tmp_path, monkeypatch):
+    """`paired(a.json+b.json, ...)`: runs of other seeds on the same folds pool their seeds; a
+    seed named by two runs is refused rather than silently overwritten."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("results_ext", DOCS / "_ext" / "results.py")
+    ext = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "results_ext", ext)    # its dataclasses look it up
+    spec.loader.exec_module(ext)
+    monkeypatch.setattr(ext, "RESULTS", tmp_path)
+    (tmp_path / "a.json").write_text(json.dumps({"x": {"0": 2.0, "1": 4.0},
+                                                 "y": {"0": 1.0, "1": 1.0}}))
+    (tmp_path / "b.json").write_text(json.dumps({"x": {"5": 4.0}, "y": {"5": 1.0}}))
+    pooled = ext.paired("a.json+b.json", "x", "y")
+    assert pooled.n == 3 and pooled.mean == pytest.approx(7 / 3)     # 1, 3 and 3
+    assert ext.paired("a.json", "x", "y").n == 2
+    with pytest.raises(ValueError, match="more than one run"):
+        ext.paired("a.json+a.json", "x", "y")
