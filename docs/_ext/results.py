@@ -393,7 +393,10 @@ def s2r_sim(real: str, *folders: str) -> Table:
     real-fold Head error, its ratio to `real`'s real-only arm on all of the pool (the same
     folds and seeds), on how many folds it beats the first run, and its difference from the
     first paired over the seeds (95 % interval). A run's minutes of lab data and its
-    checkpoints' choice are named where they are not the default (100 min, the lab's Val)."""
+    checkpoints' choice are named where they are not the command's defaults."""
+    from macrostate_mj.app.experiments.sim2real import Config
+
+    plain = Config()
     data = load(f"{real}/results.json")
     full = data["arms"]["real"]["1"]["head_cm"]["mean"]  # type: ignore[index]
     rows = [["lab data (--randomize)", "sim only, Head (cm)", "÷ real only (100 %)",
@@ -406,9 +409,9 @@ def s2r_sim(real: str, *folders: str) -> Table:
         better = sum(by_seed[s] < first[s] for s in first)
         names = profile["randomize"]
         names = [names] if isinstance(names, str) else names or []   # older runs: one
-        how = [f"{profile['sim_minutes']:g} min"] if profile.get("sim_minutes", 100) != 100 \
-            else []
-        if profile.get("sim_select", "lab") != "lab":
+        how = [f"{profile['sim_minutes']:g} min"] \
+            if profile.get("sim_minutes", plain.sim_minutes) != plain.sim_minutes else []
+        if profile.get("sim_select", plain.sim_select) != plain.sim_select:
             how.append("checkpoint on the real validation block")
         d = paired_interval([by_seed[s] - first[s] for s in first])
         label = nodes.inline()
