@@ -155,6 +155,11 @@ class Randomization:
         return cls(profile if profile in PROFILES else str(Path(profile).resolve()),
                    tuple(sorted(out)))
 
+    def identity(self) -> dict:
+        """What data drawn from it depend on: its ranges, not its name (a file's path), so a
+        copy of the profile elsewhere draws the same episodes and resumes the same collection."""
+        return {"ranges": self.ranges}
+
     def profile(self) -> dict[str, tuple[float, float] | float]:
         """Its ranges as a profile (what `around` centres on a fit)."""
         return {name: low if low == high else (low, high) for name, low, high in self.ranges}

@@ -136,8 +136,8 @@ class EpisodeTask:
         self.spec = spec
         cfg = spec.scenario.as_made()
         fields = {k: v for k, v in asdict(spec).items() if k != "scenario"}
-        if spec.randomize is not None:      # drawn by its ranges, wherever its file lies
-            fields["randomize"] = {"ranges": fields["randomize"]["ranges"]}
+        if spec.randomize is not None:
+            fields["randomize"] = spec.randomize.identity()
         made = {"spec": fields, "scenario": cfg}
         spread = cfg.wheel_spread > 0 or spec.randomize is not None and any(
             name == "wheel_spread" and high > 0 for name, _, high in spec.randomize.ranges)
@@ -195,7 +195,7 @@ def run_config(req: CollectRequest, specs: list[EpisodeSpec]) -> dict:
     drawn = specs[0].randomize
     return {"request": identity,
             "scenario": asdict(req.scenario.as_made()),
-            "randomize": None if drawn is None else [list(r) for r in drawn.ranges],
+            "randomize": None if drawn is None else drawn.identity(),
             "episodes": len(specs), "episode_seconds": specs[0].seconds}
 
 
