@@ -151,7 +151,8 @@ def test_sim_minutes_with_a_given_sim_folder_is_refused(tmp_path):
     assert_clean_error(res, "--scenario")
     assert not (tmp_path / "out").exists()
     for flag, bad in (("--fraction", "1.5"), ("--fraction", "0"), ("--mix-weight", "1"),
-                      ("--mix-weight", "nan")):
+                      ("--mix-weight", "nan"), ("--finetune-epochs", "0"),
+                      ("--finetune-epochs", "2.5")):
         res = cli("experiment", "sim2real", "--quick", "--real", str(tmp_path), flag, bad,
                   "--out", str(tmp_path / "out"))
         assert_clean_error(res, flag)
@@ -168,18 +169,48 @@ def test_the_mixed_arm_keeps_the_weight_best_on_the_real_validation_block():
     reports = [real, mixed(0, 0.5, 0.25, 5.0, 3.0), mixed(0, 0.5, 0.5, 4.0, 9.0),
                mixed(1, 0.5, 0.25, 4.0, 4.0), mixed(1, 0.5, 0.5, 4.0, 1.0)]
     config = replace(PROFILES["quick"], fractions=(0.5,), mix_weight=(0.25, 0.5))
-    kept, mixes = sim2real.choose_mix(reports, config)
+    kept, tables = sim2real.choose_settings(reports, config)
+    mixes = tables["mixes"]
     assert kept == [real, reports[2], reports[3]]          # seed 1: the first of equals
     assert mixes["mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.5, "1": 0.25}
     assert mixes["mixed"]["0.5"]["weights"]["0.25"]["head_cm_by_seed"] == {"0": 3.0, "1": 4.0}
     one = [real, reports[1], reports[3]]
-    assert sim2real.choose_mix(one, replace(config, mix_weight=(0.25,))) == (one, {})
+    assert sim2real.choose_settings(one, replace(config, mix_weight=(0.25,))) == (one, {})
     # the fine-tuned mixing arm chooses its own weight, apart from the mixed arm's
     both = [*reports, {**reports[1], "arm": "finetune-mixed", "best_val_cm": 1.0},
             {**reports[2], "arm": "finetune-mixed"}]
-    kept, mixes = sim2real.choose_mix(both, replace(config, arms=sim2real.ARMS))
-    assert kept[-1] == both[5] and set(mixes) == {"mixed", "finetune-mixed"}
-    assert mixes["finetune-mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.25}
+    kept, tables = sim2real.choose_settings(both, replace(config, arms=sim2real.ARMS))
+    assert kept[-1] == both[5] and set(tables["mixes"]) == {"mixed", "finetune-mixed"}
+    assert tables["mixes"]["finetune-mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.25}
+
+
+def test_fine_tuned_arms_keep_the_epochs_best_on_the_real_validation_block():
+    """Of several `--finetune-epochs`, each seed and share keeps the fine-tuned model of lowest
+    validation error; with the lab share tuned too, every combination trains and each
+    setting's table holds, per seed, its candidate's best over the other setting."""
+    def tuned(arm, seed, epochs, val, test, w=None):
+        return {"arm": arm, "seed": seed, "fraction": 1.0, "finetune_epochs": epochs,
+                "best_val_cm": val, "head_cm": test, **({} if w is None else {"mix_weight": w})}
+    reports = [tuned("finetune", 0, 30, 5.0, 4.0), tuned("finetune", 0, 60, 4.5, 6.0),
+               tuned("finetune-mixed", 0, 30, 3.0, 7.0, 0.25),
+               tuned("finetune-mixed", 0, 60, 4.0, 2.0, 0.25),
+               tuned("finetune-mixed", 0, 30, 3.5, 5.0, 0.5),
+               tuned("finetune-mixed", 0, 60, 2.5, 3.0, 0.5)]
+    config = replace(PROFILES["quick"], fractions=(1.0,), finetune_epochs=(30, 60),
+                     mix_weight=(0.25, 0.5), arms=("finetune", "finetune-mixed"))
+    kept, tables = sim2real.choose_settings(reports, config)
+    assert kept == [reports[1], reports[5]]
+    epochs = tables["finetunes"]["finetune-mixed"]["1"]
+    assert epochs["chosen_by_seed"] == {"0": 60}
+    assert epochs["epochs"]["30"]["head_cm_by_seed"] == {"0": 7.0}   # 0.25 beat 0.5 at 30
+    assert tables["mixes"]["finetune-mixed"]["1"]["weights"]["0.25"]["head_cm_by_seed"] == \
+        {"0": 7.0}                                                   # 30 beat 60 at 0.25
+    assert tables["finetunes"]["finetune"]["1"]["chosen_by_seed"] == {"0": 60}
+    assert [c for c in sim2real._candidates(config, "finetune-mixed")] == [
+        {"mix_weight": w, "finetune_epochs": e} for w in (0.25, 0.5) for e in (30, 60)]
+    assert sim2real._candidates(config, "real") == [{}]
+    line = "finetune at 100 % real, epochs chosen per seed: 60 1x"
+    assert line in sim2real.summary_lines({"arms": {}, **tables})
 
 
 def test_the_fine_tuned_mixing_arm_starts_from_the_sim_model_and_mixes_the_lab_in(tmp_path):
@@ -191,7 +222,7 @@ def test_the_fine_tuned_mixing_arm_starts_from_the_sim_model_and_mixes_the_lab_i
     task = sim2real._arm_task("finetune-mixed", config, 0, chains, chains, chains, init, lab,
                               0.75)
     assert (task.init, task.mix, task.mix_weight) == (init, lab / "Train.csv", 0.75)
-    assert (task.epochs, task.lr) == (config.finetune_epochs, config.finetune_lr)
+    assert (task.epochs, task.lr) == (config.finetune_epochs[0], config.finetune_lr)
     plain = sim2real._arm_task("finetune", config, 0, chains, chains, chains, init, lab, None)
     assert plain.mix is None and plain.key() != task.key()
     assert "finetune-mixed" not in config.arms          # trained only when named
@@ -299,7 +330,7 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
     monkeypatch.setattr(sim2real, "_collect", lab)
     monkeypatch.setattr(sim2real.ModelTask, "__init__", record)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "finetune"),
-                     fractions=(1.0,), randomize=("none", "wide"))
+                     fractions=(1.0,), randomize=("none", "wide"), finetune_epochs=(1, 2))
     out = tmp_path / "chosen"
     execute("sim2real", config, out)
     results = json.loads((out / "results.json").read_text())
@@ -321,8 +352,16 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
                       (t.train.parent.name == "sim-" + sim2real.task_key("sim2real-lab", 1,
                                                                         "wide")[:12])
                       == (pick == "wide"))
-        tuned = next(t for t in made if t.arm == "finetune" and t.seed == int(s))
-        assert tuned.init.parent.name == chosen.key()
+        tuned = [t for t in made if t.arm == "finetune" and t.seed == int(s)]
+        assert {t.init.parent.name for t in tuned} == {chosen.key()}
+        assert sorted(t.epochs for t in tuned) == [1, 2]      # each candidate fine-tunes
+        val_cm = {t.epochs: json.loads((out / "cache" / "sim2real-model" / t.key() /
+                                        "report.json").read_text())["best_val_cm"]
+                  for t in tuned}
+        epochs = results["finetunes"]["finetune"]["1"]
+        assert epochs["chosen_by_seed"][s] == min(val_cm, key=lambda e: (val_cm[e], e))
+        kept = epochs["epochs"][str(epochs["chosen_by_seed"][s])]["head_cm_by_seed"][s]
+        assert results["arms"]["finetune"]["1"]["head_cm_by_seed"][s] == kept
     assert "--randomize chosen per fold (none)" in "\n".join(sim2real.summary_lines(results))
     with pytest.raises(UserError, match="each candidate once"):
         sim2real.validate(replace(config, randomize=("wide", "wide")))

@@ -12,7 +12,8 @@ is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Fou
   Train.csv and Val.csv); with `sim_select` "real", trained on it and selected on the fold's
   real validation block;
 - real: trained on a fraction of the pool, selected on the real validation block;
-- finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`);
+- finetune: the same seed's sim model trained further on the same fraction (`finetune_epochs`;
+  name several and each seed and fraction keeps the one best on the real validation block);
 - mixed: trained on the same fraction and the lab Train.csv together (`mix_weight`; name
   several and each seed and fraction keeps the one best on the real validation block);
 - finetune-mixed: the seed's sim model trained further on the same fraction with the lab
@@ -57,6 +58,7 @@ from macrostate_mj.app.params import (
     REAL_FOLDER,
     Chained,
     Choice,
+    Count,
     InputDir,
     Positive,
     Precision,
@@ -80,6 +82,23 @@ REAL_FILES = ("Train.csv", "Val.csv")
 FITS = ("none", "train", "fold")
 SIM_SELECT = ("lab", "real")    # what chooses a sim model's checkpoint (`Config.sim_select`)
 PLAIN = "none"      # a `randomize` candidate: no ranges (the fitted factors fixed, or the lab)
+FINETUNED = ("finetune", "finetune-mixed")  # the arms that start from the seed's sim model
+
+
+@dataclass(frozen=True)
+class Tuned:
+    """A setting of real-data arms given as candidates (`Config.<name>`): each seed and share
+    keeps the arm's model best on the real validation block (`choose_settings`); with several
+    candidates, `results.json[table]` gives each one's errors (`cells` per candidate)."""
+
+    name: str
+    arms: tuple[str, ...]
+    table: str
+    cells: str
+
+
+TUNED = (Tuned("mix_weight", MIXING, "mixes", "weights"),
+         Tuned("finetune_epochs", FINETUNED, "finetunes", "epochs"))
 
 
 @dataclass(frozen=True)
@@ -91,7 +110,12 @@ class Config:
         "--fraction", max=1.0), parse=lambda given: tuple(sorted(set(given)))))
     val_share: float = 0.15
     epochs: int = 60
-    finetune_epochs: int = 30
+    # the fine-tuned arms' epochs (cosine decay over them); with several, each seed and share
+    # keeps the count whose model does best on the real validation block (`finetunes`)
+    finetune_epochs: tuple[int, ...] = field(default=(30,), metadata=flag(Count(
+        None, "The fine-tuned arms' epochs on the real data. Repeatable: each seed and share "
+        "then keeps the count whose model does best on its real validation block.",
+        max=10_000), parse=lambda given: tuple(sorted(set(given)))))
     finetune_lr: float = 5e-4
     # the mixed arm's lab share of the loss; with several, each seed and share keeps the
     # weight whose model does best on the real validation block that stopped it (`mixes`)
@@ -193,7 +217,7 @@ PROFILES = {
     # what `experiment all` runs: every arm on `wider` lab data (the committed
     # results/s2r_mixed); the command's own --randomize replaces it (none by default)
     "full": Config(randomize=("wider",)),
-    "quick": Config(seeds=2, fractions=(0.5, 1.0), epochs=2, finetune_epochs=1,
+    "quick": Config(seeds=2, fractions=(0.5, 1.0), epochs=2, finetune_epochs=(1,),
                     sim_minutes=6.0, episode_minutes=3.0, sysid_first=2, sysid_refine=1,
                     sysid_minutes=1.0),
 }
@@ -450,7 +474,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     # the mixed arm alone trains sim models only to choose its lab data or to ablate it
     sim_models = bool({"sim", "finetune", "finetune-mixed"} & set(config.arms)) or choose or \
         bool(config.ablate)
-    per_share = sum(len(config.mix_weight) if a in MIXING else 1 for a in later)
+    per_share = sum(len(_candidates(config, a)) for a in later)
     total = config.seeds * (sim_models * len(labs) * len(config.candidates)
                             + per_share * len(config.fractions) + len(config.ablate))
     blocks, first = [], []
@@ -478,12 +502,10 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
             checkpoint = sim["folder"] / "model.pt" if sim else None
             for f in config.fractions:
                 count = max(1, int(np.ceil(f * len(pool))))
-                second += [({"arm": arm, "fraction": f, "count": count, "seed": s,
-                             **({"mix_weight": w} if arm in MIXING else {})},
+                second += [({"arm": arm, "fraction": f, "count": count, "seed": s, **tuned},
                             _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab,
-                                      w))
-                           for arm in later
-                           for w in (config.mix_weight if arm in MIXING else (None,))]
+                                      **tuned))
+                           for arm in later for tuned in _candidates(config, arm)]
         done |= _train(second, progress, total, done)
         third = [({"ablate": group, "seed": s}, _sim_task(config, s, lab, val, test, False))
                  for group in config.ablate
@@ -491,7 +513,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                      config, group, labs, chosen, out, progress), strict=True)
                  if lab is not None]
         done |= _train(third, progress, total, done)
-    reports, mixes = choose_mix([
+    reports, choices = choose_settings([
         {**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
         for meta, task in second], config)
     # the first fit's chosen sim models are the sim arm; the other fits' are kept apart
@@ -508,8 +530,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         results["ablations"] = by_ablation(
             [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
              for meta, task in third], chosen, config)
-    if mixes:
-        results["mixes"] = mixes
+    results |= choices
     if fits:
         results["fits"] = fits
     write_json_atomic(out / "results.json", results)
@@ -562,18 +583,29 @@ def _sim_task(config: Config, seed: int, lab: Path, val: np.ndarray, test: np.nd
                      select=val if choose else None)
 
 
+def _candidates(config: Config, arm: str) -> list[dict[str, Any]]:
+    """The settings a real-data arm trains one model each of (`TUNED` that reach it, every
+    combination of their candidates); [{}] for an arm none reaches."""
+    combos: list[dict[str, Any]] = [{}]
+    for tuned in (t for t in TUNED if arm in t.arms):
+        combos = [{**c, tuned.name: v} for c in combos for v in getattr(config, tuned.name)]
+    return combos
+
+
 def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.ndarray,
               test: np.ndarray, checkpoint: Path | None, sim: Path | None,
-              mix_weight: float | None = None) -> ModelTask:
-    """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`,
-    mixed with the lab Train.csv in `sim` (which weighs `mix_weight` of its loss), or both."""
+              mix_weight: float | None = None, finetune_epochs: int | None = None
+              ) -> ModelTask:
+    """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`
+    for `finetune_epochs`, mixed with the lab Train.csv in `sim` (which weighs `mix_weight` of
+    its loss), or both."""
     how = {"chained": config.chained, "precision": config.precision}
     if arm == "real":
         return ModelTask(arm, seed, config.epochs, train, val, test, **how)
     mix = {} if arm == "finetune" else {"mix": sim / "Train.csv", "mix_weight": mix_weight}
-    if arm in ("finetune", "finetune-mixed"):
-        return ModelTask(arm, seed, config.finetune_epochs, train, val, test,
-                         config.finetune_lr, checkpoint, **mix, **how)
+    if arm in FINETUNED:
+        return ModelTask(arm, seed, finetune_epochs or config.finetune_epochs[0], train, val,
+                         test, config.finetune_lr, checkpoint, **mix, **how)
     return ModelTask(arm, seed, config.epochs, train, val, test, **mix, **how)
 
 
@@ -588,31 +620,35 @@ def best_by(rows: list[dict], key: Callable[[dict], tuple], score: str) -> dict[
     return best
 
 
-def choose_mix(reports: list[dict], config: Config) -> tuple[list[dict], dict]:
-    """The reports with one model per mixing arm, seed and share: of the `mix_weight`s, the one
-    best on the real validation block that stopped its training (`best_val_cm`; the first of
-    equals; the test block takes no part). With several weights, also per arm and share the
-    weight each seed kept and every weight's Head error (`mixes`)."""
-    best = best_by([r for r in reports if r["arm"] in MIXING],
-                   lambda r: (r["arm"], r["seed"], r["fraction"]), "best_val_cm")
-    chosen = [r for r in reports
-              if r["arm"] not in MIXING or best[r["arm"], r["seed"], r["fraction"]] is r]
-    if len(config.mix_weight) < 2:
-        return chosen, {}
-    mixes: dict[str, dict] = {}
-    for arm in (a for a in MIXING if a in config.arms):
-        for f in config.fractions:
-            cells = {w: [r for r in reports if (r["arm"], r["fraction"]) == (arm, f)
-                         and r["mix_weight"] == w] for w in config.mix_weight}
-            mixes.setdefault(arm, {})[f"{f:g}"] = {
-                "chosen_by_seed": {str(s): r["mix_weight"]
-                                   for (a, s, g), r in best.items() if (a, g) == (arm, f)},
-                "weights": {f"{w:g}": {
-                    "best_val_cm": mean_std([r["best_val_cm"] for r in c]),
-                    "head_cm": mean_std([r["head_cm"] for r in c]),
-                    "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in c}}
-                    for w, c in cells.items()}}
-    return chosen, mixes
+def choose_settings(reports: list[dict], config: Config) -> tuple[list[dict], dict]:
+    """The reports with one model per real-data arm, seed and share: of its candidate settings
+    (`TUNED`), the one best on the real validation block that stopped its training
+    (`best_val_cm`; the first of equals; the test block takes no part). Per setting named
+    several times, also per arm and share the candidate each seed kept and every candidate's
+    errors (the `Tuned.table`s; a candidate's model per seed is its best over the other
+    settings' candidates)."""
+    def key(r: dict) -> tuple:
+        return r["arm"], r["seed"], r["fraction"]
+
+    best = best_by(reports, key, "best_val_cm")
+    chosen = [r for r in reports if best[key(r)] is r]
+    tables: dict[str, dict] = {}
+    for tuned in (t for t in TUNED if len(getattr(config, t.name)) > 1):
+        for arm in (a for a in tuned.arms if a in config.arms):
+            for f in config.fractions:
+                cells = {v: list(best_by(
+                    [r for r in reports if (r["arm"], r["fraction"], r.get(tuned.name)) ==
+                     (arm, f, v)], lambda r: (r["seed"],), "best_val_cm").values())
+                    for v in getattr(config, tuned.name)}
+                tables.setdefault(tuned.table, {}).setdefault(arm, {})[f"{f:g}"] = {
+                    "chosen_by_seed": {str(s): r[tuned.name]
+                                       for (a, s, g), r in best.items() if (a, g) == (arm, f)},
+                    tuned.cells: {f"{v:g}": {
+                        "best_val_cm": mean_std([r["best_val_cm"] for r in c]),
+                        "head_cm": mean_std([r["head_cm"] for r in c]),
+                        "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in c}}
+                        for v, c in cells.items()}}
+    return chosen, tables
 
 
 def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
@@ -736,11 +772,12 @@ def summary_lines(results: dict) -> list[str]:
         counts = Counter(ranges["chosen_by_seed"].values())
         lines.append(f"--randomize chosen per fold ({fit}): " + ", ".join(
             f"{Path(r).name} {n}x" for r, n in counts.most_common()))
-    for arm, shares in results.get("mixes", {}).items():
-        for f, cell in shares.items():
-            counts = Counter(cell["chosen_by_seed"].values())
-            lines.append(f"{arm} at {float(f) * 100:.0f} % real, lab share chosen per seed: " +
-                         ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
+    for table, what in (("mixes", "lab share"), ("finetunes", "epochs")):
+        for arm, shares in results.get(table, {}).items():
+            for f, cell in shares.items():
+                counts = Counter(cell["chosen_by_seed"].values())
+                lines.append(f"{arm} at {float(f) * 100:.0f} % real, {what} chosen per seed: "
+                             + ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
     for name, cell in results.get("ablations", {}).items():
         d = cell["minus_lab"]
         if d["mean"] is None:
