@@ -20,7 +20,8 @@ def plot_curve(results: dict, path: str | os.PathLike) -> None:
     for arm, label, style in (("real", "real only", "o-"),
                               ("finetune", "sim pre-trained, fine-tuned", "s-"),
                               ("mixed", "sim and real mixed", "^-"),
-                              ("finetune-mixed", "sim pre-trained, fine-tuned mixed", "d-")):
+                              ("finetune-mixed", "sim pre-trained, fine-tuned mixed", "d-"),
+                              ("finetune-frozen", "sim pre-trained, encoders frozen", "v-")):
         if arm not in results["arms"]:          # results written before the mixed arm
             continue
         cells = results["arms"][arm]

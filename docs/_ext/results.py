@@ -488,22 +488,35 @@ def s2r_ranges(folder: str) -> Table:
     return rows
 
 
+def _tuned(folder: str, table: str, cells: str, setting: str) -> Table:
+    """A setting chosen per seed and real share on the real validation block (`results.json`'s
+    `table`, candidates under `cells`): each candidate's error there and on the test blocks
+    (mean ± std over the seeds) and for how many seeds it was kept."""
+    data = load(f"{folder}/results.json")
+    rows = [["arm", "real data", setting, "validation block, mean error (cm)",
+             "test block, Head (cm)", "kept for"]]
+    for arm, shares in data[table].items():  # type: ignore[index,union-attr]
+        for share, cell in shares.items():
+            kept = [f"{w:g}" for w in cell["chosen_by_seed"].values()]
+            for value, w in cell[cells].items():
+                rows.append([arm, f"{float(share) * 100:.0f} %", value,
+                             _stat(w["best_val_cm"], ".2f"), _stat(w["head_cm"], ".2f"),
+                             f"{kept.count(value)} / {len(kept)}"])
+    return rows
+
+
 @source
 def s2r_mixes(folder: str) -> Table:
     """The mixing arms' lab shares (`--mix-weight`), chosen per seed and real share on the real
-    validation block: each weight's error there and on the test blocks (mean ± std over the
-    seeds) and for how many seeds it was kept."""
-    data = load(f"{folder}/results.json")
-    rows = [["arm", "real data", "lab share of the loss", "validation block, mean error (cm)",
-             "test block, Head (cm)", "kept for"]]
-    for arm, shares in data["mixes"].items():  # type: ignore[index,union-attr]
-        for share, cell in shares.items():
-            kept = [f"{w:g}" for w in cell["chosen_by_seed"].values()]
-            for weight, w in cell["weights"].items():
-                rows.append([arm, f"{float(share) * 100:.0f} %", weight,
-                             _stat(w["best_val_cm"], ".2f"), _stat(w["head_cm"], ".2f"),
-                             f"{kept.count(weight)} / {len(kept)}"])
-    return rows
+    validation block (see `_tuned`)."""
+    return _tuned(folder, "mixes", "weights", "lab share of the loss")
+
+
+@source
+def s2r_finetunes(folder: str) -> Table:
+    """The fine-tuned arms' epochs (`--finetune-epochs`), chosen per seed and real share on the
+    real validation block (see `_tuned`)."""
+    return _tuned(folder, "finetunes", "epochs", "fine-tuning epochs")
 
 
 @source

@@ -228,6 +228,28 @@ def test_the_fine_tuned_mixing_arm_starts_from_the_sim_model_and_mixes_the_lab_i
     assert "finetune-mixed" not in config.arms          # trained only when named
 
 
+def test_the_frozen_arm_fine_tunes_the_sim_model_with_its_encoders_fixed(tmp_path):
+    """`--arm finetune-frozen`: the seed's sim checkpoint, its encoders kept fixed (as
+    `train retlo --freeze-encoder`), no lab data mixed in; the other arms' keys unchanged."""
+    from estimators.retlo.train import ENCODER
+
+    chains, lab, init = np.zeros((4, 16, 3, 3)), tmp_path / "lab", tmp_path / "sim.pt"
+    lab.mkdir()
+    (lab / "Train.csv").write_text("lab rows")
+    init.write_bytes(b"a checkpoint")
+    config = replace(PROFILES["quick"], finetune_epochs=(3, 5))
+    frozen = sim2real._arm_task("finetune-frozen", config, 0, chains, chains, chains, init, lab,
+                                finetune_epochs=5)
+    assert (frozen.init, frozen.mix, frozen.epochs) == (init, None, 5)
+    assert frozen.train_config().frozen == ENCODER
+    plain = sim2real._arm_task("finetune", config, 0, chains, chains, chains, init, lab,
+                               finetune_epochs=5)
+    assert plain.train_config().frozen == () and plain.key() != frozen.key()
+    assert sim2real._candidates(config, "finetune-frozen") == [
+        {"finetune_epochs": 3}, {"finetune_epochs": 5}]
+    assert "finetune-frozen" not in config.arms            # trained only when named
+
+
 def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():
     """`--no-chained` trains every arm's model without chained Followers (they are scored on
     3-robot folds, where only the first module runs); the default keys stay those of the

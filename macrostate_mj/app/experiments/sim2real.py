@@ -18,7 +18,9 @@ is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Fou
   several and each seed and fraction keeps the one best on the real validation block);
 - finetune-mixed: the seed's sim model trained further on the same fraction with the lab
   Train.csv mixed in, as the mixed arm mixes it (pre-trained on the lab, then fine-tuned
-  without forgetting it).
+  without forgetting it);
+- finetune-frozen: as finetune, with the sim model's observation and history encoders kept
+  fixed (`train retlo --freeze-encoder`): fewer weights for a small real share to move.
 Where the lab's factors come from (`fits`, `--fit`): the scenario as written; a `sysid` fit on
 the real Train.csv (leaky under these folds, whose test blocks it has seen); or the nested
 protocol, one fit per fold on that fold's training and validation blocks alone, so the
@@ -76,13 +78,13 @@ from macrostate_mj.core.stats import cv_blocks, mean_std, paired_interval
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png"]
-ARMS = ("sim", "real", "finetune", "mixed", "finetune-mixed")
+ARMS = ("sim", "real", "finetune", "mixed", "finetune-mixed", "finetune-frozen")
 MIXING = ("mixed", "finetune-mixed")      # the arms that mix the lab data into the loss
 REAL_FILES = ("Train.csv", "Val.csv")
 FITS = ("none", "train", "fold")
 SIM_SELECT = ("lab", "real")    # what chooses a sim model's checkpoint (`Config.sim_select`)
 PLAIN = "none"      # a `randomize` candidate: no ranges (the fitted factors fixed, or the lab)
-FINETUNED = ("finetune", "finetune-mixed")  # the arms that start from the seed's sim model
+FINETUNED = ("finetune", "finetune-mixed", "finetune-frozen")   # start from the sim model
 
 
 @dataclass(frozen=True)
@@ -147,7 +149,7 @@ class Config:
     # which arms to train (a fine-tuned arm trains the sim models)
     arms: tuple[str, ...] = field(default=ARMS[:4], metadata=flag(Choice(
         None, "Train only this arm (repeatable): `--arm sim` asks only how far a lab collection "
-        "carries. All but finetune-mixed when none is named.", ARMS, "--arm"),
+        "carries. sim, real, finetune and mixed when none is named.", ARMS, "--arm"),
         parse=lambda given: tuple(a for a in ARMS if a in given)))
     # train on chained Followers too (`TrainConfig.chained`)
     chained: bool = field(default=True, metadata=flag(Chained))
@@ -401,20 +403,23 @@ class ModelTask(ShipsFiles):
     def __init__(self, arm: str, seed: int, epochs: int, train: Data, val: Data,
                  test: np.ndarray, lr: float | None = None, init: Path | None = None,
                  mix: Data | None = None, mix_weight: float = 0.5, chained: bool = True,
-                 precision: str = "fp32", select: np.ndarray | None = None):
+                 precision: str = "fp32", select: np.ndarray | None = None,
+                 frozen: bool = False):
         self.arm, self.seed, self.epochs, self.lr, self.chained = arm, seed, epochs, lr, chained
         self.precision = precision
         self.train, self.val, self.test, self.init = train, val, test, init
         self.select = select            # real data it is also scored on, to choose among labs
         self.mix, self.mix_weight = mix, mix_weight
+        self.frozen = frozen            # the init's encoders kept fixed
         self._key: str | None = None
 
     def train_config(self) -> Any:
         from estimators.retlo.models import ModelConfig
-        from estimators.retlo.train import TrainConfig
+        from estimators.retlo.train import ENCODER, TrainConfig
 
         cfg = TrainConfig(epochs=self.epochs, seed=self.seed, chained=self.chained,
-                          model=ModelConfig(kind="lstm"), precision=self.precision)
+                          model=ModelConfig(kind="lstm"), precision=self.precision,
+                          frozen=ENCODER if self.frozen else ())
         return cfg if self.lr is None else replace(cfg, lr=self.lr)
 
     def key(self) -> str:
@@ -472,7 +477,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     later = [a for a in ARMS[1:] if a in config.arms]
     choose = len(config.candidates) > 1
     # the mixed arm alone trains sim models only to choose its lab data or to ablate it
-    sim_models = bool({"sim", "finetune", "finetune-mixed"} & set(config.arms)) or choose or \
+    sim_models = bool({"sim", *FINETUNED} & set(config.arms)) or choose or \
         bool(config.ablate)
     per_share = sum(len(_candidates(config, a)) for a in later)
     total = config.seeds * (sim_models * len(labs) * len(config.candidates)
@@ -602,10 +607,11 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
     how = {"chained": config.chained, "precision": config.precision}
     if arm == "real":
         return ModelTask(arm, seed, config.epochs, train, val, test, **how)
-    mix = {} if arm == "finetune" else {"mix": sim / "Train.csv", "mix_weight": mix_weight}
+    mix = {"mix": sim / "Train.csv", "mix_weight": mix_weight} if arm in MIXING else {}
     if arm in FINETUNED:
         return ModelTask(arm, seed, finetune_epochs or config.finetune_epochs[0], train, val,
-                         test, config.finetune_lr, checkpoint, **mix, **how)
+                         test, config.finetune_lr, checkpoint, **mix, **how,
+                         frozen=arm == "finetune-frozen")
     return ModelTask(arm, seed, config.epochs, train, val, test, **mix, **how)
 
 
