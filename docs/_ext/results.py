@@ -498,7 +498,7 @@ def _tuned(folder: str, table: str, cells: str, setting: str) -> Table:
     for arm, shares in data[table].items():  # type: ignore[index,union-attr]
         for share, cell in shares.items():
             kept = [f"{w:g}" for w in cell["chosen_by_seed"].values()]
-            for value, w in cell[cells].items():
+            for value, w in sorted(cell[cells].items(), key=lambda kv: float(kv[0])):
                 rows.append([arm, f"{float(share) * 100:.0f} %", value,
                              _stat(w["best_val_cm"], ".2f"), _stat(w["head_cm"], ".2f"),
                              f"{kept.count(value)} / {len(kept)}"])
