@@ -60,7 +60,6 @@ from macrostate_mj.app.params import (
     REAL_FOLDER,
     Chained,
     Choice,
-    Count,
     InputDir,
     Positive,
     Precision,
@@ -114,10 +113,10 @@ class Config:
     epochs: int = 60
     # the fine-tuned arms' epochs (cosine decay over them); with several, each seed and share
     # keeps the count whose model does best on the real validation block (`finetunes`)
-    finetune_epochs: tuple[int, ...] = field(default=(30,), metadata=flag(Count(
+    finetune_epochs: tuple[int, ...] = field(default=(30,), metadata=flag(Positive(
         None, "The fine-tuned arms' epochs on the real data. Repeatable: each seed and share "
         "then keeps the count whose model does best on its real validation block.",
-        max=10_000), parse=lambda given: tuple(sorted(set(given)))))
+        "--finetune-epochs", max=10_000), parse=lambda given: tuple(sorted(set(given)))))
     finetune_lr: float = 5e-4
     # the mixed arm's lab share of the loss; with several, each seed and share keeps the
     # weight whose model does best on the real validation block that stopped it (`mixes`)
@@ -602,8 +601,9 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
               mix_weight: float | None = None, finetune_epochs: int | None = None
               ) -> ModelTask:
     """The model of a real-data arm: real only, fine-tuned from the seed's sim `checkpoint`
-    for `finetune_epochs`, mixed with the lab Train.csv in `sim` (which weighs `mix_weight` of
-    its loss), or both."""
+    for `finetune_epochs` (the first of the config's where not given; with its encoders fixed
+    in the frozen arm), mixed with the lab Train.csv in `sim` (which weighs `mix_weight` of its
+    loss), or both."""
     how = {"chained": config.chained, "precision": config.precision}
     if arm == "real":
         return ModelTask(arm, seed, config.epochs, train, val, test, **how)
