@@ -133,7 +133,8 @@ class Paired:
     unit: str = ""
 
     def __str__(self) -> str:
-        verdict = "inconclusive" if self.low <= 0 <= self.high else "decided"
+        verdict = ("equal on every seed" if self.low == self.high == 0 else
+                   "inconclusive" if self.low <= 0 <= self.high else "decided")
         f, u = self.fmt, f" {self.unit}" if self.unit else ""
         return (f"{self.mean:+{f}}{u} [{self.low:+{f}}, {self.high:+{f}}], {self.n} seeds: "
                 f"{verdict}")
@@ -373,17 +374,23 @@ def s2r(folder: str) -> Table:
 @source
 def s2r_pairs(base: str, other: str) -> Table:
     """Two sim-to-real runs of the same arms, folds and seeds: per arm and share of the real
-    pool the Head error (cm) of each, mean ± std over seeds, and the difference of the means
-    (other - base)."""
+    pool the Head error (cm) of each, mean ± std over seeds, and the difference (other - base):
+    paired over the seeds with its 95 % interval, or of the means where a run kept no seed's
+    (older runs)."""
     a, b = (load(f"{f}/results.json")["arms"] for f in (base, other))  # type: ignore[index]
     rows = [["arm", "% real", base, other, "difference"]]
     for arm, by_fraction in a.items():  # type: ignore[union-attr]
         for f in sorted(by_fraction, key=float):
-            theirs = b.get(arm, {}).get(f)  # type: ignore[union-attr]
-            if theirs:
-                x, y = by_fraction[f]["head_cm"], theirs["head_cm"]
-                rows.append([arm, f"{float(f) * 100:.0f}", _stat(x, ".2f"), _stat(y, ".2f"),
-                             f"{y['mean'] - x['mean']:+.2f}"])
+            mine, theirs = by_fraction[f], b.get(arm, {}).get(f)  # type: ignore[union-attr]
+            if not theirs:
+                continue
+            x, y = mine["head_cm"], theirs["head_cm"]
+            diff = f"{y['mean'] - x['mean']:+.2f}"
+            if "head_cm_by_seed" in mine and "head_cm_by_seed" in theirs:
+                seeds = mine["head_cm_by_seed"]
+                d = paired_interval([theirs["head_cm_by_seed"][s] - v for s, v in seeds.items()])
+                diff = str(Paired(d["mean"], d["low"], d["high"], d["n"]))  # type: ignore[arg-type]
+            rows.append([arm, f"{float(f) * 100:.0f}", _stat(x, ".2f"), _stat(y, ".2f"), diff])
     return rows
 
 
