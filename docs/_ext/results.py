@@ -132,6 +132,12 @@ class Paired:
     fmt: str = ".2f"
     unit: str = ""
 
+    @classmethod
+    def of(cls, differences: list[float], fmt: str = ".2f", unit: str = "") -> Paired:
+        """The paired differences' mean and interval (`core.stats.paired_interval`)."""
+        d = paired_interval(differences)
+        return cls(d["mean"], d["low"], d["high"], d["n"], fmt, unit)  # type: ignore[arg-type]
+
     def __str__(self) -> str:
         verdict = ("equal on every seed" if self.low == self.high == 0 else
                    "inconclusive" if self.low <= 0 <= self.high else "decided")
@@ -156,8 +162,7 @@ def paired(path: str, keypath: str, base_keypath: str, fmt: str = ".2f", unit: s
     if isinstance(a, dict) and isinstance(b, dict):
         seeds = sorted(a, key=str)
         a, b = [a[s] for s in seeds], [b[s] for s in seeds]
-    d = paired_interval([x - y for x, y in zip(a, b, strict=True)])  # type: ignore[arg-type]
-    return Paired(d["mean"], d["low"], d["high"], d["n"], fmt, unit)  # type: ignore[arg-type]
+    return Paired.of([x - y for x, y in zip(a, b, strict=True)], fmt, unit)  # type: ignore[arg-type]
 
 
 @source
@@ -388,8 +393,7 @@ def s2r_pairs(base: str, other: str) -> Table:
             diff = f"{y['mean'] - x['mean']:+.2f}"
             if "head_cm_by_seed" in mine and "head_cm_by_seed" in theirs:
                 seeds = mine["head_cm_by_seed"]
-                d = paired_interval([theirs["head_cm_by_seed"][s] - v for s, v in seeds.items()])
-                diff = str(Paired(d["mean"], d["low"], d["high"], d["n"]))  # type: ignore[arg-type]
+                diff = str(Paired.of([theirs["head_cm_by_seed"][s] - v for s, v in seeds.items()]))
             rows.append([arm, f"{float(f) * 100:.0f}", _stat(x, ".2f"), _stat(y, ".2f"), diff])
     return rows
 
@@ -420,14 +424,13 @@ def s2r_sim(real: str, *folders: str) -> Table:
             if profile.get("sim_minutes", plain.sim_minutes) != plain.sim_minutes else []
         if profile.get("sim_select", plain.sim_select) != plain.sim_select:
             how.append("checkpoint on the real validation block")
-        d = paired_interval([by_seed[s] - first[s] for s in first])
         label = nodes.inline()
         label += nodes.literal(text=" or ".join(Path(p).name for p in names) or "none")
         if how:
             label += nodes.Text(f" ({', '.join(how)})")
         rows.append([label, f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
                      f"{better} / {len(first)}" if i else "",
-                     str(Paired(d["mean"], d["low"], d["high"], d["n"])) if i else ""])  # type: ignore[arg-type]
+                     str(Paired.of([by_seed[s] - first[s] for s in first])) if i else ""])
     return rows
 
 
