@@ -498,10 +498,13 @@ def s2r_ranges(folder: str) -> Table:
     return rows
 
 
-def _tuned(folder: str, table: str, cells: str, setting: str) -> Table:
-    """A setting chosen per seed and real share on the real validation block (`results.json`'s
-    `table`, candidates under `cells`): each candidate's error there and on the test blocks
-    (mean ± std over the seeds) and for how many seeds it was kept."""
+def _tuned(folder: str, tuned: str, setting: str) -> Table:
+    """A setting chosen per seed and real share on the real validation block (the `sim2real`
+    `Tuned` named `tuned`): each candidate's error there and on the test blocks (mean ± std
+    over the seeds) and for how many seeds it was kept."""
+    from macrostate_mj.app.experiments import sim2real
+
+    table, cells = next((t.table, t.cells) for t in sim2real.TUNED if t.name == tuned)
     data = load(f"{folder}/results.json")
     rows = [["arm", "real data", setting, "validation block, mean error (cm)",
              "test block, Head (cm)", "kept for"]]
@@ -519,14 +522,14 @@ def _tuned(folder: str, table: str, cells: str, setting: str) -> Table:
 def s2r_mixes(folder: str) -> Table:
     """The mixing arms' lab shares (`--mix-weight`), chosen per seed and real share on the real
     validation block (see `_tuned`)."""
-    return _tuned(folder, "mixes", "weights", "lab share of the loss")
+    return _tuned(folder, "mix_weight", "lab share of the loss")
 
 
 @source
 def s2r_finetunes(folder: str) -> Table:
     """The fine-tuned arms' epochs (`--finetune-epochs`), chosen per seed and real share on the
     real validation block (see `_tuned`)."""
-    return _tuned(folder, "finetunes", "epochs", "fine-tuning epochs")
+    return _tuned(folder, "finetune_epochs", "fine-tuning epochs")
 
 
 @source

@@ -90,16 +90,18 @@ FINETUNED = ("finetune", "finetune-mixed", "finetune-frozen")   # start from the
 class Tuned:
     """A setting of real-data arms given as candidates (`Config.<name>`): each seed and share
     keeps the arm's model best on the real validation block (`choose_settings`); with several
-    candidates, `results.json[table]` gives each one's errors (`cells` per candidate)."""
+    candidates, `results.json[table]` gives each one's errors (`cells` per candidate) and the
+    summary says how often each was kept (as `label`)."""
 
     name: str
     arms: tuple[str, ...]
     table: str
     cells: str
+    label: str
 
 
-TUNED = (Tuned("mix_weight", MIXING, "mixes", "weights"),
-         Tuned("finetune_epochs", FINETUNED, "finetunes", "epochs"))
+TUNED = (Tuned("mix_weight", MIXING, "mixes", "weights", "lab share"),
+         Tuned("finetune_epochs", FINETUNED, "finetunes", "epochs", "epochs"))
 
 
 @dataclass(frozen=True)
@@ -778,12 +780,12 @@ def summary_lines(results: dict) -> list[str]:
         counts = Counter(ranges["chosen_by_seed"].values())
         lines.append(f"--randomize chosen per fold ({fit}): " + ", ".join(
             f"{Path(r).name} {n}x" for r, n in counts.most_common()))
-    for table, what in (("mixes", "lab share"), ("finetunes", "epochs")):
-        for arm, shares in results.get(table, {}).items():
+    for tuned in TUNED:
+        for arm, shares in results.get(tuned.table, {}).items():
             for f, cell in shares.items():
                 counts = Counter(cell["chosen_by_seed"].values())
-                lines.append(f"{arm} at {float(f) * 100:.0f} % real, {what} chosen per seed: "
-                             + ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
+                lines.append(f"{arm} at {float(f) * 100:.0f} % real, {tuned.label} chosen per "
+                             "seed: " + ", ".join(f"{w:g} {n}x" for w, n in counts.most_common()))
     for name, cell in results.get("ablations", {}).items():
         d = cell["minus_lab"]
         if d["mean"] is None:
