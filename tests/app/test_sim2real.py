@@ -250,6 +250,14 @@ def test_the_frozen_arm_fine_tunes_the_sim_model_with_its_encoders_fixed(tmp_pat
     assert "finetune-frozen" not in config.arms            # trained only when named
 
 
+def test_python_callers_get_the_cli_s_refusal_of_bad_fine_tuning_epochs(stand_in, tmp_path):
+    """From Python, `validate` refuses what the flag refuses, before anything is collected."""
+    for bad in ((0,), (2.5,), (), (True,)):
+        with pytest.raises(UserError, match="--finetune-epochs"):
+            sim2real.validate(replace(PROFILES["quick"], real=stand_in, finetune_epochs=bad))
+    sim2real.validate(replace(PROFILES["quick"], real=stand_in, finetune_epochs=(1, 2)))
+
+
 def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():
     """`--no-chained` trains every arm's model without chained Followers (they are scored on
     3-robot folds, where only the first module runs); the default keys stay those of the

@@ -260,6 +260,12 @@ def validate(config: Config) -> np.ndarray:
         if not 0.0 < weight < 1.0:
             raise UserError(f"--mix-weight {weight:g}: the lab data's share of the mixed arm's "
                             "loss must be in (0, 1)")
+    for epochs in config.finetune_epochs:
+        if isinstance(epochs, bool) or not isinstance(epochs, int) or epochs < 1:
+            raise UserError(f"--finetune-epochs {epochs}: the fine-tuned arms' epochs must be "
+                            "whole numbers of at least 1")
+    if not config.finetune_epochs:
+        raise UserError("--finetune-epochs: name at least one count (30 by default)")
     if config.sim_select not in SIM_SELECT:
         raise UserError(f"--sim-select {config.sim_select}: choose {' or '.join(SIM_SELECT)}")
     pooled = read_real(config.real)
