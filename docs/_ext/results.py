@@ -33,7 +33,7 @@ from sphinx.util.docutils import SphinxRole
 
 from macrostate_mj.app.claims import dig, parse
 from macrostate_mj.app.provenance import read_index
-from macrostate_mj.core.stats import mean_std, paired_interval
+from macrostate_mj.core.stats import mean_std, paired_interval, zero_crossing
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
@@ -543,6 +543,58 @@ def s2r_ablations(folder: str) -> Table:
         rows.append([nodes.literal(text=group), _stat(cell["head_cm"], ".2f"),
                      f"{d['mean']:+.2f}", f"[{d['low']:+.2f}, {d['high']:+.2f}]"])
     return rows
+
+
+def _excesses(folder: str) -> tuple[float, float, float]:
+    """One sim-to-real run's sim only and fine-tuned-on-a-quarter Head errors minus real only
+    on all of the pool, each paired over its seeds (mean), and real only's mean (cm)."""
+    arms = load(f"{folder}/results.json")["arms"]  # type: ignore[index]
+    real = arms["real"]["1"]["head_cm_by_seed"]
+    sim, tuned = (arms[a][f]["head_cm_by_seed"] for a, f in (("sim", "0"), ("finetune", "0.25")))
+    return (statistics.fmean(sim[s] - real[s] for s in real),
+            statistics.fmean(tuned[s] - real[s] for s in real), statistics.fmean(real.values()))
+
+
+@source
+def s2r_transfer(*folders: str) -> Table:
+    """Sim-to-real runs of different lab data: each one's sim-only excess over real only (all
+    of the pool) beside its fine-tuned-on-a-quarter excess, both paired over its seeds."""
+    rows = [["run", "sim only minus real only (cm)", "sim ÷ real", "fine-tuned on 25 % minus "
+             "real only (cm)"]]
+    for folder in folders:
+        sim, tuned, real = _excesses(folder)
+        rows.append([nodes.literal(text=folder), f"{sim:+.2f}", f"{(real + sim) / real:.2f}x",
+                     f"{tuned:+.2f}"])
+    return rows
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """Where the fine-tuned excess reaches 0 along the line through runs' excesses."""
+
+    cm: float
+    low: float
+    high: float
+    real: float
+    r: float
+    n: int
+
+    def __str__(self) -> str:
+        ratio = [f"{(self.real + v) / self.real:.2f}" for v in (self.cm, self.low, self.high)]
+        return (f"{self.cm:+.2f} cm [{self.low:+.2f}, {self.high:+.2f}] (r = {self.r:.2f} over "
+                f"{self.n} runs), sim only at {ratio[0]}x real only [{ratio[1]}, {ratio[2]}]")
+
+
+@source
+def s2r_crossing(*folders: str) -> Crossing:
+    """The sim-only excess at which fine-tuning on a quarter of the pool would equal real only
+    on all of it: the least-squares line of the runs' fine-tuned excess on their sim-only
+    excess, where it crosses 0, with its 95 % bootstrap interval over the runs
+    (`core.stats.zero_crossing`); as a ratio, over the runs' mean real-only error."""
+    runs = [_excesses(folder) for folder in folders]
+    c = zero_crossing([r[0] for r in runs], [r[1] for r in runs])
+    return Crossing(c["x"], c["low"], c["high"], statistics.fmean(r[2] for r in runs),  # type: ignore[arg-type]
+                    c["r"], c["n"])  # type: ignore[arg-type]
 
 
 @source

@@ -50,6 +50,29 @@ def paired_interval(differences: list[float]) -> dict[str, float | int | None]:
     return {"mean": float(d.mean()), "low": float(ci.low), "high": float(ci.high), "n": len(d)}
 
 
+def zero_crossing(x: list[float], y: list[float], seed: int = 0) -> dict[str, float | int]:
+    """Where the least-squares line of `y` on `x` crosses y = 0, with a 95 % percentile
+    bootstrap interval over the points (resampled in pairs, `seed` fixed so a page shows the
+    same interval each build): how far `x` must move for `y` to reach 0, read off runs that
+    differ in `x`. `r` is the points' correlation, which says whether a line reads them."""
+    import numpy as np
+    from scipy.stats import bootstrap, linregress
+
+    if len(x) < 3 or len(set(x)) < 2:
+        raise UserError("a crossing needs 3 points or more, not all at one x")
+
+    def root(xs: np.ndarray, ys: np.ndarray) -> float:
+        fit = linregress(xs, ys)
+        return -fit.intercept / fit.slope if fit.slope else float("nan")
+
+    xs, ys = np.asarray(x, float), np.asarray(y, float)
+    ci = bootstrap((xs, ys), root, paired=True, vectorized=False, n_resamples=9999,
+                   method="percentile", random_state=np.random.default_rng(seed)
+                   ).confidence_interval
+    return {"x": float(root(xs, ys)), "low": float(ci.low), "high": float(ci.high),
+            "r": float(linregress(xs, ys).rvalue), "n": len(xs)}
+
+
 def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any, Any]:
     """(train pool, validation, test) instance indices of cross-validation fold `fold`: test is
     contiguous block `fold` of `folds` (instances overlap in time, so a random split would

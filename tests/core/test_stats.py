@@ -61,3 +61,17 @@ def test_units_to_narrow_is_the_first_count_whose_interval_fits():
     widths = [sp.t.ppf(0.975, m - 1) * sd / m ** 0.5 for m in (need - 1, need)]
     assert widths[0] > half >= widths[1]
     assert stats.units_to_narrow(std, 1, half) is None
+
+
+def test_a_zero_crossing_recovers_the_line_its_points_lie_on_and_brackets_it():
+    """Points near y = 0.5 (x - 0.6): the crossing is read at x = 0.6, its interval holds it,
+    the same seed gives the same interval, and fewer than 3 points are refused."""
+    rng = np.random.default_rng(1)
+    x = np.linspace(0.8, 2.0, 11)
+    y = 0.5 * (x - 0.6) + rng.normal(0, 0.05, x.size)
+    got = stats.zero_crossing(list(x), list(y))
+    assert got["x"] == pytest.approx(0.6, abs=0.1) and got["n"] == 11 and got["r"] > 0.9
+    assert got["low"] < 0.6 < got["high"] and got["high"] - got["low"] < 0.5
+    assert stats.zero_crossing(list(x), list(y)) == got
+    with pytest.raises(ValueError, match="3 points"):
+        stats.zero_crossing([1.0, 2.0], [0.1, 0.2])
