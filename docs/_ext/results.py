@@ -573,13 +573,16 @@ class Crossing:
     """Where the fine-tuned excess reaches 0 along the line through runs' excesses."""
 
     cm: float
-    low: float
-    high: float
+    low: float | None
+    high: float | None
     real: float
     r: float
     n: int
 
     def __str__(self) -> str:
+        if self.low is None or self.high is None:
+            return (f"{self.cm:+.2f} cm, its interval unbounded (r = {self.r:.2f} over "
+                    f"{self.n} runs): the runs cannot place it")
         ratio = [f"{(self.real + v) / self.real:.2f}" for v in (self.cm, self.low, self.high)]
         return (f"{self.cm:+.2f} cm [{self.low:+.2f}, {self.high:+.2f}] (r = {self.r:.2f} over "
                 f"{self.n} runs), sim only at {ratio[0]}x real only [{ratio[1]}, {ratio[2]}]")
@@ -589,8 +592,8 @@ class Crossing:
 def s2r_crossing(*folders: str) -> Crossing:
     """The sim-only excess at which fine-tuning on a quarter of the pool would equal real only
     on all of it: the least-squares line of the runs' fine-tuned excess on their sim-only
-    excess, where it crosses 0, with its 95 % bootstrap interval over the runs
-    (`core.stats.zero_crossing`); as a ratio, over the runs' mean real-only error."""
+    excess, where it crosses 0, with its 95 % Fieller interval (`core.stats.zero_crossing`);
+    as a ratio, over the runs' mean real-only error."""
     runs = [_excesses(folder) for folder in folders]
     c = zero_crossing([r[0] for r in runs], [r[1] for r in runs])
     return Crossing(c["x"], c["low"], c["high"], statistics.fmean(r[2] for r in runs),  # type: ignore[arg-type]

@@ -50,27 +50,34 @@ def paired_interval(differences: list[float]) -> dict[str, float | int | None]:
     return {"mean": float(d.mean()), "low": float(ci.low), "high": float(ci.high), "n": len(d)}
 
 
-def zero_crossing(x: list[float], y: list[float], seed: int = 0) -> dict[str, float | int]:
-    """Where the least-squares line of `y` on `x` crosses y = 0, with a 95 % percentile
-    bootstrap interval over the points (resampled in pairs, `seed` fixed so a page shows the
-    same interval each build): how far `x` must move for `y` to reach 0, read off runs that
-    differ in `x`. `r` is the points' correlation, which says whether a line reads them."""
+def zero_crossing(x: list[float], y: list[float], level: float = 0.95
+                  ) -> dict[str, float | int | None]:
+    """Where the least-squares line of `y` on `x` crosses y = 0, with its Fieller interval
+    (the x whose predicted y holds 0 within its t interval; exact for normal scatter about a
+    line, as the t intervals of the rest are): how far `x` must move for `y` to reach 0, read
+    off runs that differ in `x`. An end is None where the slope cannot be told from 0 (the
+    interval is then unbounded). `r` is the points' correlation, which says whether a line
+    reads them."""
     import numpy as np
-    from scipy.stats import bootstrap, linregress
-
-    if len(x) < 3 or len(set(x)) < 2:
-        raise UserError("a crossing needs 3 points or more, not all at one x")
-
-    def root(xs: np.ndarray, ys: np.ndarray) -> float:
-        fit = linregress(xs, ys)
-        return -fit.intercept / fit.slope if fit.slope else float("nan")
+    from scipy.stats import linregress, t
 
     xs, ys = np.asarray(x, float), np.asarray(y, float)
-    ci = bootstrap((xs, ys), root, paired=True, vectorized=False, n_resamples=9999,
-                   method="percentile", random_state=np.random.default_rng(seed)
-                   ).confidence_interval
-    return {"x": float(root(xs, ys)), "low": float(ci.low), "high": float(ci.high),
-            "r": float(linregress(xs, ys).rvalue), "n": len(xs)}
+    n = len(xs)
+    if n < 3 or np.ptp(xs) == 0:
+        raise UserError("a crossing needs 3 points or more, not all at one x")
+    fit = linregress(xs, ys)
+    a, b = fit.intercept, fit.slope
+    s2 = float(np.sum((ys - a - b * xs) ** 2)) / (n - 2)
+    sxx, mean = float(np.sum((xs - xs.mean()) ** 2)), float(xs.mean())
+    q = t.ppf(0.5 + level / 2, n - 2) ** 2 * s2          # (a + b x)^2 = q (1/n + (x - mean)^2/sxx)
+    c2, c1 = b * b - q / sxx, 2 * (a * b + q * mean / sxx)
+    c0 = a * a - q * (1 / n + mean * mean / sxx)
+    low = high = None
+    if c2 > 0:                                           # the slope is told from 0: bounded
+        root = np.sqrt(max(c1 * c1 - 4 * c2 * c0, 0.0))
+        low, high = sorted(float(v) for v in ((-c1 - root) / (2 * c2), (-c1 + root) / (2 * c2)))
+    return {"x": float(-a / b) if b else None, "low": low, "high": high,
+            "r": float(fit.rvalue), "n": n}
 
 
 def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any, Any]:
