@@ -60,7 +60,7 @@ PROFILES: dict[str, dict[str, tuple[float, float] | float]] = {
     "wide": WIDE,
     # `wide`, with the Head's and chain's speed caps, the Tail gain and the wait rule's slack
     # reaching up to where the first `sysid` fit went (faster, tighter, more patient): the
-    # best sim-to-real transfer measured (docs: reproduction/beyond).
+    # best sim-to-real transfer measured (docs: reproduction/sim-to-real).
     "wider": {**WIDE, "k_f": (0.8, 1.3), "k_t": (0.8, 1.6), "head_speed": (0.8, 1.6),
               "chain_speed": (0.8, 1.5), "wait_slack": (0.7, 1.5)},
 }
@@ -72,7 +72,7 @@ PROFILES["wider-head"] = {**PROFILES["wider"], "head_turn_speed": (0.5, 1.0),
 # `wider-head`, with rear robots that stop and go like the real ones: stiff gains (Follower
 # 1.5-5x, Tail 1-2x) capped near the Head's speed (0.45-1x the chain's), stopping rather than
 # backing off when close (`follow_hold` = the spacing); `-slow` also draws the Head's speed
-# nearer the real Head's (docs: reproduction/beyond).
+# nearer the real Head's (docs: reproduction/sim-to-real).
 PROFILES["wider-rear"] = {**PROFILES["wider-head"], "k_f": (1.5, 5.0), "k_t": (1.0, 2.0),
                           "chain_speed": (0.45, 1.0), "follow_hold": 0.3}
 PROFILES["wider-rear-slow"] = {**PROFILES["wider-rear"], "head_speed": (0.75, 1.15)}

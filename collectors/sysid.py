@@ -53,7 +53,7 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 # The camera's frame timing: frames of uneven age make a logged speed alternate from row to
 # row, as the real Head's does (lag-1 autocorrelation -0.35, lag-2 +0.29) and a steady 4 fps
 # under a 2 Hz log cannot (the real rear robots' does not alternate, so it is not the whole
-# story: docs, reproduction/beyond); the rear robots' start gap (m), which keeps a stiff
+# story: docs, reproduction/sim-to-real); the rear robots' start gap (m), which keeps a stiff
 # parked chain still; how the robots differ (each wheel's radius, each marker's place).
 # The `ABSOLUTE` ones' boxes are in their units (s, m) from 0 (the scenario as written), the
 # others' factors; a jitter stays under the fastest frame period (1 / (4 Hz x 1.6) = 0.156 s).

@@ -22,7 +22,7 @@ TUTORIALS = [REPO / "README.md", DOCS / "getting-started.md",
              *sorted((DOCS / "tutorials").glob("*.md"))]
 # Pages that report measurements: none may show a number that no results file holds.
 RESULTS_PAGES = ["reproduction/chapter2", "reproduction/chapter3", "reproduction/chapter4",
-                 "reproduction/beyond", "benchmarks"]
+                 "reproduction/beyond", "reproduction/sim-to-real", "benchmarks"]
 NUMBER = re.compile(r"(?<![\w.])[-−]?(?:\d+(?:,\d{3})+|\d*\.\d+|\d+)(?:e[-+]?\d+)?(?![\w])")
 
 
@@ -62,8 +62,9 @@ TYPED = {
     "reproduction/chapter3": {"150", "2", "26", "3", "300", "5", "6"},
     "reproduction/chapter4": {".05", "160", "20", "20,000", "3", "4.13", "40", "48", "5", "750",
                               "95"},
-    "reproduction/beyond": {"0", "0.5", "0.75", "1", "1000", "13", "19", "2", "2.5", "2023",
-                            "245,760", "3", "30", "5", "50", "8", "90", "95"},
+    "reproduction/beyond": {"0", "1", "1000", "19", "2", "2.5", "2023", "245,760", "3", "5",
+                            "50", "90"},
+    "reproduction/sim-to-real": {"0", "0.5", "0.75", "1", "13", "2", "3", "30", "5", "8", "95"},
     "benchmarks": {"1", "1.0", "1024", "45"},
 }
 LABELS = re.compile(r"(Fig|Table|§|Chapter|chapter|Figure|m =|σ =|[Ss]plit|seed|D[+-])\s*[\d.]+")
