@@ -123,7 +123,8 @@ def train_retlo(
                            "data say) instead of a fresh network; the model flags must "
                            "describe it.", (".pt",)),
     lr: float = Positive(2e-3, "Adam's learning rate at the start of the cosine schedule "
-                         "(fine-tuning: try 5e-4).", "--lr", max=1.0),
+                         "(fine-tuning with --init: 5e-4 and --epochs 30, the settings the "
+                         "sim-to-real recipe measured).", "--lr", max=1.0),
     freeze_encoder: bool = Switch(False, "With --init: keep the observation and history "
                                   "encoders fixed, train the fusion layer and the heads."),
     mix: list[Path] = InputFile(None, "More training chains (simulated, say) trained on "
