@@ -547,12 +547,12 @@ def s2r_ablations(folder: str) -> Table:
 
 def _excesses(folder: str) -> tuple[float, float, float]:
     """One sim-to-real run's sim only and fine-tuned-on-a-quarter Head errors minus real only
-    on all of the pool, each paired over its seeds (mean), and real only's mean (cm)."""
-    arms = load(f"{folder}/results.json")["arms"]  # type: ignore[index]
-    real = arms["real"]["1"]["head_cm_by_seed"]
-    sim, tuned = (arms[a][f]["head_cm_by_seed"] for a, f in (("sim", "0"), ("finetune", "0.25")))
-    return (statistics.fmean(sim[s] - real[s] for s in real),
-            statistics.fmean(tuned[s] - real[s] for s in real), statistics.fmean(real.values()))
+    on all of the pool, each paired over its seeds (`paired`'s mean), and real only's mean
+    (cm)."""
+    path, real = f"{folder}/results.json", "arms/real/1/head_cm_by_seed"
+    return (paired(path, "arms/sim/0/head_cm_by_seed", real).mean,
+            paired(path, "arms/finetune/0.25/head_cm_by_seed", real).mean,
+            statistics.fmean(dig(load(path), real).values()))  # type: ignore[union-attr]
 
 
 @source
