@@ -952,19 +952,21 @@ def all_index(folder: str) -> Table:
 
 
 @source
-def soak(folder: str) -> Table:
-    """A soak's summary: runs, simulated time and every fault count."""
-    summary = load(f"{folder}/soak.json")["summary"]  # type: ignore[index]
+def soak(*folders: str) -> Table:
+    """Soaks' summaries, one column each: runs, simulated time and every fault count."""
+    summaries = [load(f"{folder}/soak.json")["summary"] for folder in folders]  # type: ignore[index]
     keys = ["scenario", "robots", "runs", "seconds", "tips", "nans", "escapes", "climbs",
             "intrusions", "warnings", "max_tilt_deg", "max_lift_mm"]
-    rows = [["figure", "value"]]
-    for key in keys:
-        if key in summary:
-            value = summary[key]
-            rows.append([key, f"{value:.2f}" if isinstance(value, float) and not
-                         float(value).is_integer() else str(int(value) if isinstance(value, float)
-                                                            else value)])
+    rows = [["figure", *(["value"] if len(folders) == 1 else [Path(f).name for f in folders])]]
+    for key in (k for k in keys if k in summaries[0]):
+        rows.append([key, *(_soak_cell(summary[key]) for summary in summaries)])
     return rows
+
+
+def _soak_cell(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.2f}" if not value.is_integer() else str(int(value))
+    return str(value)
 
 
 @source
