@@ -255,6 +255,9 @@ def test_python_callers_get_the_cli_s_refusal_of_bad_fine_tuning_epochs(stand_in
     for bad in ((0,), (2.5,), (), (True,)):
         with pytest.raises(UserError, match="--finetune-epochs"):
             sim2real.validate(replace(PROFILES["quick"], real=stand_in, finetune_epochs=bad))
+    with pytest.raises(UserError, match=r"int64: pass int\(\.\.\.\)"):     # JSON cannot hold it
+        sim2real.validate(replace(PROFILES["quick"], real=stand_in,
+                                  finetune_epochs=(np.int64(30),)))
     sim2real.validate(replace(PROFILES["quick"], real=stand_in, finetune_epochs=(1, 2)))
 
 

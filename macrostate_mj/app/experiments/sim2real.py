@@ -47,6 +47,7 @@ import tempfile
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
+from numbers import Integral
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -262,8 +263,11 @@ def validate(config: Config) -> np.ndarray:
                             "loss must be in (0, 1)")
     for epochs in config.finetune_epochs:
         if isinstance(epochs, bool) or not isinstance(epochs, int) or epochs < 1:
-            raise UserError(f"--finetune-epochs {epochs}: the fine-tuned arms' epochs must be "
-                            "whole numbers of at least 1")
+            # a numpy integer is refused too (the results file could not hold it): say so
+            kind = f" ({type(epochs).__name__}: pass int(...))" if isinstance(
+                epochs, Integral) and not isinstance(epochs, int) else ""
+            raise UserError(f"--finetune-epochs {epochs}{kind}: the fine-tuned arms' epochs must "
+                            "be whole numbers of at least 1")
     if not config.finetune_epochs:
         raise UserError("--finetune-epochs: name at least one count (30 by default)")
     if config.sim_select not in SIM_SELECT:
