@@ -63,6 +63,9 @@ def zero_crossing(x: list[float], y: list[float], level: float = 0.95
 
     xs, ys = np.asarray(x, float), np.asarray(y, float)
     n = len(xs)
+    if xs.shape != ys.shape or xs.ndim != 1 or not np.isfinite([*xs, *ys]).all():
+        raise UserError(f"a crossing needs as many finite y as x, got {len(xs)} x and "
+                        f"{len(ys)} y (non-finite ones dropped first, if meant)")
     if n < 3 or np.ptp(xs) == 0:
         raise UserError("a crossing needs 3 points or more, not all at one x")
     fit = linregress(xs, ys)

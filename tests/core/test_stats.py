@@ -80,3 +80,6 @@ def test_a_zero_crossing_recovers_its_line_and_its_interval_holds_its_level():
     assert flat["low"] is None or flat["high"] - flat["low"] > 1
     with pytest.raises(ValueError, match="3 points"):
         stats.zero_crossing([1.0, 2.0], [0.1, 0.2])
+    for xs, ys in (([1.0, 2.0, 3.0], [0.1, 0.2]), ([1.0, 2.0, float("nan")], [0.1, 0.2, 0.3])):
+        with pytest.raises(ValueError, match="as many finite y as x"):
+            stats.zero_crossing(xs, ys)
