@@ -74,7 +74,7 @@ def run_episode(spec: EpisodeSpec) -> tuple[int, pa.Table | None, dict]:
     table = table.append_column("episode", pa.array(np.full(table.num_rows, spec.index)))
     stats = {"seconds": time.perf_counter() - t0, "frames": chain.frames,
              "dropped": chain.dropped, "windowed": chain.windowed,
-             "rendered": chain.rendered, "health": chain.health.report().as_dict(),
+             "rendered": chain.rendered, "health": chain.health.report(log).as_dict(),
              "steps": int(round(sim.time / sim.model.opt.timestep)),
              "decisions": policy.records(), "randomized": factors}
     return spec.index, table, stats

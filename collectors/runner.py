@@ -130,7 +130,7 @@ class EpisodeTask:
     where it keeps any) as Parquet and its figures as JSON."""
 
     stage: ClassVar[str] = "collect-episode"
-    version: ClassVar[int] = 2          # 2: stats.json holds the episode's tracking health
+    version: ClassVar[int] = 3          # 3: its health judges rows, headings, hidden
 
     def __init__(self, spec: EpisodeSpec):
         self.spec = spec

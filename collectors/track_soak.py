@@ -37,7 +37,7 @@ def track_one(task: SoakTask) -> TrackedRun:
     cfg = task.scenario
     t0 = time.perf_counter()
     ran = simulate_chain(cfg, task.robots, task.seconds, task.seed, track=True)
-    report = ran.tracker.health.report()
+    report = ran.tracker.health.report(ran.log)
     return TrackedRun(task.seed, None if ran.failure is None else str(ran.failure),
                       report.as_dict(), [f.describe() for f in report.judged(cfg)],
                       report.summary(), ran.tracker.frames, time.perf_counter() - t0)
@@ -48,7 +48,7 @@ class TrackSoakTask(SoakRunTask):
     scenario) under a stage of its own."""
 
     stage: ClassVar[str] = "track-soak-run"
-    version: ClassVar[int] = 1
+    version: ClassVar[int] = 2          # 2: rows, hidden and heading figures
     result: ClassVar[type] = TrackedRun
 
     def compute(self) -> dict[str, bytes]:
@@ -61,17 +61,23 @@ def track_summary(runs: list[TrackedRun]) -> dict:
     from macrostate_mj.vision.health import TrackingHealth, worst_of
 
     worst = worst_of([TrackingHealth.from_dict(r.health) for r in runs]).robots
-    finite = [r for r in worst if r.detected > 0]
+    finite = [r for r in worst if r.detected_frames > 0]
     def clean(v: float) -> float | None:          # JSON has no NaN
         return None if math.isnan(v) else v
 
     return {
         "runs": len(runs), "unhealthy": sum(bool(r.findings) for r in runs),
         "faults": sum(r.fault is not None for r in runs),
-        "min_detected": clean(min((r.detected for r in worst if r.frames), default=math.nan)),
+        "min_detected": clean(min((r.detected_share[0] for r in worst if r.frames),
+                                  default=math.nan)),
+        "max_hidden": clean(max((r.hidden_share for r in worst if r.frames + r.hidden),
+                                default=math.nan)),
         "max_median_mm": clean(max((r.median_mm for r in finite), default=math.nan)),
         "max_p99_mm": clean(max((r.p99_mm for r in finite), default=math.nan)),
         "max_heading_deg": clean(max((r.heading_deg for r in finite), default=math.nan)),
+        "max_heading_p99_deg": clean(max((r.heading_p99_deg for r in finite),
+                                         default=math.nan)),
+        "max_heading_flips": clean(max((r.heading_flips for r in finite), default=math.nan)),
         "max_identity": clean(max((r.identity for r in worst if r.frames), default=math.nan)),
         "frames": sum(r.frames for r in runs),
         "wall_s_per_run": sum(r.wall_s for r in runs) / len(runs),

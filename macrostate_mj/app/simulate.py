@@ -19,7 +19,7 @@ from macrostate_mj.core.run import Run
 from macrostate_mj.formats.poses import write_poses
 
 if TYPE_CHECKING:
-    from macrostate_mj.chain.sim import ChainSim, Hook, Tracker
+    from macrostate_mj.chain.sim import ChainSim, Hook, PoseLog, Tracker
     from macrostate_mj.vision.camera_chain import CameraChain
 
 
@@ -116,7 +116,7 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
                                                        "fault": failure.fault.fault.name,
                                                        "reason": str(failure)},
                    simulated_seconds=sim.time, health=asdict(sim.monitor.stats),
-                   tracking=None if chain is None else tracking_record(chain, cfg))
+                   tracking=None if chain is None else tracking_record(chain, cfg, ran.log))
         if failure is not None:
             raise RunFailure(f"physics failed: {failure} (seed {req.seed}); poses and video up "
                              f"to then are in {out}; reproduce: {reproduce_command(req)}")
@@ -128,10 +128,10 @@ def simulate_run(req: SimulateRequest, progress=None) -> dict[str, Path]:
     return written
 
 
-def tracking_record(chain: CameraChain, cfg: ScenarioConfig) -> dict:
-    """A tracked run's `tracking` block: frame counts, the noise, and its health against the
-    scenario's limits (`vision.health`)."""
-    health = chain.health.report()
+def tracking_record(chain: CameraChain, cfg: ScenarioConfig, log: PoseLog) -> dict:
+    """A tracked run's `tracking` block: frame counts, the noise, and its health (frames and
+    the rows of `log`, the dataset) against the scenario's limits (`vision.health`)."""
+    health = chain.health.report(log)
     findings = [f.describe() for f in health.judged(cfg)]
     return {"frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise,
             "marker_jitter_m": cfg.marker_jitter, "health": health.as_dict(),

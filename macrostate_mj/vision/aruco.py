@@ -22,7 +22,7 @@ from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.tags import ArucoMarkers, dictionary
 from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
-from macrostate_mj.vision.occlusion import hide_occluded
+from macrostate_mj.vision.occlusion import hide_occluded, scene_occluders
 from macrostate_mj.vision.tracker import Detections
 
 MIN_PERIMETER = 0.5     # of the tag's expected perimeter (px): smaller quads are not tags
@@ -47,7 +47,7 @@ class ArucoTracker:
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
         return cls(camera, world.scenario.markers, len(world.names), world.marker_height,
-                   world.marker_area, occluders=world.scenario.obstacles)
+                   world.marker_area, occluders=scene_occluders(world.scenario))
 
     def __post_init__(self) -> None:
         scale = self.camera.focal / (self.camera.position[2] - self.marker_height)

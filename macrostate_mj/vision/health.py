@@ -1,13 +1,16 @@
 """Tracking health: what the tracker reported, frame by frame, against the truth the simulator
 knows, so that no run hands over wrong poses without saying so.
 
-Per robot, over the frames the tracker processed (dropped frames are the imaging chain's
-realistic noise and are counted apart): the share detected among the frames where it was in view
-(an obstacle hiding its marker, by the truth, is the scene, not the tracker), the median / p95 /
-p99 position error and the median heading error of its detections, and identity errors (a
-detection nearer another robot's true pose than its own). Errors are the tracker's own: measured
-before the scenario's marker jitter is added (that jitter is noise the user asked for, of known
-sigma, recorded beside).
+A pose is position, heading and identity, on the rows a user gets. Per robot: the share of the
+dataset's rows in which it was detected, among those where it was in view (an obstacle or wall
+between its marker and the camera, by the truth and the camera's rays, is the scene, not the
+tracker: those rows are counted as hidden, and a robot hidden too often is a finding of its
+own); the same share over the frames the tracker processed, named as such; over its detections,
+the median / p95 / p99 position error, the median and p99 heading error and the shares of
+headings off by more than 30 and 90 degrees, and identity errors (a detection nearer another
+robot's true pose than its own). Errors are the tracker's own: measured before the scenario's
+marker jitter is added (that jitter is noise the user asked for, of known sigma, recorded
+beside).
 
 `TrackingHealth.judged(cfg)` judges the figures against a scenario's `[tracking]` limits; each
 finding is one line naming the robot, the figure and its likely cause for the scenario's
@@ -24,27 +27,39 @@ import numpy as np
 from macrostate_mj.chain.markers import ColourMarkers
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import Obstacle
+from macrostate_mj.chain.sim import PoseLog
 from macrostate_mj.chain.tags import ArucoMarkers
 from macrostate_mj.chain.tracking import TrackingLimits
 from macrostate_mj.chain.world import World
 from macrostate_mj.core.angles import wrap_angle
-from macrostate_mj.vision.occlusion import occluded
+from macrostate_mj.vision.occlusion import occluded, scene_occluders
 
 # Likely causes, by marker kind and by what the figures show, each naming a fix (docs:
 # how-to/tracking-health).
 EDGE = ("or its marker leaves the frame near the image's edge (markers stand above the floor a "
         "fitted camera frames: widen camera.fovy)")
+HIDDEN = ("an obstacle or wall stands between its marker and the camera (a robot parked or driving "
+          "beside something taller than its marker, off the camera's axis): move or lower the "
+          "obstacle, raise the camera over it, or raise [tracking] max_hidden if you mean it")
+COLOUR_OFF = ("pixels of its marker's colour elsewhere in view pull the fit (a robot part, the "
+              "floor or an obstacle rendered in marker colour: run `macrostate-mj scenario "
+              "check` and recolour it grey), a lens the calibration does not undo, or a limit "
+              "tighter than the tracker's accuracy (about 1 mm in the built-in labs)")
+COLOUR_HEADING = ("its triangle's apex is not resolved (a marker only a few pixels long in the "
+                  "image, blur, or pixels of its colour nearby: lower the camera, enlarge the "
+                  "marker, or use [markers] kind = \"aruco\")")
+TAG_OFF = ("its tag's corners are misplaced (a lens the calibration does not undo, or tags too "
+           "small in the image: lower the camera)")
+TAG_HEADING = ("its tag's corners are found in the wrong order (tags too small or blurred in "
+               "the image: lower the camera or use a dictionary of fewer bits)")
 CAUSES: dict[type, dict[str, str]] = {
     ColourMarkers: {
         "identity": ("its marker's colour is found on another robot (two markers the classifier "
                      "cannot tell apart, or a robot part rendered in marker colour): run "
                      "`macrostate-mj scenario check`, use fewer robots or [markers] kind = "
                      "\"aruco\""),
-        "median_error": ("pixels of its marker's colour elsewhere in view pull the fit (a robot "
-                         "part, the floor or an obstacle rendered in marker colour: run "
-                         "`macrostate-mj scenario check` and recolour it grey), a lens the "
-                         "calibration does not undo, or a limit tighter than the tracker's "
-                         "accuracy (about 1 mm in the built-in labs)"),
+        "median_error": COLOUR_OFF, "p99_error": COLOUR_OFF,
+        "heading_flips": COLOUR_HEADING, "heading_off30": COLOUR_HEADING,
         "detected": ("too few of its marker's pixels pass the colour rule (a marker small in "
                      "the image, blur, or light that shifts its hue: lower the camera or enlarge "
                      f"the marker), {EDGE}"),
@@ -52,8 +67,8 @@ CAUSES: dict[type, dict[str, str]] = {
     ArucoMarkers: {
         "identity": ("a tag decoded as another robot's id (a dictionary too small for the "
                      "image's noise: use one with fewer ids, e.g. DICT_4X4_50)"),
-        "median_error": ("its tag's corners are misplaced (a lens the calibration does not "
-                         "undo, or tags too small in the image: lower the camera)"),
+        "median_error": TAG_OFF, "p99_error": TAG_OFF,
+        "heading_flips": TAG_HEADING, "heading_off30": TAG_HEADING,
         "detected": ("its tag is not decoded (cells under about 3 px in the image, or blur: "
                      f"lower the camera or use a dictionary of fewer bits), {EDGE}"),
     },
@@ -64,17 +79,48 @@ NO_FRAMES = "every frame was dropped or the run ended before its first camera ti
 @dataclass(frozen=True)
 class RobotHealth:
     """One robot's tracking figures over a run (errors in mm and degrees; NaN when it was
-    never detected)."""
+    never detected, or, for the rows' figures, when no dataset rows were judged).
+
+    Two detected shares, named apart: `detected` over the dataset's rows (what a user of
+    `poses.parquet` gets: a row whose latest frame missed the robot, dropped frames included,
+    is a miss), `detected_frames` over the frames the tracker processed. Position, heading and
+    identity figures are over its detections (every row's tracked pose is one of them)."""
 
     robot: str
     frames: int                 # frames processed in which it was in view
-    hidden: int                 # frames an obstacle hid its marker (not counted against it)
-    detected: float             # share of `frames` in which it was detected (NaN: no frames)
+    hidden: int                 # frames an obstacle or wall hid its marker (not held against it)
+    detected_frames: float      # share of `frames` in which it was detected (NaN: no frames)
+    rows: int                   # dataset rows judged in which it was in view
+    rows_hidden: int            # dataset rows in which it was hidden
+    detected: float             # share of `rows` whose `detected` flag is set (NaN: no rows)
     median_mm: float
     p95_mm: float
     p99_mm: float
     heading_deg: float          # median absolute heading error
-    identity: float             # share of `frames` whose detection is nearer another's truth
+    heading_p99_deg: float      # its 99th percentile
+    heading_off30: float        # share of detections whose heading errs by more than 30 deg
+    heading_flips: float        # ... by more than 90 deg: a flipped heading
+    identity: float             # share of detections nearer another robot's truth
+
+    @property
+    def hidden_share(self) -> float:
+        """Share of the dataset's rows (else of the frames) in which it was hidden."""
+        shown, hid = (self.rows, self.rows_hidden) if self.rows + self.rows_hidden else \
+            (self.frames, self.hidden)
+        return hid / (shown + hid) if shown + hid else math.nan
+
+    @property
+    def detected_share(self) -> tuple[float, str]:
+        """The share a run is judged on and what it is of: the rows', else the frames'."""
+        return (self.detected, "rows") if self.rows else (self.detected_frames, "frames")
+
+
+FIGURES = ("identity", "median_error", "p99_error", "heading_flips", "heading_off30",
+           "detected", "hidden")      # findings in this order, worst robots first within each
+# A figure left unsaid when one of these already is, for the same robot: another robot's pose
+# (identity) makes its distances meaningless, a bad median implies a bad p99, a flip is 30 off.
+SAYS_MORE = {"median_error": {"identity"}, "p99_error": {"identity", "median_error"},
+             "heading_off30": {"heading_flips"}}
 
 
 @dataclass(frozen=True)
@@ -86,18 +132,26 @@ class Finding:
     value: float
     limit: float
     cause: str
+    of: str = "frames"           # what a share is of: the dataset's rows or the frames
 
     def describe(self) -> str:
         if self.figure == "frames":
             return f"no frame tracked: {self.cause}; run longer or lower noise.drop_prob"
-        if self.figure == "detected":
-            what = f"detected in {self.value:.1%} of the frames (limit {self.limit:.0%})"
-        elif self.figure == "median_error":
-            what = (f"tracked {self.value * 1000:.1f} mm from the truth at the median (limit "
-                    f"{self.limit * 1000:g} mm)")
-        else:
-            what = (f"identity errors in {self.value:.1%} of the frames (limit "
-                    f"{self.limit:.0%})")
+        v, lim = self.value, self.limit
+        what = {
+            "detected": f"detected in {v:.1%} of the {self.of} where it is in view (limit "
+                        f"{lim:.0%})",
+            "hidden": f"hidden by an obstacle or wall in {v:.1%} of the {self.of} (limit "
+                      f"{lim:.0%})",
+            "median_error": f"tracked {v:.1f} mm from the truth at the median (limit {lim:g} mm)",
+            "p99_error": f"tracked {v:.1f} mm from the truth at the 99th percentile (limit "
+                         f"{lim:g} mm)",
+            "heading_flips": f"headed more than 90 deg off (flipped) in {v:.1%} of its "
+                             f"detections (limit {lim:.0%})",
+            "heading_off30": f"headed more than 30 deg off in {v:.1%} of its detections "
+                             f"(limit {lim:.0%})",
+            "identity": f"identity errors in {v:.1%} of its detections (limit {lim:.0%})",
+        }[self.figure]
         return f"robot {self.robot} {what}: {self.cause}"
 
 
@@ -117,18 +171,26 @@ class TrackingHealth:
             return [Finding("all", "frames", 0.0, 1.0, NO_FRAMES)]
         out = []
         for r in self.robots:
-            if r.frames == 0:              # hidden in every frame: nothing to judge
+            share, of = r.detected_share
+            if r.hidden_share > limits.max_hidden:
+                out.append(Finding(r.robot, "hidden", r.hidden_share, limits.max_hidden, HIDDEN,
+                                   "rows" if r.rows + r.rows_hidden else "frames"))
+            if r.frames == 0:              # hidden in every frame: nothing more to judge
                 continue
-            if r.identity > limits.max_identity_errors:
-                out.append(Finding(r.robot, "identity", r.identity, limits.max_identity_errors,
-                                   causes["identity"]))
-            elif r.detected > 0 and r.median_mm / 1000 > limits.max_median_error:
-                out.append(Finding(r.robot, "median_error", r.median_mm / 1000,
-                                   limits.max_median_error, causes["median_error"]))
-            if r.detected < limits.min_detected:
-                out.append(Finding(r.robot, "detected", r.detected, limits.min_detected,
-                                   causes["detected"]))
-        order = {"identity": 0, "median_error": 1, "detected": 2}
+            past = [("identity", r.identity, limits.max_identity_errors),
+                    ("median_error", r.median_mm, limits.max_median_mm),
+                    ("p99_error", r.p99_mm, limits.max_p99_mm),
+                    ("heading_flips", r.heading_flips, limits.max_heading_flips),
+                    ("heading_off30", r.heading_off30, limits.max_heading_off30)]
+            found: set[str] = set()
+            for figure, value, limit in past:     # NaN (never detected): judged by `detected`
+                if value > limit and not found & SAYS_MORE.get(figure, set()):
+                    found.add(figure)
+                    out.append(Finding(r.robot, figure, value, limit, causes[figure]))
+            if share < limits.min_detected:
+                out.append(Finding(r.robot, "detected", share, limits.min_detected,
+                                   causes["detected"], of))
+        order = {f: i for i, f in enumerate(FIGURES)}
         return sorted(out, key=lambda f: (order[f.figure], -abs(f.value - f.limit)))
 
     def judged(self, cfg: ScenarioConfig) -> list[Finding]:
@@ -142,22 +204,26 @@ class TrackingHealth:
         seen = [r for r in self.robots if r.frames]
         if not seen:
             return "no frames tracked"
-        worst = min(seen, key=lambda r: r.detected)
-        errs = [r for r in seen if r.detected > 0]
+        worst = min(seen, key=lambda r: r.detected_share[0])
+        share, of = worst.detected_share
+        hid = max(self.robots, key=lambda r: np.nan_to_num(r.hidden_share))
+        errs = [r for r in seen if r.detected_frames > 0]
 
-        def top(key: str) -> str:
+        def top(key: str, fmt: str = ".1f") -> str:
             values = [getattr(r, key) for r in errs]
-            return f"{max(values):.1f}" if values else "n/a"
+            return format(max(values), fmt) if values else "n/a"
 
-        line = (f"{len(seen)} robots, detected >= {worst.detected:.1%} ({worst.robot}), median "
-                f"error <= {top('median_mm')} mm, p99 <= {top('p99_mm')} mm, heading <= "
-                f"{top('heading_deg')} deg, identity errors <= "
-                f"{max(r.identity for r in seen):.1%}")
+        frames = (f"; {worst.detected_frames:.1%} of its frames" if of == "rows" else "")
+        line = (f"{len(seen)} robots, detected >= {share:.1%} of the {of} ({worst.robot}"
+                f"{frames}), hidden <= {np.nan_to_num(hid.hidden_share):.1%} ({hid.robot}), "
+                f"median error <= {top('median_mm')} mm, p99 <= {top('p99_mm')} mm, heading "
+                f"p99 <= {top('heading_p99_deg')} deg, off 30 deg <= "
+                f"{top('heading_off30', '.1%')}, flipped <= {top('heading_flips', '.1%')}, "
+                f"identity errors <= {max(r.identity for r in seen):.1%}")
         if marker_jitter > 0:     # what comparing a dataset with its truth columns shows
             line += (f" (the tracker's own error; the tracked columns add marker_jitter, sigma "
                      f"{1000 * marker_jitter:g} mm a coordinate)")
         return line
-
 
     def as_dict(self) -> dict:
         """For a manifest: per robot, its figures (NaN written as None)."""
@@ -177,7 +243,7 @@ class TrackingHealth:
 
 
 def worst_of(reports: list[TrackingHealth]) -> TrackingHealth:
-    """Per robot, the worst figure over several episodes' reports (frames summed): what a
+    """Per robot, the worst figure over several episodes' reports (counts summed): what a
     collection's one-line summary shows."""
     def pick(values: list[float], fn) -> float:
         finite = [v for v in values if not math.isnan(v)]
@@ -186,30 +252,37 @@ def worst_of(reports: list[TrackingHealth]) -> TrackingHealth:
     robots = []
     for rs in zip(*(r.robots for r in reports), strict=True):
         judged = [r for r in rs if r.frames]          # an episode where it was always hidden:
-        robots.append(RobotHealth(                    # nothing to judge
-            rs[0].robot, sum(r.frames for r in rs), sum(r.hidden for r in rs),
-            pick([r.detected for r in judged], min),
+        rows = [r for r in rs if r.rows]              # nothing to judge
+        robots.append(RobotHealth(
+            rs[0].robot, *(sum(getattr(r, k) for r in rs) for k in ("frames", "hidden")),
+            pick([r.detected_frames for r in judged], min),
+            *(sum(getattr(r, k) for r in rs) for k in ("rows", "rows_hidden")),
+            pick([r.detected for r in rows], min),
             *(pick([getattr(r, k) for r in judged], max)
-              for k in ("median_mm", "p95_mm", "p99_mm", "heading_deg")),
-            pick([r.identity for r in judged], max)))
+              for k in ("median_mm", "p95_mm", "p99_mm", "heading_deg", "heading_p99_deg",
+                        "heading_off30", "heading_flips", "identity"))))
     return TrackingHealth(tuple(robots))
 
 
 class HealthMonitor:
     """Accumulates, frame by frame, the tracker's detections against the truth; `report()`
-    gives the figures. Cheap: a few numpy operations on (n, n) arrays per processed frame."""
+    gives the figures, and `report(log)` adds those of the dataset's rows. Cheap: a few numpy
+    operations on (n, n) arrays per processed frame."""
 
     def __init__(self, names: list[str], marker_height: float = 0.0,
                  occluders: tuple[Obstacle, ...] = (), marker_area: float = 0.0):
         self.names = list(names)
         self.marker_height, self.occluders = marker_height, occluders
         self.marker_size = float(np.sqrt(marker_area))     # as the trackers' occlusion rule
+        self.camera: np.ndarray | None = None              # where the last frame's camera was
         self.reset()
 
     @classmethod
     def for_world(cls, world: World) -> HealthMonitor:
-        """The monitor of a chain world: its robots, marker plane and size, obstacles."""
-        return cls(world.names, world.marker_height, world.scenario.obstacles, world.marker_area)
+        """The monitor of a chain world: its robots, marker plane and size, what can hide a
+        marker (obstacles and walls)."""
+        return cls(world.names, world.marker_height, scene_occluders(world.scenario),
+                   world.marker_area)
 
     def reset(self) -> None:
         self._in_view: list[np.ndarray] = []
@@ -218,15 +291,20 @@ class HealthMonitor:
         self._heading: list[np.ndarray] = []
         self._identity: list[np.ndarray] = []
 
+    def in_view(self, truth: np.ndarray, camera: np.ndarray | None) -> np.ndarray:
+        """(n,) which robots at true poses `truth` (n, >=2) no occluder hides from `camera`."""
+        if not self.occluders or camera is None:
+            return np.ones(len(truth), bool)
+        return ~occluded(truth[:, :2], self.marker_height, camera, self.occluders,
+                         self.marker_size)
+
     def add(self, detected: np.ndarray, poses: np.ndarray, truth: np.ndarray,
             camera: np.ndarray | None = None) -> None:
         """One processed frame: the tracker's flags (n,) and poses (n, 3) (NaN where missed),
         the true poses then (n, 3), and the camera's position (for occlusion by obstacles)."""
-        n = len(truth)
-        in_view = np.ones(n, bool)
-        if self.occluders and camera is not None:
-            in_view = ~occluded(truth[:, :2], self.marker_height, camera, self.occluders,
-                                self.marker_size)
+        if camera is not None:
+            self.camera = np.asarray(camera, float)
+        in_view = self.in_view(truth, camera)
         diff = poses[:, None, :2] - truth[None, :, :2]              # (n tracked, n truth, 2)
         dist = np.hypot(diff[..., 0], diff[..., 1])
         own = np.diagonal(dist).copy()
@@ -239,10 +317,25 @@ class HealthMonitor:
                                       np.nan))
         self._identity.append(seen & (dist.min(axis=1, initial=np.inf) < own))
 
-    def report(self) -> TrackingHealth:
+    def report(self, log: PoseLog | None = None) -> TrackingHealth:
+        """The figures so far; with the run's pose `log` (its tracker this monitor's chain),
+        the detected and hidden shares of the rows it logged too: what a dataset holds."""
+        n = len(self.names)
+        rows = np.zeros(n, int)
+        rows_hidden = np.zeros(n, int)
+        row_share = np.full(n, math.nan)
+        if log is not None and log.detected:
+            truth = np.asarray(log.poses).reshape(-1, n, 3)
+            flags = np.asarray(log.detected).reshape(-1, n)
+            view = np.array([self.in_view(t, self.camera) for t in truth])
+            rows, rows_hidden = view.sum(axis=0), (~view).sum(axis=0)
+            with np.errstate(invalid="ignore"):
+                row_share = (flags & view).sum(axis=0) / rows
         if not self._in_view:
-            return TrackingHealth(tuple(RobotHealth(nm, 0, 0, *[math.nan] * 6)
-                                        for nm in self.names))
+            return TrackingHealth(tuple(
+                RobotHealth(nm, 0, 0, math.nan, int(rows[i]), int(rows_hidden[i]),
+                            float(row_share[i]), *[math.nan] * 8)
+                for i, nm in enumerate(self.names)))
         in_view = np.array(self._in_view)
         det = np.array(self._detected)
         err = np.array(self._error) * 1000
@@ -251,12 +344,15 @@ class HealthMonitor:
         robots = []
         for i, name in enumerate(self.names):
             frames = int(in_view[:, i].sum())
-            e = err[det[:, i], i]
+            e, h = err[det[:, i], i], head[det[:, i], i]
             q = np.percentile(e, [50, 95, 99]) if len(e) else [math.nan] * 3
+            heading = ([float(np.median(h)), float(np.percentile(h, 99)),
+                        float(np.mean(h > 30)), float(np.mean(h > 90))] if len(h)
+                       else [math.nan] * 4)
             robots.append(RobotHealth(
                 name, frames, int(len(in_view) - frames),
                 float(det[:, i].sum() / frames) if frames else math.nan,
-                *(float(v) for v in q),
-                float(np.median(head[det[:, i], i])) if len(e) else math.nan,
-                float(ident[:, i].sum() / frames) if frames else math.nan))
+                int(rows[i]), int(rows_hidden[i]), float(row_share[i]),
+                *(float(v) for v in q), *heading,
+                float(ident[det[:, i], i].mean()) if len(e) else math.nan))
         return TrackingHealth(tuple(robots))

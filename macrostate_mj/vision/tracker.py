@@ -29,7 +29,7 @@ from macrostate_mj.chain.markers import (
 from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.world import World
 from macrostate_mj.vision.camera import PinholeCamera
-from macrostate_mj.vision.occlusion import hide_occluded
+from macrostate_mj.vision.occlusion import hide_occluded, scene_occluders
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class Tracker:
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
         return cls(camera, world.colours, world.marker_height, world.marker_area,
-                   occluders=world.scenario.obstacles)
+                   occluders=scene_occluders(world.scenario))
 
     def __post_init__(self) -> None:
         self._hues = marker_hues(self.colours)

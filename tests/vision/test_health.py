@@ -14,6 +14,7 @@ from macrostate_mj.chain.scene import Obstacle
 from macrostate_mj.chain.tracking import TrackingLimits
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.vision.health import HealthMonitor, TrackingHealth, worst_of
+from macrostate_mj.vision.occlusion import occluded
 
 NAMES = ["H", "F1", "T"]
 TRUTH = np.array([[0.0, 0.0, 0.0], [-0.3, 0.0, 0.1], [-0.6, 0.0, 0.2]])
@@ -30,11 +31,13 @@ def test_exact_detections_are_healthy_and_the_figures_are_the_errors():
     _frames(monitor, poses, np.ones(3, bool))
     report = monitor.report()
     for r in report.robots:
-        assert r.frames == 10 and r.detected == 1.0 and r.identity == 0.0
+        assert r.frames == 10 and r.detected_frames == 1.0 and r.identity == 0.0
         assert r.median_mm == pytest.approx(2.0) and r.p99_mm == pytest.approx(2.0)
-        assert r.heading_deg == pytest.approx(1.0)
+        assert r.heading_deg == pytest.approx(1.0) and r.heading_p99_deg == pytest.approx(1.0)
+        assert r.heading_off30 == 0.0 and r.heading_flips == 0.0
+        assert r.rows == 0 and math.isnan(r.detected)          # no dataset rows judged
     assert report.findings(TrackingLimits()) == []
-    assert "detected >= 100.0%" in report.summary()
+    assert "detected >= 100.0% of the frames" in report.summary()
 
 
 def test_swapped_identities_missed_robots_and_offsets_are_each_found():
@@ -53,7 +56,7 @@ def test_swapped_identities_missed_robots_and_offsets_are_each_found():
                        ("T", "detected")}
     assert findings[0].figure == "identity"                  # the worst kind first
     t = next(r for r in report.robots if r.robot == "T")
-    assert t.detected == 0.5 and t.median_mm == pytest.approx(70.7, abs=0.1)
+    assert t.detected_frames == 0.5 and t.median_mm == pytest.approx(70.7, abs=0.1)
     line = next(f for f in findings if f.figure == "median_error").describe()
     assert line.startswith("robot T tracked 70.7 mm from the truth") and "scenario check" in line
 
@@ -66,19 +69,24 @@ def test_a_robot_hidden_by_an_obstacle_is_not_counted_as_missed():
                 np.array([0.0, 1.0, 2.0]))
     t = monitor.report().robots[2]
     assert t.hidden == 1 and t.frames == 0
-    assert monitor.report().findings(TrackingLimits()) == []
+    # not missed, but hidden too often: a finding of its own
+    assert [f.figure for f in monitor.report().findings(TrackingLimits())] == ["hidden"]
+    assert monitor.report().findings(TrackingLimits(max_hidden=1.0)) == []
 
 
 def test_reports_survive_the_manifest_and_the_worst_episode_shows():
     good, bad = HealthMonitor(NAMES), HealthMonitor(NAMES)
     _frames(good, TRUTH, np.ones(3, bool))
     _frames(bad, TRUTH, np.array([True, True, False]))
-    a = TrackingHealth.from_dict(json.loads(json.dumps(good.report().as_dict())))
-    b = TrackingHealth.from_dict(json.loads(json.dumps(bad.report().as_dict())))
-    assert a == good.report()
+    rows = _Log([[True, True, True]] * 10)
+    a = TrackingHealth.from_dict(json.loads(json.dumps(good.report(rows).as_dict())))
+    b = TrackingHealth.from_dict(json.loads(json.dumps(
+        bad.report(_Log([[True, True, False]] * 10)).as_dict())))
+    assert a == good.report(rows)
     assert math.isnan(b.robots[2].median_mm)                 # never detected: no error figure
     worst = worst_of([a, b])
-    assert worst.robots[2].detected == 0.0 and worst.robots[2].frames == 20
+    assert worst.robots[2].detected_frames == 0.0 and worst.robots[2].frames == 20
+    assert worst.robots[2].detected == 0.0 and worst.robots[2].rows == 20
     assert [f.robot for f in worst.findings(TrackingLimits())] == ["T"]
 
 
@@ -87,22 +95,104 @@ def test_a_run_that_tracked_nothing_is_not_healthy_and_a_hidden_robot_is_not_mis
     findings = nothing.findings(TrackingLimits())
     assert [f.figure for f in findings] == ["frames"]
     assert findings[0].describe().startswith("no frame tracked")
-    assert math.isnan(nothing.robots[0].detected)
+    assert math.isnan(nothing.robots[0].detected_frames)
     wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))
     hidden = HealthMonitor(NAMES, 0.05, (wall,), 0.03**2)
     hidden.add(np.array([True, True, False]), TRUTH, TRUTH, np.array([0.0, 1.0, 2.0]))
     seen = HealthMonitor(NAMES)
     _frames(seen, TRUTH, np.ones(3, bool))
     worst = worst_of([hidden.report(), seen.report()])
-    assert worst.robots[2].detected == 1.0          # the episode it was hidden in is not judged
+    assert worst.robots[2].detected_frames == 1.0   # the episode it was hidden in is not judged
 
 
-@pytest.mark.parametrize("key,value", [("min_detected", 1.5), ("max_median_error", 0.0),
-                                       ("max_identity_errors", -0.1),
-                                       ("max_median_error", float("inf"))])
-def test_limits_out_of_range_are_refused(key, value):
-    with pytest.raises(UserError, match=f"tracking.{key}"):
+@pytest.mark.parametrize("key,value,unit", [
+    ("min_detected", 1.5, "share"), ("max_median_mm", 0.0, "millimetres"),
+    ("max_median_mm", 0.003, "millimetres"),         # metres typed for millimetres
+    ("max_p99_mm", float("inf"), "millimetres"), ("max_p99_mm", float("nan"), "millimetres"),
+    ("max_identity_errors", -0.1, "share"), ("max_heading_flips", 1, "share in"),
+    ("max_hidden", 10, "share"), ("max_median_mm", True, "millimetres")])
+def test_limits_out_of_range_or_in_another_unit_are_refused(key, value, unit):
+    if key == "max_heading_flips":
+        TrackingLimits(max_heading_flips=1)        # 100 %: a share, allowed
+        value = 5
+    with pytest.raises(UserError, match=f"tracking.{key} must be .*{unit}"):
         TrackingLimits(**{key: value})
+
+
+def test_a_metres_limit_from_before_is_refused_naming_the_keys(tmp_path):
+    path = tmp_path / "lab.toml"
+    path.write_text('extends = "lab"\nname = "old"\n\n[tracking]\nmax_median_error = 3\n')
+    res = cli("scenario", "check", str(path))
+    assert_clean_error(res, "unknown key tracking.max_median_error", "max_median_mm")
+
+
+def test_flipped_headings_are_found_though_the_median_is_fine():
+    monitor = HealthMonitor(NAMES)
+    flipped = TRUTH.copy()
+    flipped[1, 2] += np.pi                                     # F1 pointing backwards
+    _frames(monitor, TRUTH, np.ones(3, bool), 93)
+    _frames(monitor, flipped, np.ones(3, bool), 7)             # in 7 % of its detections
+    f1 = monitor.report().robots[1]
+    assert f1.heading_deg == pytest.approx(0.0) and f1.heading_flips == pytest.approx(0.07)
+    assert f1.heading_p99_deg == pytest.approx(180.0)
+    findings = monitor.report().findings(TrackingLimits())
+    assert [(f.robot, f.figure) for f in findings] == [("F1", "heading_flips")]
+    assert "flipped" in findings[0].describe() and "7.0%" in findings[0].describe()
+    assert "flipped <= 7.0%" in monitor.report().summary()
+
+
+class _Log:
+    """A pose log's rows as `HealthMonitor.report` reads them (`chain.sim.PoseLog`)."""
+
+    def __init__(self, detected: list[list[bool]]):
+        self.poses = [TRUTH] * len(detected)
+        self.detected = [np.array(d) for d in detected]
+
+
+def test_the_detected_share_is_judged_on_the_dataset_rows_and_the_frames_named_apart():
+    monitor = HealthMonitor(NAMES)
+    _frames(monitor, TRUTH, np.ones(3, bool))                 # every frame saw every robot ...
+    log = _Log([[True, True, True]] * 8 + [[True, True, False]] * 2)   # ... 80 % of T's rows
+    report = monitor.report(log)
+    t = report.robots[2]
+    assert t.detected_frames == 1.0 and t.rows == 10 and t.detected == pytest.approx(0.8)
+    [finding] = report.findings(TrackingLimits())
+    assert finding.describe().startswith("robot T detected in 80.0% of the rows")
+    assert "detected >= 80.0% of the rows (T; 100.0% of its frames)" in report.summary()
+    again = TrackingHealth.from_dict(json.loads(json.dumps(report.as_dict())))
+    assert again == report
+
+
+def test_occlusion_follows_the_camera_rays_not_the_distance_to_an_obstacle():
+    """The user's parked Tail: a tag 60 mm wide beside a tall box, on the side of the box that
+    faces the camera, is in full view; on the far side, the box hides it."""
+    box = Obstacle("box", (0.5, 0.0), (0.2, 0.2, 0.3))
+    camera = np.array([0.0, 0.0, 2.5])
+    near = np.array([[0.34, 0.0]])                 # between the box and the camera: seen
+    far = np.array([[0.66, 0.0]])                  # behind it: hidden
+    assert not occluded(near, 0.06, camera, (box,), 0.06)[0]
+    assert occluded(far, 0.06, camera, (box,), 0.06)[0]
+    assert occluded(np.array([[0.5, 0.0]]), 0.06, camera, (box,), 0.06)[0]     # under its top
+    cyl = Obstacle("cylinder", (0.5, 0.0), (0.2, 0.3))
+    assert not occluded(near, 0.06, camera, (cyl,), 0.06)[0]
+    assert occluded(far, 0.06, camera, (cyl,), 0.06)[0]
+    low = Obstacle("box", (0.5, 0.0), (0.2, 0.2, 0.05))        # below the marker plane
+    assert not occluded(far, 0.06, camera, (low,), 0.06)[0]
+    assert not occluded(np.array([[np.nan, np.nan]]), 0.06, camera, (box,), 0.06)[0]
+
+
+def test_a_robot_hidden_in_too_many_rows_is_a_finding():
+    box = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))
+    monitor = HealthMonitor(NAMES, 0.05, (box,), 0.03**2)
+    camera = np.array([0.0, 1.0, 2.0])
+    for _ in range(10):
+        monitor.add(np.array([True, True, False]), TRUTH, TRUTH, camera)
+    report = monitor.report(_Log([[True, True, False]] * 10))
+    assert report.robots[2].rows_hidden == 10 and report.robots[2].hidden_share == 1.0
+    [finding] = report.findings(TrackingLimits())
+    assert finding.figure == "hidden" and "hidden by an obstacle or wall in 100.0% of the rows" \
+        in finding.describe()
+    assert "hidden <= 100.0% (T)" in report.summary()
 
 
 def test_a_tracking_table_out_of_range_is_one_line_exit_2(tmp_path):
@@ -126,8 +216,12 @@ def test_a_tracked_run_reports_its_health_in_the_manifest_and_one_line(tmp_path)
     assert set(tracking["health"]) == {"H", "F1", "T"}
     for figures in tracking["health"].values():
         assert figures["detected"] >= 0.9 and figures["median_mm"] < 3 and figures["frames"] > 0
-    assert tracking["limits"] == {"min_detected": 0.9, "max_median_error": 0.01,
-                                  "max_identity_errors": 0.01}
+    assert tracking["limits"] == {"min_detected": 0.9, "max_hidden": 0.1, "max_median_mm": 3.0,
+                                  "max_p99_mm": 20.0, "max_heading_off30": 0.05,
+                                  "max_heading_flips": 0.01, "max_identity_errors": 0.01}
+    rows = pq.read_table(out / "poses.parquet").num_rows // 3
+    for figures in tracking["health"].values():       # the dataset's rows, all of them
+        assert figures["rows"] + figures["rows_hidden"] == rows and figures["heading_flips"] == 0
 
 
 # A floor of the third marker's hue (blue, in a team of 3): the tracker fits the Tail's marker to

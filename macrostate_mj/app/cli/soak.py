@@ -26,8 +26,11 @@ COLUMNS = [("runs", "runs", "d"), ("tips", "tips", "d"), ("nans", "NaNs", "d"),
            ("max_lift_mm", "max lift mm", ".2f"), ("warnings", "warnings", "d"),
            ("steps_per_s_per_worker", "steps/s/worker", ".0f")]
 TRACK_COLUMNS = [("runs", "runs", "d"), ("unhealthy", "unhealthy", "d"), ("faults", "faults", "d"),
-                 ("min_detected", "min detected", ".4f"), ("max_median_mm", "max median mm", ".2f"),
-                 ("max_p99_mm", "max p99 mm", ".2f"), ("max_heading_deg", "max heading deg", ".2f"),
+                 ("min_detected", "min detected (rows)", ".4f"),
+                 ("max_hidden", "max hidden", ".4f"), ("max_median_mm", "max median mm", ".2f"),
+                 ("max_p99_mm", "max p99 mm", ".2f"),
+                 ("max_heading_p99_deg", "max heading p99 deg", ".1f"),
+                 ("max_heading_flips", "max flipped", ".4f"),
                  ("max_identity", "max identity", ".4f"), ("wall_s_per_run", "s/run", ".1f")]
 
 
