@@ -10,7 +10,9 @@ wheel climbing a neighbour in minute 7 of a soak), so every load goes through `l
 checks the file once and names the first broken item and the file in one line.
 
 Geometry is checked on the robot compiled alone, at its authored pose (body frame: origin at the
-wheel-axle midpoint at axle height, +x forward, +y left, +z up; metres).
+wheel-axle midpoint at axle height, +x forward, +y left, +z up; metres), mesh geoms by their exact
+vertices. A mesh file (a user's CAD export, STL or OBJ) is read before MuJoCo reads it, so that a
+missing, unreadable or open one is named with its geom and the fix (`chain.meshes`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,16 @@ from macrostate_mj.chain.markers import (
     MIN_VALUE,
     marker_colours,
     taken_for_marker,
+)
+from macrostate_mj.chain.meshes import (
+    MESH_SUFFIXES,
+    geom_faces,
+    geom_file,
+    geom_vertices,
+    mesh_file,
+    open_edges,
+    read_mesh,
+    top_view,
 )
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.paths import ASSETS
@@ -91,6 +103,11 @@ def load_robot(robot: str, largest_team: int | None = None) -> Robot:
     path = robot_file(robot)
     try:
         spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as err:
+        raise UserError(f"robot file {path}: MuJoCo cannot load it: "
+                        f"{' '.join(str(err).split())}") from None
+    check_mesh_files(spec, path)
+    try:
         model = spec.copy().compile()
     except ValueError as err:
         raise UserError(f"robot file {path}: MuJoCo cannot load it: "
@@ -121,6 +138,7 @@ class _Refusal:
 def _compiled(robot: mujoco.MjSpec | mujoco.MjModel, path: Path | str) -> mujoco.MjModel:
     if isinstance(robot, mujoco.MjModel):
         return robot
+    check_mesh_files(robot, path)
     try:
         return robot.copy().compile()
     except ValueError as err:
@@ -136,6 +154,49 @@ def _extent(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> tuple[np.ndar
     centre = data.geom_xpos[g] + data.geom_xmat[g].reshape(3, 3) @ model.geom_aabb[g, :3]
     half = np.abs(data.geom_xmat[g].reshape(3, 3)) @ model.geom_aabb[g, 3:]
     return centre - half, centre + half
+
+
+def _mesh_users(spec: mujoco.MjSpec, mesh: mujoco.MjsMesh) -> list[mujoco.MjsGeom]:
+    return [g for g in spec.geoms
+            if g.type == mujoco.mjtGeom.mjGEOM_MESH and g.meshname == mesh.name]
+
+
+def check_mesh_files(spec: mujoco.MjSpec, path: Path | str) -> None:
+    """Refuse (one line naming the robot file, the geom, the mesh file and the fix) a mesh file
+    MuJoCo would fail on or load wrong: missing, not a binary STL or an OBJ, no triangles, or
+    open (not watertight) while its geom carries mass, which MuJoCo spreads over the volume the
+    surface encloses. Shape and place are checked on the compiled robot (`check_robot`)."""
+    refuse = _Refusal(path)
+    for mesh in spec.meshes:
+        if not mesh.file or mesh.file in spec.assets:      # none, or given in memory
+            continue
+        users = _mesh_users(spec, mesh)
+        what = (f"geom {users[0].name or '(unnamed)'!r}" if users else "a mesh of no geom") \
+            + f" (mesh {mesh.name!r}, file {mesh.file})"
+        file = mesh_file(spec, mesh)
+        if not file.is_file():
+            raise refuse(f"{what}: no such file {file}; export the part there, or fix the "
+                         "<mesh file=...> (relative to the robot file's folder or <compiler "
+                         "meshdir>)")
+        suffix = file.suffix.lower()
+        if suffix == ".msh":                    # MuJoCo's own binary mesh: MuJoCo checks it
+            continue
+        if suffix not in MESH_SUFFIXES:
+            raise refuse(f"{what}: MuJoCo reads binary STL and OBJ mesh files, not "
+                         f"{file.suffix or 'a file without a suffix'}; export the part as one")
+        try:
+            shell = read_mesh(file)
+        except ValueError as err:
+            raise refuse(f"{what} is not a mesh MuJoCo can read: {err}; export the part as "
+                         "binary STL or OBJ") from None
+        carries = [g for g in users if g.mass > 0 or (np.isnan(g.mass) and g.density > 0)]
+        if carries and not shell.is_watertight \
+                and mesh.inertia not in (mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL,
+                                         mujoco.mjtMeshInertia.mjMESH_INERTIA_CONVEX):
+            raise refuse(f"{what} is not watertight ({open_edges(shell)} open edges) but "
+                         "carries the geom's mass, which MuJoCo spreads over the volume it "
+                         "encloses; export a closed solid, give the <mesh> inertia=\"shell\", "
+                         "or mass=\"0\" to the geom")
 
 
 def check_robot(robot: mujoco.MjSpec | mujoco.MjModel, path: Path | str) -> None:
@@ -217,7 +278,9 @@ def check_robot(robot: mujoco.MjSpec | mujoco.MjModel, path: Path | str) -> None
                      f"{radius['wheel_left']:.4f} m, so the wheels rest on the floor (it is at "
                      f"z = {axle_height:.4f} m; the health monitor takes it for the rest height)")
 
-    _check_marker(model, data, root, local, refuse)
+    floor = axle_height - radius["wheel_left"]
+    _check_mesh_geoms(model, data, root, floor, local, refuse)
+    _check_marker(model, data, root, refuse)
 
     # Contacts: one frictionless body-collider sphere; everything else touches the floor only.
     names = [model.geom(g).name or f"#{g}" for g in range(model.ngeom)]
@@ -245,7 +308,7 @@ def check_robot(robot: mujoco.MjSpec | mujoco.MjModel, path: Path | str) -> None
                          f"conaffinity 0 or {FLOOR_BIT}); robots touch through the collider alone")
         if model.geom_conaffinity[g] != FLOOR_BIT:
             continue
-        bottom = float(_extent(model, data, g)[0][2]) - (axle_height - radius["wheel_left"])
+        bottom = float(_low_high(model, data, g)[0][2]) - floor
         if bottom < -TOLERANCE:
             raise refuse(f"geom {names[g]!r} reaches {-bottom * 1000:.1f} mm below the floor at "
                          "rest; it would push the robot up")
@@ -261,8 +324,56 @@ def check_robot(robot: mujoco.MjSpec | mujoco.MjModel, path: Path | str) -> None
                      "(floor-only, priority='1', low friction) to keep the robot level")
 
 
+def _low_high(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """World-frame (low, high) corners of geom g at the authored pose: a mesh's exact, from its
+    vertices; other geoms' from their bounding boxes."""
+    if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+        verts = geom_vertices(model, g, data)
+        return verts.min(axis=0), verts.max(axis=0)
+    return _extent(model, data, g)
+
+
+def _named(model: mujoco.MjModel, g: int) -> str:
+    """'geom NAME', and its mesh file where it has one (what a user's CAD export is called)."""
+    file = geom_file(model, g)
+    return f"geom {model.geom(g).name or g!r}" + (f" (mesh file {file})" if file else "")
+
+
+def _check_mesh_geoms(model: mujoco.MjModel, data: mujoco.MjData, root: int, floor: float,
+                      local: Callable[[np.ndarray], np.ndarray], refuse: _Refusal) -> None:
+    """A mesh file's part (a CAD export), seen or touching the floor, stays inside the
+    body-collider's footprint and above the floor, by its exact vertices."""
+    colliders = [g for g in range(model.ngeom) if model.geom_bodyid[g] == root
+                 and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+                 and model.geom_contype[g] & BODY_BIT]
+    for g in range(model.ngeom):
+        if geom_file(model, g) is None or not (model.geom_group[g] in VISIBLE_GROUPS
+                                               or model.geom_conaffinity[g] & FLOOR_BIT):
+            continue
+        verts = geom_vertices(model, g, data, root)
+        size = float(np.ptp(verts, axis=0).max())
+        units = (" (exported in millimetres? give its <mesh> scale=\"0.001 0.001 0.001\")"
+                 if size > 0.5 else "")
+        if len(colliders) == 1:
+            c = colliders[0]
+            centre = local(data.geom_xpos[c])
+            reach = float(np.hypot(*(verts[:, :2] - centre[:2]).T).max())
+            footprint = float(model.geom_size[c, 0])
+            if reach > footprint + TOLERANCE:
+                raise refuse(f"{_named(model, g)} reaches {reach * 1000:.1f} mm from the "
+                             f"body-collider's centre, past its {footprint * 1000:.1f} mm "
+                             f"footprint{units}: robots would overlap on video before they "
+                             "touch; trim or scale the part, or make the collider the robot's "
+                             "outline")
+        bottom = float(geom_vertices(model, g, data)[:, 2].min()) - floor
+        if bottom < -TOLERANCE:
+            raise refuse(f"{_named(model, g)} reaches {-bottom * 1000:.1f} mm below the floor "
+                         f"at rest{units}; raise it (the geom's pos) or export it with its "
+                         "origin where robot.xml places it")
+
+
 def _check_marker(model: mujoco.MjModel, data: mujoco.MjData, root: int,
-                  local: Callable[[np.ndarray], np.ndarray], refuse: _Refusal) -> None:
+                  refuse: _Refusal) -> None:
     """The marker: a flat mesh on top, centred over the body origin, apex forward."""
     g = _id(model, mujoco.mjtObj.mjOBJ_GEOM, "marker")
     mesh = _id(model, mujoco.mjtObj.mjOBJ_MESH, "marker")
@@ -274,47 +385,35 @@ def _check_marker(model: mujoco.MjModel, data: mujoco.MjData, root: int,
             or model.geom_group[g] not in VISIBLE_GROUPS:
         raise refuse("geom 'marker' must touch nothing (contype = conaffinity = 0) and be in a "
                      "rendered group (0-2)")
-    low, high = _extent(model, data, g)
+    low, high = _low_high(model, data, g)
     if high[2] - low[2] > MARKER_THICKNESS + 1e-9:
         raise refuse(f"geom 'marker' must be flat, at most {MARKER_THICKNESS * 1000:g} mm thick "
                      f"(it is {(high[2] - low[2]) * 1000:.1f} mm)")
     for other in range(model.ngeom):
-        if other != g and model.geom_group[other] in VISIBLE_GROUPS \
-                and model.geom_rgba[other, 3] > 0 and _extent(model, data, other)[1][2] > high[2]:
-            raise refuse(f"visible geom {model.geom(other).name or other!r} rises above the "
-                         "marker; the overhead camera must see the whole marker")
-    # The top view: sample the mesh's faces, projected into the body frame's xy plane.
-    adr, nv = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
-    fadr, nf = model.mesh_faceadr[mesh], model.mesh_facenum[mesh]
-    rot = data.geom_xmat[g].reshape(3, 3)
-    verts = np.array([local(data.geom_xpos[g] + rot @ v)
-                      for v in model.mesh_vert[adr:adr + nv]])[:, :2]
-    tris = verts[model.mesh_face[fadr:fadr + nf]]                       # (nf, 3, 2)
-    lo, hi = verts.min(0), verts.max(0)
-    u, v = np.meshgrid(np.linspace(lo[0], hi[0], 201), np.linspace(lo[1], hi[1], 201))
-    pts = np.column_stack([u.ravel(), v.ravel()])
-    inside = np.zeros(len(pts), bool)
-    for a, b, c in tris:
-        det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
-        if abs(det) < 1e-12:
+        if other == g or model.geom_group[other] not in VISIBLE_GROUPS \
+                or model.geom_rgba[other, 3] <= 0:
             continue
-        d = pts - a
-        s = (d[:, 0] * (c[1] - a[1]) - d[:, 1] * (c[0] - a[0])) / det
-        t = (d[:, 1] * (b[0] - a[0]) - d[:, 0] * (b[1] - a[1])) / det
-        inside |= (s >= -1e-9) & (t >= -1e-9) & (s + t <= 1 + 1e-9)
-    pts = pts[inside]
-    centre = pts.mean(axis=0)
-    if np.hypot(*centre) > MARKER_CENTRE:
+        rise = float(_low_high(model, data, other)[1][2] - high[2])
+        if rise > 0:
+            if geom_file(model, other) is None:
+                raise refuse(f"visible geom {model.geom(other).name or other!r} rises above "
+                             "the marker; the overhead camera must see the whole marker")
+            raise refuse(f"visible {_named(model, other)} rises {rise * 1000:.1f} mm above "
+                         "the marker, which the overhead camera must see whole; lower the part "
+                         "or raise the marker (its geom's pos) above it")
+    # The top view: the mesh projected into the body frame's xy plane, exact (`meshes.top_view`).
+    view = top_view(geom_vertices(model, g, data, root), geom_faces(model, g))
+    if not view.area > 0:
+        raise refuse("geom 'marker' covers no area seen from above; lay the card flat")
+    off = float(np.hypot(*view.centroid))
+    if off > MARKER_CENTRE:
         raise refuse(f"the marker's centroid must sit over the body origin (it is "
-                     f"{np.hypot(*centre) * 1000:.1f} mm off): the tracker reports the centroid "
+                     f"{off * 1000:.1f} mm off): the tracker reports the centroid "
                      "as the robot's position")
-    d = pts - centre
-    cov = d.T @ d / len(d)
-    vals, vecs = np.linalg.eigh(cov)
-    axis = vecs[:, 1]
+    vals, vecs = np.linalg.eigh(view.covariance)
+    axis = vecs[:, 1]                                   # the principal (long) axis
     angle = np.degrees(np.arccos(min(1.0, abs(float(axis[0])))))
-    skew = float(np.mean(d[:, 0] ** 3))
-    if vals[1] < MARKER_ELONGATION * vals[0] or angle > MARKER_AXIS_DEG or skew <= 0:
+    if vals[1] < MARKER_ELONGATION * vals[0] or angle > MARKER_AXIS_DEG or view.skew <= 0:
         raise refuse("the marker must be longer along +x than across, with its apex (the thin "
                      "end) forward at +x: the tracker reads the heading from its shape")
 

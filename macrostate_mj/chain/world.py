@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import mujoco
 import numpy as np
 
+from macrostate_mj.chain.meshes import geom_faces, geom_vertices, top_view
 from macrostate_mj.chain.robot import load_robot
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import blocked, build_scene
@@ -134,7 +134,7 @@ class World:
     def marker_area(self) -> float:
         """The area (m^2) of a robot's marker (card or tag plate) seen from above: what a
         tracker expects to see of it."""
-        return marker_area(self.spec, f"{self.names[0]}/marker")
+        return marker_area(self.model, f"{self.names[0]}/marker")
 
     def to_xml(self) -> str:
         return self.spec.to_xml()
@@ -163,11 +163,13 @@ def _described(start: object, poses: np.ndarray) -> str:
     return f"shape {poses.shape}" + ("" if np.isfinite(poses).all() else " with NaN or inf")
 
 
-def marker_area(spec: mujoco.MjSpec, mesh_name: str) -> float:
-    """Area (m^2) of a flat marker mesh seen from above, from its authored vertices (MuJoCo
-    re-centres and re-orients compiled meshes, the spec keeps them as written)."""
-    verts = np.asarray(spec.mesh(mesh_name).uservert, np.float32).reshape(-1, 3)
-    return float(cv2.contourArea(cv2.convexHull(np.ascontiguousarray(verts[:, :2]))))
+def marker_area(world: mujoco.MjModel | mujoco.MjSpec, geom: str) -> float:
+    """Area (m^2) of the flat marker geom `geom` seen from above in its body's frame, exact from
+    its compiled mesh (`meshes.top_view`; a mesh file's too, and a card turned by its geom's
+    pose). A spec is compiled first."""
+    model = world if isinstance(world, mujoco.MjModel) else world.copy().compile()
+    g = model.geom(geom).id
+    return top_view(geom_vertices(model, g), geom_faces(model, g)).area
 
 
 def build_world(cfg: ScenarioConfig, n: int, start: np.ndarray | None = None) -> World:
