@@ -25,6 +25,9 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 	# The one-way data flow (pyproject.toml [tool.importlinter]): a forbidden import fails here.
 	$(VENV)/bin/lint-imports
+	# What the code imports is what pyproject.toml declares ([tool.deptry]): a missing, transitive
+	# (there only through another package) or unused dependency fails here.
+	$(VENV)/bin/deptry .
 
 # The docs site, warnings as errors: a broken cross-reference or internal link, a results page
 # naming a number its results file lacks, or an autodoc failure stops the build.
