@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from fractions import Fraction
 from pathlib import Path
 
 import cv2
@@ -220,8 +221,9 @@ def _scale_bar(bgr: np.ndarray, px_per_m: float, arena_width: float) -> None:
 
 class CameraVideo(Recorder):
     """The camera's raw frames, as the tracker was handed them (lens, imaging noise; no
-    overlays), at the command rate, with their times in a sidecar `FILE.times.csv` (frame, t):
-    an MP4's frame rate is nominal and dropped frames are missing from it. Hooked after the
+    overlays), each stamped in the container with the time it was taken (variable frame rate:
+    a dropped frame leaves a gap, so a re-encode that keeps the stamps keeps the times), and
+    the same times in a sidecar `FILE.times.csv` (frame, t), exact to the bit. Hooked after the
     camera chain, whose `film` it takes over; both files appear only on `finish()`.
 
     Encoding: `CameraMp4Writer`'s H.264 4:4:4, not the diagnostic video's 4:2:0, whose halved
@@ -237,7 +239,7 @@ class CameraVideo(Recorder):
         self.period, self.phase = 1e9, 0.0      # a `Hook` that never needs a tick
 
     def add(self, t: float, rgb: np.ndarray) -> None:
-        self._writer.write(rgb)
+        self._writer.write(rgb, t)
         self.times.append(float(t))
 
     def capture(self, sim: ChainSim) -> None:
@@ -265,7 +267,12 @@ def times_path(video: str | Path) -> Path:
 class CameraMp4Writer(Mp4Writer):
     """`Mp4Writer` for data, not for browsers: full-resolution chroma (yuv444p), near-lossless
     (CRF 8). lab, 20 s, no jitter: the offline track's median distance from the online one is
-    0.00 mm (CRF 14: 0.16 mm at half the size; the diagnostic 4:2:0 at CRF 20: 0.31 mm)."""
+    0.00 mm (CRF 14: 0.16 mm at half the size; the diagnostic 4:2:0 at CRF 20: 0.31 mm).
+
+    Each frame carries the time it was taken (`write(rgb, t)`, TIME_BASE units): a dropped
+    frame's gap changes the stamps, never the pixels (`Mp4Writer`: x264 keeps to the nominal
+    rate), so the same frames decode as with evenly spaced stamps."""
 
     PIX_FMT = "yuv444p"
     CRF = 8
+    TIME_BASE = Fraction(1, 90000)      # MPEG's clock: 11 us, finer than any physics step

@@ -8,17 +8,23 @@ its markers say), the camera chain's own. Each frame of the video is tracked; th
 there is none), the ThymioLoc instances at the scenario's log rate (`instances.csv`) and a
 manifest.
 
-Frame times come from the sidecar `FILE.times.csv` that `simulate --camera-video` writes (an
-MP4's frame rate is nominal and a dropped frame is missing), else frame index / the video's fps.
+Frame times: each frame's presentation time in the container (`simulate --camera-video` stamps
+the time it was taken, so a dropped frame leaves a gap and a re-encode that keeps the stamps keeps
+the times), checked against the sidecar `FILE.times.csv` when it is beside the video (whose exact
+times are then used), else against the scenario's frame rate; `--times FILE` or `--fps F` (frame
+index / F) override both. A recording whose times cannot be trusted is refused, as is a
+`--robots` its frames contradict (`vision.team`): either would track every robot and be wrong.
 As the online logger, a robot missed in a frame keeps its last tracked pose with `detected`
 False (NaN before its first detection).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,7 +36,16 @@ from macrostate_mj.core.io import check_writable_dir
 from macrostate_mj.core.run import Run
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
+if TYPE_CHECKING:
+    from macrostate_mj.chain.world import World
+    from macrostate_mj.vision.aruco import ArucoTracker
+    from macrostate_mj.vision.tracker import Tracker
+
 PRODUCTS = ["poses.parquet", "instances.csv"]
+TIME_TOLERANCE = 0.25   # of a frame period: how far a frame's time may stray from another
+#                         account of it (a wrong one is off by a whole period or more; MKV
+#                         rounds to 1 ms)
+SEEK_GAP = 64           # frames: nearer than this, decode on rather than seek to a key frame
 
 
 @dataclass(frozen=True)
@@ -41,20 +56,43 @@ class TrackRequest(ResolvesScenario):
     out: Path
     overwrite: bool = False
     px_per_cm: float = DEFAULT_PX_PER_CM
+    times: Path | None = None    # a frame,t file that overrides the video's own times
+    fps: float | None = None     # frame index / fps as the times, overriding the video's
+
+
+@dataclass(frozen=True)
+class Container:
+    """What the video file says of itself: its frame count, size, nominal fps, and each frame's
+    presentation stamp (`pts`, in `time_base` units, in presentation order; None when the
+    container holds none or they repeat)."""
+
+    frames: int
+    size: tuple[int, int]
+    fps: float
+    pts: np.ndarray | None
+    time_base: float
+
+    @property
+    def stamps(self) -> np.ndarray | None:
+        """Each frame's presentation time (s), or None."""
+        return None if self.pts is None else self.pts * self.time_base
 
 
 @dataclass(frozen=True)
 class Footage:
-    """What the checks learnt of the video: its frame count, size, fps and frame times."""
+    """What the checks learnt of the video: its frame count, size, fps, the frame times used
+    and where they came from (`timing`: sidecar, video, --times or --fps)."""
 
     frames: int
     size: tuple[int, int]
     fps: float
     times: np.ndarray
+    timing: str = "sidecar"
 
 
 def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
-    """Every check of a track request, before anything is built or written."""
+    """Every check of a track request, before anything is built or written: the team and the
+    scenario, the video's size, its frame times and the team its frames show."""
     from macrostate_mj.chain.rendered import check_rendered_colours
 
     cfg = req.scenario
@@ -62,22 +100,29 @@ def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
     check_rendered_colours(cfg, req.robots)      # markers the tracker can tell apart
     if req.px_per_cm <= 0:
         raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
-    footage = probe(req.video)
+    if req.fps is not None and not (isinstance(req.fps, int | float) and math.isfinite(req.fps)
+                                    and req.fps > 0):
+        raise UserError(f"--fps must be a positive frame rate, got {req.fps!r}", "fps")
+    if req.fps is not None and req.times is not None:
+        raise UserError("give --times FILE or --fps F, not both", "times")
+    if req.times is not None and not Path(req.times).is_file():
+        raise UserError(f"--times {req.times} does not exist; give a frame,t file", "times")
+    video = probe(req.video)
     want = tuple(cfg.camera.resolution)
     padded = tuple(-(-side // 2) * 2 for side in want)    # H.264 writers pad odd sides
-    if footage.size not in (want, padded):
-        raise UserError(f"{req.video} has {footage.size[0]} x {footage.size[1]} frames but "
+    if video.size not in (want, padded):
+        raise UserError(f"{req.video} has {video.size[0]} x {video.size[1]} frames but "
                         f"scenario {cfg.name}'s camera is {want[0]} x {want[1]}; give the "
                         "scenario of the camera that filmed it")
+    times, timing = frame_times(req, cfg, video)
+    check_team(req, cfg, video)
     _run(req, cfg).claim()
-    return cfg, footage
+    return cfg, Footage(video.frames, video.size, video.fps, times, timing)
 
 
-def probe(video: Path) -> Footage:
-    """Open the video, count its frames and read their times (sidecar, else index / fps)."""
+def probe(video: Path) -> Container:
+    """Open the video, count its frames and read their presentation stamps (demuxing only)."""
     import av
-
-    from viz.video import times_path
 
     if not Path(video).is_file():
         raise UserError(f"video {video} does not exist; give a recorded video file")
@@ -88,24 +133,120 @@ def probe(video: Path) -> Footage:
             stream = container.streams.video[0]
             size = (stream.codec_context.width, stream.codec_context.height)
             fps = float(stream.average_rate or 0)
-            frames = sum(1 for packet in container.demux(stream) if packet.size)
+            time_base = float(stream.time_base or 0)
+            pts = [packet.pts for packet in container.demux(stream) if packet.size]
     except av.FFmpegError as err:
         raise UserError(f"cannot read video {video} ({err.strerror or err}); give an MP4 or "
                         "another video ffmpeg decodes") from None
-    if frames == 0:
+    if not pts:
         raise UserError(f"video {video} has no frames; give a recorded video")
-    sidecar = times_path(video)
+    stamps = None
+    if time_base > 0 and None not in pts:
+        stamps = np.sort(np.array(pts, np.int64))
+        if len(stamps) > 1 and not np.all(np.diff(stamps) > 0):
+            stamps = None                 # two frames at one time: no times to trust
+    return Container(len(pts), size, fps, stamps, time_base)
+
+
+def frame_times(req: TrackRequest, cfg: ScenarioConfig, video: Container
+                ) -> tuple[np.ndarray, str]:
+    """The times of the video's frames and where they come from: --times, --fps, else the
+    sidecar (checked against the container's stamps), else the stamps (checked against the
+    scenario's frame rate). Refuses, in one line, times that cannot be trusted."""
+    from viz.video import times_path
+
+    n, name = video.frames, req.video
+    if req.times is not None:
+        times = read_times(Path(req.times))
+        if len(times) != n:
+            raise UserError(f"--times {req.times} lists {len(times)} frame times but {name} has "
+                            f"{n} frames; give the times file of this video", "times")
+        return times, "--times"
+    if req.fps is not None:
+        return np.arange(n) / float(req.fps), "--fps"
+    period, stamps, sidecar = 1 / cfg.camera_hz, video.stamps, times_path(name)
+    redo = "give --times FILE (columns frame,t) or --fps F (frame index / F)"
     if sidecar.is_file():
         times = read_times(sidecar)
-        if len(times) != frames:
-            raise UserError(f"{sidecar} lists {len(times)} frame times but {video} has "
-                            f"{frames} frames; give the times file of this video or remove it")
-    elif fps > 0:
-        times = np.arange(frames) / fps
-    else:
-        raise UserError(f"{video} states no frame rate and has no {sidecar.name} beside it; "
-                        "add one (columns frame,t)")
-    return Footage(frames, size, fps, times)
+        if len(times) != n:
+            raise UserError(f"{sidecar} lists {len(times)} frame times but {name} has {n} "
+                            f"frames; give the times file of this video or remove it, or "
+                            f"{redo}")
+        if stamps is not None:
+            off = np.abs((stamps - stamps[0]) - (times - times[0])) > TIME_TOLERANCE * period
+            i = int(np.argmax(off))                       # the first frame that disagrees
+            if off[i]:
+                raise UserError(
+                    f"{name}'s frame times disagree with {sidecar.name}: frame {i} is "
+                    f"{stamps[i] - stamps[0]:.3f} s after the first in the video, "
+                    f"{times[i] - times[0]:.3f} s in the times file (stamped evenly, as a "
+                    "re-encode or a camera video from before frames carried their times is, or "
+                    f"another video's file?); give --times {sidecar} to trust the file, or --fps F")
+        return times, "sidecar"
+    if stamps is None:
+        raise UserError(f"{name} holds no frame times and has no {sidecar.name} beside it; "
+                        f"{redo}")
+    gaps = np.diff(stamps)
+    if len(gaps):
+        typical = float(np.median(gaps))
+        stray = np.abs(gaps - np.maximum(np.round(gaps / period), 1) * period)
+        i = int(np.argmax(stray))
+        if abs(typical / period - 1) > TIME_TOLERANCE:
+            raise UserError(f"{name}'s frames are {typical:.3g} s apart but scenario {cfg.name} "
+                            f"films at {cfg.camera_hz:g} Hz (every {period:.3g} s), and no "
+                            f"{sidecar.name} is beside it: its times cannot be trusted "
+                            f"(re-encoded at another rate?); {redo}")
+        if stray[i] > TIME_TOLERANCE * period + cfg.frame_jitter:
+            raise UserError(f"{name}'s frame {i + 1} comes {gaps[i]:.3g} s after the one "
+                            f"before, not a whole number of scenario {cfg.name}'s frame "
+                            f"periods ({period:.3g} s), and no {sidecar.name} is beside it: "
+                            f"its times cannot be trusted; {redo}")
+    return stamps, "video"
+
+
+def check_team(req: TrackRequest, cfg: ScenarioConfig, video: Container) -> None:
+    """Refuse a --robots that a sample of the video's frames contradicts (`vision.team`)."""
+    import mujoco
+
+    from macrostate_mj.chain.world import build_world
+    from macrostate_mj.vision.team import SAMPLES, check_team_shown
+
+    world = build_world(cfg, req.robots)
+    data = mujoco.MjData(world.model)
+    mujoco.mj_forward(world.model, data)           # the camera at its nominal pose
+    check_team_shown(world, data, sample_frames(req.video, video, SAMPLES), str(req.video))
+
+
+def sample_frames(video: Path, container: Container, count: int) -> list[np.ndarray]:
+    """`count` frames spread evenly over the video (RGB, cropped to its size): decoded on where
+    the next is near, else sought from the key frame before it by its stamp."""
+    import av
+
+    frames = container.frames
+    wanted = np.unique(np.linspace(0, frames - 1, min(count, frames)).round().astype(int))
+    w, h = container.size
+    pts, got, at = container.pts, [], -1
+    try:
+        with av.open(str(video)) as source:
+            stream = source.streams.video[0]
+            decoded: Iterator | None = None
+            for i in wanted:
+                if pts is not None and (decoded is None or i - at > SEEK_GAP):
+                    source.seek(int(pts[i]), stream=stream, backward=True)
+                    decoded, at = source.decode(stream), -1
+                elif decoded is None:
+                    decoded = source.decode(stream)
+                for frame in decoded:
+                    at = at + 1 if frame.pts is None or pts is None else \
+                        int(np.searchsorted(pts, frame.pts))
+                    if at >= i:
+                        got.append(np.ascontiguousarray(
+                            frame.to_ndarray(format="rgb24")[:h, :w]))
+                        break
+    except av.FFmpegError as err:
+        raise UserError(f"cannot decode video {video} ({err.strerror or err}); give a video "
+                        "ffmpeg decodes") from None
+    return got
 
 
 def read_times(path: Path) -> np.ndarray:
@@ -166,9 +307,10 @@ def log_rows(times: np.ndarray, log_hz: float) -> np.ndarray:
     return np.searchsorted(times, ticks + 1e-9, side="right") - 1
 
 
-def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
-                ) -> dict[str, Path]:
-    """Track the video; returns the written paths. Nothing is written if validation fails."""
+def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None,
+                checked: tuple[ScenarioConfig, Footage] | None = None) -> dict[str, Path]:
+    """Track the video; returns the written paths. Nothing is written if validation fails.
+    `checked`: what `check_request(req)` returned, when the caller ran it already."""
     import mujoco
 
     from macrostate_mj.chain.world import build_world
@@ -181,7 +323,7 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
     from macrostate_mj.formats.thymioloc import write_csv
     from macrostate_mj.vision.trackers import tracker_for
 
-    cfg, footage = check_request(req)
+    cfg, footage = check_request(req) if checked is None else checked
     out = check_writable_dir(req.out)
     with _run(req, cfg) as run:
         with run.stage("build"):
@@ -213,17 +355,55 @@ def track_video(req: TrackRequest, progress: Callable[[int], None] | None = None
         share = got["detected"].mean(axis=0) if len(times) else np.zeros(n)
         shares = {name: round(float(s), 4) for name, s in zip(world.names, share, strict=True)}
         run.record(robots=world.names, frames=len(times), frames_in_video=footage.frames,
-                   instances=len(cut), px_per_cm=req.px_per_cm, detected_share=shares,
-                   outputs={k: str(v) for k, v in written.items()})
+                   frame_times=footage.timing, instances=len(cut), px_per_cm=req.px_per_cm,
+                   detected_share=shares, outputs={k: str(v) for k, v in written.items()})
         missed = {k: v for k, v in shares.items() if v < cfg.tracking.min_detected}
         if missed:        # footage has no truth: a robot seldom seen is the one sign left
-            name = min(missed, key=missed.get)
-            raise RunFailure(
-                f"robot {name} detected in {missed[name]:.1%} of the frames (limit "
-                f"{cfg.tracking.min_detected:.0%}; {len(missed)} robot(s) under it): is --robots "
-                f"{req.robots} the team filmed (colour markers are chosen by team size) and the "
-                f"scenario its lab? Poses kept in {out}")
+            raise RunFailure(missed_line(world, tracker, got, missed, cfg) +
+                             f"; poses kept in {out}")
     return written
+
+
+def missed_line(world: World, tracker: Tracker | ArucoTracker, got: dict[str, np.ndarray],
+                missed: dict[str, float], cfg: ScenarioConfig) -> str:
+    """Why the robot seen least was missed, in one line: its marker (colour or tag id) and the
+    likeliest cause: never seen (the team or the lab), hidden (an obstacle or a wall stands
+    between it and the camera where it was last seen), else blur or image quality."""
+    from macrostate_mj.chain.tags import ArucoMarkers
+    from macrostate_mj.vision.occlusion import occluded, scene_occluders
+
+    name = min(missed, key=missed.get)
+    r, share, n = world.names.index(name), missed[name], len(world.names)
+    markers = cfg.markers
+    marker = (f"ArUco tag {r} of {markers.dictionary}" if isinstance(markers, ArucoMarkers)
+              else f"colour marker (hue {_hue(world.colours[r])} of 256, one of {n})")
+    head = (f"robot {name}'s {marker} detected in {share:.1%} of the frames (limit "
+            f"{cfg.tracking.min_detected:.0%}; {len(missed)} of {n} robots under it)")
+    miss = ~got["detected"][:, r]
+    last = got["tracked"][miss, r, :2]                    # where it was when it went missing
+    last = last[np.all(np.isfinite(last), axis=1)]
+    hidden = occluded(last, world.marker_height, tracker.camera.position,
+                      scene_occluders(cfg), math.sqrt(world.marker_area)).mean() \
+        if len(last) else 0.0
+    if share == 0:
+        cause = (f"team size or lab: its marker never shows (is --robots {n} the team filmed "
+                 f"and {cfg.name} its lab, its markers, camera and lens?)")
+    elif hidden >= 0.5:
+        cause = (f"occlusion: in {hidden:.0%} of its misses it was last seen where an obstacle "
+                 "or a wall stands between its marker and the camera")
+    elif len(missed) > n / 2:
+        cause = ("blur or image quality across the footage: focus, exposure, motion blur, or "
+                 f"another camera than {cfg.name}'s (its resolution, height and lens)")
+    else:
+        cause = ("blur or a covered marker: it was in the camera's clear view when missed "
+                 "(motion blur, glare, or a marker partly covered or worn)")
+    return f"{head}; likeliest cause {cause}"
+
+
+def _hue(rgb: np.ndarray) -> int:
+    from macrostate_mj.chain.markers import marker_hues
+
+    return int(marker_hues(np.atleast_2d(rgb))[0])
 
 
 def detected_line(manifest: Path) -> str:
@@ -237,5 +417,9 @@ def detected_line(manifest: Path) -> str:
 
 def _run(req: TrackRequest, cfg: ScenarioConfig) -> Run:
     identity = {"video": str(req.video), "robots": req.robots, "px_per_cm": req.px_per_cm}
+    if req.times is not None:
+        identity["times"] = str(req.times)
+    if req.fps is not None:
+        identity["fps"] = req.fps
     return Run(req.out, "track", {"request": identity, "scenario": asdict(cfg)}, None,
                PRODUCTS, req.overwrite)

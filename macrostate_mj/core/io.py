@@ -106,11 +106,17 @@ class Mp4Writer:
     """The one MP4 writer: H.264 (yuv420p, plays in browsers), RGB frames to a temporary sibling
     renamed into place by `commit()` (an interrupted run leaves no broken video); `discard()`
     removes it. Usable as a context manager that commits on success. Encoding is single-threaded
-    with fixed settings, so the same frames give the same bytes."""
+    with fixed settings, so the same frames give the same bytes.
+
+    Frames are stamped evenly at `fps`, unless a subclass sets TIME_BASE (s, a `Fraction`): then
+    `write(rgb, t)` stamps each frame with its own time `t` (variable frame rate), and x264 is
+    told to keep its rate control on the nominal `fps` (`force-cfr`), so the stamps never change
+    a pixel."""
 
     CODEC = "libx264"
     CRF = 20            # visually lossless for these flat scenes, ~1/10 the size of mp4v
     PIX_FMT = "yuv420p"     # subclasses for data, not browsers, keep full chroma (yuv444p)
+    TIME_BASE: Any = None   # subclasses whose frames carry their own times set a Fraction
 
     def __init__(self, path: str | os.PathLike, fps: float, size: tuple[int, int]):
         from fractions import Fraction
@@ -133,18 +139,34 @@ class Mp4Writer:
         stream.pix_fmt = self.PIX_FMT
         stream.thread_count = 1
         stream.options = {"crf": str(self.CRF), "preset": "veryfast"}
+        if self.TIME_BASE is not None:
+            stream.codec_context.time_base = self.TIME_BASE
+            stream.options = {**stream.options, "x264-params": "force-cfr=1"}
         self._stream = stream
         self.frames = 0
+        self._last_pts: int | None = None
 
-    def write(self, rgb: Any) -> None:
+    def write(self, rgb: Any, t: float | None = None) -> None:
+        """Append an RGB frame; `t`: the time it is shown at (s, later than the frame before's),
+        for a writer with a TIME_BASE, which needs it."""
         import av
         import numpy as np
 
+        if (t is None) != (self.TIME_BASE is None):
+            raise ValueError(f"{type(self).__name__}.write takes a frame time t exactly when "
+                             "the writer has a TIME_BASE")
         rgb = np.asarray(rgb, np.uint8)
         pad_h, pad_w = self._stream.height - rgb.shape[0], self._stream.width - rgb.shape[1]
         if pad_h or pad_w:
             rgb = np.pad(rgb, ((0, pad_h), (0, pad_w), (0, 0)), mode="edge")
         frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb), format="rgb24")
+        if t is not None:
+            pts = round(float(t) / self.TIME_BASE)
+            if self._last_pts is not None and pts <= self._last_pts:
+                before = float(self._last_pts * self.TIME_BASE)
+                raise ValueError(f"frame times must increase by a tick of {self.TIME_BASE} s at "
+                                 f"least; got {t!r} after {before!r}")
+            frame.pts, frame.time_base, self._last_pts = pts, self.TIME_BASE, pts
         for packet in self._stream.encode(frame):
             self._container.mux(packet)
         self.frames += 1

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from clitools import cli, cli_inprocess
+from clitools import assert_clean_error, cli, cli_inprocess
 
 STILL = 'extends = "lab"\nname = "lab_still"\n\n[noise]\nmarker_jitter = 0.0\n'
 
@@ -32,14 +32,13 @@ def recorded(tmp_path_factory):
     return tmp
 
 
-def test_tracking_footage_as_the_wrong_team_says_so(recorded):
-    """Footage has no truth to judge by; a robot the tracker seldom finds is the sign left
-    (colours are chosen by team size: as 4 robots, a 3-robot video's markers mostly miss)."""
+def test_tracking_footage_as_the_wrong_team_is_refused(recorded):
+    """Colour markers are chosen by team size: as 4 robots, a 3-robot video's markers would be
+    tracked as other robots' or missed; its frames show 3, and the track is refused."""
     res = cli("track", str(recorded / "cam.mp4"), "--scenario", str(recorded / "lab_still.toml"),
               "--robots", "4", "--out", str(recorded / "wrong"))
-    assert res.returncode == 1
-    assert "is --robots 4 the team filmed" in res.stderr.splitlines()[-1]
-    assert (recorded / "wrong" / "poses.parquet").is_file()           # kept, and said
+    assert_clean_error(res, "shows 3 colour markers", "--robots is 4", "give --robots 3")
+    assert not (recorded / "wrong").exists()
 
 
 def test_filming_the_camera_leaves_the_run_as_it_was(recorded):
