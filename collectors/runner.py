@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 
 from collectors.episodes import EpisodeSpec, run_episode
 from collectors.randomize import Randomization, check_fits
-from macrostate_mj.chain.rendered import check_rendered_colours
+from macrostate_mj.chain.filmed import check_filmed
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import ResolvesScenario
 from macrostate_mj.chain.world import robot_names, validate_chain
@@ -102,7 +102,7 @@ def plan(req: CollectRequest) -> list[EpisodeSpec]:
     check_positive(req.minutes, "minutes")
     check_seed(req.seed)
     validate_chain(cfg, req.robots, req.minutes)
-    check_rendered_colours(cfg, req.robots)     # every episode tracks: refused before any
+    check_filmed(cfg, req.robots)       # every episode tracks: refused before any
     if req.workers < 1:
         raise UserError(f"--workers must be at least 1, got {req.workers}")
     if req.px_per_cm <= 0:

@@ -58,10 +58,10 @@ def check_request(req: SimulateRequest) -> ScenarioConfig:
     cfg = req.scenario
     parse_overlays(req.overlays)
     validate_chain(cfg, req.robots, req.seconds)
-    if req.track:                   # a robot part the tracker would take for a marker
-        from macrostate_mj.chain.rendered import check_rendered_colours
+    if req.track:       # anything in view taken for a colour marker, tags too narrow to read
+        from macrostate_mj.chain.filmed import check_filmed
 
-        check_rendered_colours(cfg, req.robots)
+        check_filmed(cfg, req.robots)
     _run(req, cfg).claim()
     from viz.video import VIEWS, times_path
 

@@ -25,9 +25,9 @@ def soak(scenario: ScenarioConfig, robots: int, seeds: int, seconds: float, firs
     tasks = soak_tasks(scenario, robots, seeds, seconds, first_seed, check_hz)
     if track:
         from collectors.track_soak import TrackSoakTask, track_summary
-        from macrostate_mj.chain.rendered import check_rendered_colours
+        from macrostate_mj.chain.filmed import check_filmed
 
-        check_rendered_colours(scenario, robots)    # refused before any run, as simulate does
+        check_filmed(scenario, robots)      # refused before any run, as simulate does
         kind, tabulate = TrackSoakTask, track_summary
     else:
         kind, tabulate = None, lambda runs: summary(runs, workers)

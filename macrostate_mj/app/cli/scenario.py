@@ -11,6 +11,7 @@ from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.params import ScenarioArg
 
 if TYPE_CHECKING:
+    from macrostate_mj.chain.filmed import TagCells
     from macrostate_mj.chain.scenario import ScenarioConfig
     from macrostate_mj.chain.scene import Obstacle
 
@@ -34,9 +35,11 @@ def scenario_check(
     scenario: str = ScenarioArg(),
 ) -> None:
     """Validate a scenario and print what it builds: arena, chain capacity, px/cm at the image's
-    centre and worst arena corner, the lens, the markers, the obstacles, the robot's colours as
-    rendered, timestep and physics steps per command and log tick."""
-    from macrostate_mj.chain.markers import ColourMarkers
+    centre and worst arena corner, the lens, the markers, the obstacles, timestep and physics
+    steps per command and log tick, the `[tracking]` limits. What a tracked run refuses up front
+    (`chain.filmed`) is refused here for every team size: a surface or robot part that passes
+    for a colour marker as rendered, tags too narrow in pixels for the detector."""
+    from macrostate_mj.chain.filmed import check_tag_cells
     from macrostate_mj.chain.rendered import check_rendered_colours
     from macrostate_mj.chain.robot import top_speed
     from macrostate_mj.chain.scenario import steps_per_tick
@@ -47,7 +50,8 @@ def scenario_check(
     build_world(cfg, min(capacity, 3))           # the robot file meets its contract
     teams = _team_sizes(cfg, capacity)
     for n in teams:
-        check_rendered_colours(cfg, n)           # no part passes for a marker as filmed
+        check_rendered_colours(cfg, n)           # nothing in view passes for a marker as filmed
+    cells = check_tag_cells(cfg)                 # tags wide enough for the detector
     dt = cfg.physics.timestep
     walls = "walls" if cfg.walls is not None else "no walls"
     typer.echo(f"scenario   {cfg.name}: robot {cfg.robot}, arena {cfg.arena[0]:g} x "
@@ -56,13 +60,12 @@ def scenario_check(
                f"{cfg.head_speed:g} m/s (robot's top {top_speed(cfg.robot):.3f} m/s)")
     typer.echo(_camera_line(cfg))
     typer.echo(_lens_line(cfg.camera.distortion))
-    checked = (f"robot parts as rendered taken for no marker ({_teams_words(teams)})"
-               if isinstance(cfg.markers, ColourMarkers) else "tags: no colours to check")
-    typer.echo(f"markers    {_markers_kind(cfg.markers)}; {checked}")
+    typer.echo(f"markers    {_markers_kind(cfg.markers)}; {_checked_words(cfg, cells, teams)}")
     typer.echo(_obstacles_line(cfg.obstacles))
     typer.echo(f"physics    timestep {dt:g} s: {steps_per_tick(1 / cfg.command_hz, dt, 'command')}"
                f" steps a command tick ({cfg.command_hz:g} Hz), "
                f"{steps_per_tick(1 / cfg.log_hz, dt, 'log')} a log tick ({cfg.log_hz:g} Hz)")
+    typer.echo(f"tracking   limits: {cfg.tracking.describe()}")
 
 
 def _team_sizes(cfg: ScenarioConfig, capacity: int) -> list[int]:
@@ -86,6 +89,20 @@ def _teams_words(teams: list[int]) -> str:
     if not teams:
         return "no team fits"
     return f"team of {teams[0]}" if len(teams) == 1 else f"teams of {teams[0]}-{teams[-1]}"
+
+
+def _checked_words(cfg: ScenarioConfig, cells: TagCells | None, teams: list[int]) -> str:
+    """What the markers' check judged: what in view no colour marker is taken for, or the
+    tags' cells."""
+    from macrostate_mj.chain.filmed import MIN_TAG_CELL_PX
+
+    if cells is None:
+        seen = ["floor", *(["walls"] if cfg.walls is not None else []),
+                *(["obstacles"] if cfg.obstacles else [])]
+        return (f"{', '.join(seen)} and robot parts as rendered taken for no marker "
+                f"({_teams_words(teams)})")
+    return (f"tag cells {cells.centre:.2f} px at the centre, {cells.worst:.2f} px at the "
+            f"{cells.corner} corner (the detector needs {MIN_TAG_CELL_PX:g} px)")
 
 
 def _camera_line(cfg: ScenarioConfig) -> str:
