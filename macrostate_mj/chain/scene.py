@@ -39,6 +39,9 @@ MAX_FOVY = 120.0
 EDGE_SAMPLES = 33
 SCALE_STEP = 1e-3               # m: the finite difference of `Camera.px_per_m_at`
 DISTORTION_TERMS = ("k1", "k2", "p1", "p2")
+# The k2 a folding lens is told to take: to this step, searched up to K2_REACH above its own.
+K2_STEP = 1e-3
+K2_REACH = 1e3
 
 
 @dataclass(frozen=True)
@@ -277,9 +280,9 @@ def check_camera(name: str, arena: tuple[float, float], camera: Camera) -> None:
                         f"{MAX_FOVY:g}: a wider lens images markers too obliquely to track); "
                         f"raise camera.height ({camera.height:g} m) or narrow camera.fovy")
     focal = camera.focal_for(arena)
-    if any(camera.distortion):
-        _check_fold(name, (w, h), focal, tuple(float(c) for c in camera.distortion))
     points, names = arena_outline(arena)
+    if any(camera.distortion):
+        _check_fold(name, arena, camera, points)
     out = np.max(np.abs(camera.floor_pixels(arena, points)) - [w / 2, h / 2], axis=1)
     worst = int(np.argmax(out))
     if out[worst] > EDGE_TOLERANCE_PX:
@@ -315,19 +318,77 @@ def _fovy_that_frames(arena: tuple[float, float], camera: Camera, points: np.nda
     return math.ceil(hi * 10) / 10
 
 
-def _check_fold(name: str, resolution: tuple[int, int], focal: float,
-                distortion: tuple[float, float, float, float]) -> None:
+def _check_fold(name: str, arena: tuple[float, float], camera: Camera, points: np.ndarray
+                ) -> None:
     """Refuse a lens whose forward map is not one-to-one over the image: the renderer's
     `vision.camera.Lens` finds each distorted pixel's pinhole source by inverting it, and past a
-    fold there is none (the frame folds over itself and tracking fails by decimetres)."""
-    fold = _fold_px(resolution, focal, distortion)
+    fold there is none (the frame folds over itself and tracking fails by decimetres). A fold
+    beyond the arena's image is refused too, not masked: a tracker's window reaches past the
+    arena's edge, and no lens images two floor points on one pixel. The refusal names the k2
+    that makes the lens one-to-one over the image, as the framing check names a fovy."""
+    distortion = tuple(float(c) for c in camera.distortion)
+    focal = camera.focal_for(arena)
+    fold = _fold_px(camera.resolution, focal, distortion)
     if fold is None:
         return
-    w, h = resolution
-    terms = " or ".join(f"|{t}|" for t, c in zip(DISTORTION_TERMS, distortion, strict=True) if c)
+    w, h = camera.resolution
+    reach = float(np.hypot(*camera.floor_pixels(arena, points).T).max())
+    where = (f"outside the arena's image ({reach:.0f} px out) but inside" if fold > reach
+             else "inside the arena's image and")
+    terms = " or ".join(f"|{t}|" for t, c in zip(DISTORTION_TERMS, distortion, strict=True)
+                        if c and t != "k2")
+    k2 = _unfolding_k2(camera.resolution, focal, distortion)
+    fix = f"reduce {terms or '|k2|'}"
+    if k2 is not None:
+        unfolded = replace(camera, distortion=(distortion[0], k2, *distortion[2:]))
+        moved = np.abs(unfolded.floor_pixels(arena, points)
+                       - camera.floor_pixels(arena, points)).max()
+        shift = f" and moves the arena's image by {moved:.1f} px at most" if fold > reach else ""
+        fix = (f"set k2 = {k2:g} (or more), which makes it one-to-one over the image{shift}"
+               f"{_and_fovy(arena, unfolded, points)}" + (f", or {fix}" if terms else ""))
     raise UserError(f"{name}: the overhead camera's lens {lens_words(distortion)} folds the "
-                    f"image over itself {fold:.0f} px from its centre, inside the {w} x {h} "
-                    f"image (corners {math.hypot(w, h) / 2:.0f} px out); reduce {terms}")
+                    f"image over itself {fold:.0f} px from its centre, {where} the {w} x "
+                    f"{h} image (corners {math.hypot(w, h) / 2:.0f} px out); {fix}")
+
+
+def _unfolding_k2(resolution: tuple[int, int], focal: float,
+                  distortion: tuple[float, float, float, float]) -> float | None:
+    """The smallest k2 above the lens's own (to K2_STEP, rounded up) that leaves the other
+    terms as they are and folds nowhere in the image, or None when none up to K2_REACH does
+    (a tangential fold). Raising k2 makes the radial gain's slope, 1 + 3 k1 r^2 + 5 k2 r^4,
+    positive farther out; every k2 above 9 k1^2 / 20 keeps it positive everywhere."""
+    w, h = resolution
+
+    def unfolds(k2: float) -> bool:
+        return lens_fold(w / 2 / focal, h / 2 / focal,
+                         (distortion[0], k2, *distortion[2:])) is None
+
+    lo, step = distortion[1], max(distortion[0] ** 2, K2_STEP)
+    while not unfolds(lo + step):
+        step *= 2
+        if step > K2_REACH:
+            return None
+    hi = lo + step
+    while hi - lo > K2_STEP / 4:
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if unfolds(mid) else (mid, hi)
+    k2 = math.ceil(hi / K2_STEP) * K2_STEP
+    return round(k2, 6) if unfolds(k2) else round(hi, 6)
+
+
+def _and_fovy(arena: tuple[float, float], camera: Camera, points: np.ndarray) -> str:
+    """", and camera.fovy = F" when the unfolded lens bends the arena out of the frame and a
+    wider fovy both frames it and stays one-to-one; "" otherwise (the framing check then names
+    its own fix)."""
+    w, h = camera.resolution
+    out = np.max(np.abs(camera.floor_pixels(arena, points)) - [w / 2, h / 2])
+    if out <= EDGE_TOLERANCE_PX:
+        return ""
+    wide = _fovy_that_frames(arena, camera, points)
+    if wide is None or _fold_px(camera.resolution, replace(camera, fovy=wide).focal_for(arena),
+                                tuple(camera.distortion)) is not None:
+        return ""
+    return f", with camera.fovy = {wide:.1f} to frame the arena"
 
 
 @functools.cache

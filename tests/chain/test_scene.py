@@ -110,9 +110,13 @@ def test_a_lens_that_bends_without_folding_passes(k1):
 
 
 @pytest.mark.parametrize(("distortion", "fix"), [
-    ((-2.0, 0.0, 0.0, 0.0), "reduce |k1|"),
-    ((0.0, -0.63, 0.0, 0.0), "reduce |k2|"),           # folds only beyond 450 px: the corners
-    ((0.0, 0.0, 0.3, 0.0), "reduce |p1|"),
+    ((-2.0, 0.0, 0.0, 0.0), "set k2 = 1.801 (or more), which makes it one-to-one over the "
+                            "image, or reduce |k1|"),
+    ((0.0, -0.63, 0.0, 0.0), "set k2 = -0.539 (or more), which makes it one-to-one over the "
+                             "image and moves the arena's image by 5.3 px at most"),
+    ((0.0, 0.0, 0.3, 0.0), "set k2 = 0.222 (or more), which makes it one-to-one over the "
+                           "image, with camera.fovy = 61.8 to frame the arena, or reduce |p1|"),
+    ((0.0, 0.0, 3.0, 0.0), "reduce |p1|"),             # no k2 unfolds a tangential fold
 ])
 def test_a_lens_that_folds_the_image_is_refused_in_one_line(distortion, fix):
     with pytest.raises(UserError) as err:
@@ -120,6 +124,47 @@ def test_a_lens_that_folds_the_image_is_refused_in_one_line(distortion, fix):
     msg = str(err.value)
     assert "\n" not in msg and "folds the image over itself" in msg and msg.endswith(fix)
     assert f"[{', '.join(f'{c:g}' for c in distortion)}]" in msg
+
+
+@pytest.mark.parametrize("distortion", [(-2.0, 0.0, 0.0, 0.0), (0.0, -0.63, 0.0, 0.0),
+                                        (0.0, 0.0, 0.3, 0.0), (-0.25, 0.0, 0.0, 0.0)])
+def test_the_k2_a_folding_lens_is_told_to_take_unfolds_it(distortion):
+    """The lens with the k2 (and fovy) its refusal names passes; 0.01 less still folds (the
+    k2 named is rounded up to 0.001)."""
+    cfg = get_scenario(str(Path(__file__).parents[2] / "examples" / "epuck_lab.toml")
+                       if distortion[0] == -0.25 else "lab")
+    with pytest.raises(UserError) as err:
+        lensed(cfg, distortion)
+    msg = str(err.value)
+    k2 = float(msg.split("set k2 = ")[1].split()[0])
+    fovy = float(msg.split("camera.fovy = ")[1].split()[0]) if "camera.fovy" in msg else None
+    unfolded = (distortion[0], k2, *distortion[2:])
+    camera = dataclasses.replace(cfg.camera, distortion=unfolded, fovy=fovy or cfg.camera.fovy)
+    check_camera(cfg.name, cfg.arena, camera)
+    with pytest.raises(UserError, match="folds the image over itself"):
+        check_camera(cfg.name, cfg.arena, dataclasses.replace(
+            camera, distortion=(distortion[0], k2 - 0.01, *distortion[2:])))
+
+
+def test_a_lens_folding_only_outside_the_arenas_image_is_refused_naming_k2(tmp_path, capsys):
+    """The e-puck lab's 4 x 3 m arena reaches 661 px from the centre of its 1280 x 960 image
+    through a k1 = -0.25 barrel lens, which folds at 739 px, short of the 800 px corners: the
+    refusal says where, and the k2 that unfolds it; scenario check and simulate alike."""
+    path = tmp_path / "barrel.toml"
+    path.write_text(f'extends = "{Path(__file__).parents[2] / "examples" / "epuck_lab.toml"}"\n'
+                    'name = "barrel"\n[camera]\ndistortion = [-0.25, 0, 0, 0]\n')
+    line = ("barrel: the overhead camera's lens [k1, k2, p1, p2] = [-0.25, 0, 0, 0] folds the "
+            "image over itself 739 px from its centre, outside the arena's image (661 px out) "
+            "but inside the 1280 x 960 image (corners 800 px out); set k2 = 0.02 (or more), "
+            "which makes it one-to-one over the image and moves the arena's image by 6.2 px at "
+            "most, or reduce |k1|")
+    out = tmp_path / "run"
+    for args in (["scenario", "check", str(path)],
+                 ["simulate", "--scenario", str(path), "--robots", "3", "--seconds", "1",
+                  "--track", "--out", str(out)]):
+        code, _, err = cli_inprocess(capsys, *args)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and line in err, err
+    assert not out.exists()
 
 
 def test_the_k2_fold_lies_near_the_corners_only():
@@ -169,7 +214,8 @@ def test_a_folding_lens_is_refused_by_check_and_simulate_with_exit_2_and_nothing
                   "--out", str(out)]):
         code, _, err = cli_inprocess(capsys, *args)
         assert code == 2 and len(err.strip().splitlines()) == 1, err
-        assert "folds the image over itself" in err and "reduce |k1|" in err
+        assert "folds the image over itself" in err and "set k2 = 1.801" in err
+        assert "or reduce |k1|" in err
     assert not out.exists()
     with pytest.raises(UserError, match="folds"):
         build_world(get_scenario(path), 3)        # the Python API refuses it too
