@@ -117,7 +117,9 @@ MEANINGS = {
     "look.floor_rgba": "floor colour", "look.wall_rgba": "wall colour",
     "look.light_height": "m", "look.light_diffuse": "0-1",
     "look.headlight_ambient": "0-1", "look.headlight_diffuse": "0-1",
-    "planner.kind": "the Head's planner: psi_grid (the lab's cell walk), cell_walk, preset_twists",
+    "planner.kind": "the Head's planner: psi_grid (the lab's cell walk), cell_walk, "
+                    "preset_twists, or park (drive to planner.point and stay)",
+    "planner.point": "park: where the Head parks, [x, y] m",
     "planner.grid": "[columns, rows] of the planner's grid",
     "planner.max_turn": "psi_grid: the largest turn toward the Head's next waypoint, degrees "
                         "(180: Psi as written)",
@@ -131,9 +133,16 @@ MEANINGS = {
                     "(a fiducial tag, with markers.dictionary)",
     "markers.dictionary": "aruco: OpenCV's predefined dictionary, e.g. DICT_4X4_50",
     "tracking.min_detected": "a tracked run fails when a robot is detected in fewer of the "
-                             "frames where it is in view (share)",
-    "tracking.max_median_error": "... or tracked farther from the truth at the median, m",
-    "tracking.max_identity_errors": "... or nearer another robot's truth in more frames (share)",
+                             "dataset's rows where it is in view (share)",
+    "tracking.max_hidden": "... or an obstacle or wall hides it from the camera in more of "
+                           "the rows (share)",
+    "tracking.max_median_mm": "... or it is tracked farther from the truth at the median (mm)",
+    "tracking.max_p99_mm": "... or at the 99th percentile (mm)",
+    "tracking.max_heading_off30": "... or its heading errs by more than 30 degrees in more of "
+                                  "its detections (share)",
+    "tracking.max_heading_flips": "... or by more than 90 degrees, flipped (share)",
+    "tracking.max_identity_errors": "... or its detections lie nearer another robot's truth "
+                                    "in more of them (share)",
 }
 
 

@@ -972,8 +972,9 @@ def _soak_cell(value: object) -> str:
 @source
 def track_soak(folder: str) -> Table:
     """Tracked soaks, one sub-folder a lab (`soak --track --out`): its summary row each."""
-    rows = [["folder", "markers", "robots", "runs x s", "unhealthy", "min detected",
-             "max median mm", "max p99 mm", "max heading deg", "max identity", "s/run"]]
+    rows = [["folder", "markers", "robots", "runs x s", "unhealthy", "min detected (rows)",
+             "max hidden", "max median mm", "max p99 mm", "max heading p99 deg", "max flipped",
+             "max identity", "s/run"]]
     for soak_file in sorted((RESULTS / folder).glob("*/soak.json")):
         summary = json.loads(soak_file.read_text())["summary"]
         manifest = json.loads((soak_file.parent / "manifest.json").read_text())
@@ -981,9 +982,11 @@ def track_soak(folder: str) -> Table:
         kind = scenario.get("markers", {}).get("dictionary") and "aruco" or "colour"
         rows.append([soak_file.parent.name, kind, str(summary["robots"]),
                      f"{summary['runs']} x {summary['seconds']:g}", str(summary["unhealthy"]),
-                     f"{summary['min_detected']:.4f}", f"{summary['max_median_mm']:.2f}",
-                     f"{summary['max_p99_mm']:.2f}", f"{summary['max_heading_deg']:.2f}",
-                     f"{summary['max_identity']:.4f}", f"{summary['wall_s_per_run']:.1f}"])
+                     f"{summary['min_detected']:.4f}", f"{summary['max_hidden']:.4f}",
+                     f"{summary['max_median_mm']:.2f}", f"{summary['max_p99_mm']:.2f}",
+                     f"{summary['max_heading_p99_deg']:.1f}",
+                     f"{summary['max_heading_flips']:.4f}", f"{summary['max_identity']:.4f}",
+                     f"{summary['wall_s_per_run']:.1f}"])
     return rows
 
 

@@ -93,11 +93,11 @@ class Footage:
 def check_request(req: TrackRequest) -> tuple[ScenarioConfig, Footage]:
     """Every check of a track request, before anything is built or written: the team and the
     scenario, the video's size, its frame times and the team its frames show."""
-    from macrostate_mj.chain.rendered import check_rendered_colours
+    from macrostate_mj.chain.filmed import check_filmed
 
     cfg = req.scenario
     validate_chain(cfg, req.robots, 1.0)
-    check_rendered_colours(cfg, req.robots)      # markers the tracker can tell apart
+    check_filmed(cfg, req.robots)     # markers the tracker can tell apart, tags it can read
     if req.px_per_cm <= 0:
         raise UserError(f"--px-per-cm must be positive, got {req.px_per_cm}")
     if req.fps is not None and not (isinstance(req.fps, int | float) and math.isfinite(req.fps)

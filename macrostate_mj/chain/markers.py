@@ -76,6 +76,12 @@ class ColourMarkers:
     def colour_teams(self, capacity: int) -> int | None:
         return min(capacity, SEPARABLE_COLOURS)
 
+    @property
+    def pattern(self) -> float:
+        """The share of the marker's side the tracker needs in view: all of the triangle (a
+        part hidden moves its centroid)."""
+        return 1.0
+
 
 def marker_colours(n: int) -> np.ndarray:
     """n saturated colours with hues spread evenly, so the tracker can tell them apart; dimmer

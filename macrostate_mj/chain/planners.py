@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -309,3 +310,26 @@ class PresetTwists:
     def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
               obstacles: tuple[Obstacle, ...] = ()) -> Planner:
         return PresetPlanner(arena, margin, presets=self.presets, obstacles=obstacles)
+
+
+@dataclass(frozen=True)
+class Park:
+    """The Head drives to `point` (m, world) and stays there, the chain lining up behind it:
+    a parked team, e.g. beside an obstacle, to check that a lab tracks robots standing still
+    where the camera's view is tightest (`soak --track`)."""
+
+    point: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        if not (len(self.point) == 2 and all(isinstance(v, int | float) and math.isfinite(v)
+                                             for v in self.point)):
+            raise UserError(f"planner.point must be [x, y] in metres, got {self.point!r}")
+
+    def build(self, arena: tuple[float, float], margin: float, reach_radius: float,
+              obstacles: tuple[Obstacle, ...] = ()) -> Planner:
+        half = np.asarray(arena, float) / 2 - margin
+        if np.any(np.abs(self.point) > half):
+            raise UserError(f"planner.point {list(self.point)} lies outside the "
+                            f"{arena[0]:g} x {arena[1]:g} m arena less its margin "
+                            f"({margin:g} m); move it inside")
+        return FixedWaypoint(self.point)

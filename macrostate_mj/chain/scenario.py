@@ -84,7 +84,7 @@ class ScenarioConfig:
     chain_speed: float              # Followers' and Tail's speed cap (m/s)
     command_hz: float               # control / tracking rate
     log_hz: float                   # pose log rate (not synchronized with commands)
-    planner: PlannerSpec            # the Head's planner: PsiGrid, CellWalk or PresetTwists
+    planner: PlannerSpec            # the Head's planner: PsiGrid, CellWalk, PresetTwists, Park
     followers: FollowerRule         # TwoNeighbours (§2.3) or WaitForBehind (lab, §2.6.2.1)
     allow_reverse: bool             # False: followers stop instead of backing up
     wall_margin: float              # keep waypoints and start poses this far from walls (m)
@@ -144,6 +144,10 @@ class ScenarioConfig:
                            f"{self.camera.height:g} m; lower it or raise the camera")
             if problem is not None:
                 raise UserError(f"{self.name}: arena.obstacles[{i}] {problem}", "obstacles")
+        try:                       # a planner the arena cannot hold, refused when read
+            self.planner.build(self.arena, self.wall_margin, self.reach_radius, self.obstacles)
+        except UserError as err:
+            raise UserError(f"{self.name}: {err}", "planner") from None
         for what, hz in (("command", self.command_hz), ("log", self.log_hz)):
             if not hz > 0:
                 raise UserError(f"{self.name}: the {what} rate {named(f'{what}_hz')} must be "

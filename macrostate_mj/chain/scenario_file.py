@@ -31,7 +31,7 @@ from macrostate_mj.core.errors import UserError
 BUILTIN = Path(str(files("macrostate_mj") / "assets" / "scenarios"))
 
 PLANNERS = {"psi_grid": planners.PsiGrid, "cell_walk": planners.CellWalk,
-            "preset_twists": planners.PresetTwists}
+            "preset_twists": planners.PresetTwists, "park": planners.Park}
 FOLLOWERS = {"two_neighbours": motion.TwoNeighbours, "wait_for_behind": motion.WaitForBehind}
 MARKERS = {"colour": markers.ColourMarkers, "aruco": tags.ArucoMarkers}
 RULES = {"planner": PLANNERS, "followers": FOLLOWERS, "markers": MARKERS}   # chosen by `kind`

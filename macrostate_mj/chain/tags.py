@@ -55,6 +55,12 @@ class ArucoMarkers:
         """Cells across a tag as drawn: its bits, the black frame and the quiet border."""
         return dictionary(self.dictionary).markerSize + 2 + 2 * QUIET_CELLS
 
+    @property
+    def pattern(self) -> float:
+        """The share of the plate's side the detector needs in view: the black frame and its
+        bits (the quiet border may be hidden)."""
+        return (self.cells - 2 * QUIET_CELLS) / self.cells
+
     def check_team(self, n: int) -> None:
         """Every robot needs an id of its own."""
         if n > self.ids:

@@ -10,6 +10,7 @@ and top speed.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import mujoco
@@ -135,6 +136,20 @@ class World:
         """The area (m^2) of a robot's marker (card or tag plate) seen from above: what a
         tracker expects to see of it."""
         return marker_area(self.model, f"{self.names[0]}/marker")
+
+    @functools.cached_property
+    def marker_outline(self) -> np.ndarray:
+        """(k, 2) the outline, in a robot's body frame (m), of the part of its marker a tracker
+        must see to read it: the marker's convex hull seen from above, shrunk about its centroid
+        to the markers' `pattern` (a tag's quiet border may be hidden). What occlusion tests."""
+        from scipy.spatial import ConvexHull
+
+        model = self.model
+        g = model.geom(f"{self.names[0]}/marker").id
+        xy = geom_vertices(model, g)[:, :2]
+        hull = xy[ConvexHull(xy).vertices]
+        centre = top_view(geom_vertices(model, g), geom_faces(model, g)).centroid
+        return centre + (hull - centre) * self.scenario.markers.pattern
 
     def to_xml(self) -> str:
         return self.spec.to_xml()

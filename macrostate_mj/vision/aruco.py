@@ -12,7 +12,7 @@ edge to its top edge (drawn forward). Obstacles that hide a tag mark it missed, 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import mujoco
@@ -39,6 +39,7 @@ class ArucoTracker:
     marker_height: float         # world z of the marker plane (m)
     marker_area: float           # plate area on that plane (m^2)
     occluders: tuple[Obstacle, ...] = ()
+    outline: np.ndarray = field(default_factory=lambda: np.zeros((1, 2)))   # what must show
 
     @classmethod
     def for_world(cls, world: World, data: mujoco.MjData,
@@ -89,7 +90,7 @@ class ArucoTracker:
             poses[ids] = np.column_stack([centre, np.arctan2(ahead[:, 1], ahead[:, 0])])
             detected[ids] = True
         hide_occluded(poses, detected, self.marker_height, self.camera.position, self.occluders,
-                      self.marker_area)
+                      self.outline)
         return Detections(poses, detected)
 
     def _detect(self, rgb: np.ndarray) -> list[tuple[int, np.ndarray]]:

@@ -41,10 +41,11 @@ EDGE = ("or its marker leaves the frame near the image's edge (markers stand abo
 HIDDEN = ("an obstacle or wall stands between its marker and the camera (a robot parked or driving "
           "beside something taller than its marker, off the camera's axis): move or lower the "
           "obstacle, raise the camera over it, or raise [tracking] max_hidden if you mean it")
-COLOUR_OFF = ("pixels of its marker's colour elsewhere in view pull the fit (a robot part, the "
-              "floor or an obstacle rendered in marker colour: run `macrostate-mj scenario "
-              "check` and recolour it grey), a lens the calibration does not undo, or a limit "
-              "tighter than the tracker's accuracy (about 1 mm in the built-in labs)")
+COLOUR_OFF = ("pixels of its marker's colour nearby pull the fit (another robot's marker "
+              "touching it, or noise: lower the camera or enlarge the markers), a camera or "
+              "lens the calibration does not undo ([noise] cam_tilt_deg, calibration error), "
+              "or a limit tighter than the tracker's accuracy (about 1-2 mm in the built-in "
+              "labs)")
 COLOUR_HEADING = ("its triangle's apex is not resolved (a marker only a few pixels long in the "
                   "image, blur, or pixels of its colour nearby: lower the camera, enlarge the "
                   "marker, or use [markers] kind = \"aruco\")")
@@ -270,10 +271,11 @@ class HealthMonitor:
     operations on (n, n) arrays per processed frame."""
 
     def __init__(self, names: list[str], marker_height: float = 0.0,
-                 occluders: tuple[Obstacle, ...] = (), marker_area: float = 0.0):
+                 occluders: tuple[Obstacle, ...] = (), outline: np.ndarray | None = None):
         self.names = list(names)
         self.marker_height, self.occluders = marker_height, occluders
-        self.marker_size = float(np.sqrt(marker_area))     # as the trackers' occlusion rule
+        # as the trackers' occlusion rule: the marker's outline (body frame) must show
+        self.outline = np.zeros((1, 2)) if outline is None else np.asarray(outline, float)
         self.camera: np.ndarray | None = None              # where the last frame's camera was
         self.reset()
 
@@ -282,7 +284,7 @@ class HealthMonitor:
         """The monitor of a chain world: its robots, marker plane and size, what can hide a
         marker (obstacles and walls)."""
         return cls(world.names, world.marker_height, scene_occluders(world.scenario),
-                   world.marker_area)
+                   world.marker_outline)
 
     def reset(self) -> None:
         self._in_view: list[np.ndarray] = []
@@ -292,11 +294,10 @@ class HealthMonitor:
         self._identity: list[np.ndarray] = []
 
     def in_view(self, truth: np.ndarray, camera: np.ndarray | None) -> np.ndarray:
-        """(n,) which robots at true poses `truth` (n, >=2) no occluder hides from `camera`."""
+        """(n,) which robots at true poses `truth` (n, 3) no occluder hides from `camera`."""
         if not self.occluders or camera is None:
             return np.ones(len(truth), bool)
-        return ~occluded(truth[:, :2], self.marker_height, camera, self.occluders,
-                         self.marker_size)
+        return ~occluded(truth, self.marker_height, camera, self.occluders, self.outline)
 
     def add(self, detected: np.ndarray, poses: np.ndarray, truth: np.ndarray,
             camera: np.ndarray | None = None) -> None:

@@ -2,9 +2,10 @@
 
 A marker is seen along the straight lines from its points to the camera's optical centre (a
 lens bends where a ray lands on the sensor, not which ray it is). A marker counts as hidden when
-one of those lines, from its centre or from a ring at half its size around it, passes through a
-solid standing on the floor (an obstacle or a wall) below its top: a partly hidden marker would
-be tracked off-centre, so the tracker calls it missed rather than trust what shows, as the real
+one of those lines, from its centre or from its outline's corners and edges (the part the
+tracker reads, turned with the robot: a tag's quiet border may be hidden), passes through a
+solid standing on the floor (an obstacle or a wall) below its top: a partly hidden marker would be
+tracked off-centre, so the tracker calls it missed rather than trust what shows, as the real
 testbed knows its map. A marker beside an obstacle on the side away from the camera is in full
 view, and counts as seen.
 """
@@ -15,8 +16,6 @@ import numpy as np
 
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scene import Obstacle, Walls
-
-RING = 8            # points on the marker's ring, besides its centre
 
 
 def wall_boxes(arena: tuple[float, float], walls: Walls | None) -> tuple[Obstacle, ...]:
@@ -36,22 +35,31 @@ def scene_occluders(cfg: ScenarioConfig) -> tuple[Obstacle, ...]:
     return tuple(cfg.obstacles) + wall_boxes(cfg.arena, cfg.walls)
 
 
-def occluded(xy: np.ndarray, marker_height: float, camera: np.ndarray,
-             occluders: tuple[Obstacle, ...], marker_size: float) -> np.ndarray:
-    """(n,) which markers at `xy` (n, 2) on the plane `marker_height`, each `marker_size` across
-    (m), a solid of `occluders` hides from a camera at `camera` (3,) world, wholly or in part.
-    NaN positions are not occluded."""
-    xy = np.atleast_2d(np.asarray(xy, float))
+def outline_points(poses: np.ndarray, outline: np.ndarray) -> np.ndarray:
+    """(n, R, 2) the points of each marker occlusion tests, at poses (n, 3): its centre, the
+    corners of its `outline` (k, 2, body frame) and their edges' midpoints, turned with it."""
+    ring = np.vstack([np.zeros((1, 2)), outline, (outline + np.roll(outline, -1, axis=0)) / 2])
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    rot = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)      # (n, 2, 2)
+    return poses[:, None, :2] + ring[None] @ np.swapaxes(rot, 1, 2)
+
+
+def occluded(poses: np.ndarray, marker_height: float, camera: np.ndarray,
+             occluders: tuple[Obstacle, ...], outline: np.ndarray) -> np.ndarray:
+    """(n,) which markers at `poses` (n, 3) on the plane `marker_height`, each of `outline`
+    (k, 2, body frame: `World.marker_outline`), a solid of `occluders` hides from a camera at
+    `camera` (3,) world, wholly or in part. NaN positions are not occluded; a NaN heading
+    (a position alone) tests the outline unturned."""
+    poses = np.atleast_2d(np.asarray(poses, float))
     cam = np.asarray(camera, float)
-    hidden = np.zeros(len(xy), bool)
-    ok = np.flatnonzero(np.isfinite(xy).all(axis=1))
+    hidden = np.zeros(len(poses), bool)
+    ok = np.flatnonzero(np.isfinite(poses[:, :2]).all(axis=1))
     tall = [ob for ob in occluders if ob.height > marker_height]
     if not len(ok) or not tall or cam[2] <= marker_height:
         return hidden
-    angle = np.linspace(0.0, 2 * np.pi, RING, endpoint=False)
-    ring = np.vstack([np.zeros((1, 2)), 0.5 * marker_size * np.column_stack(
-        [np.cos(angle), np.sin(angle)])])                              # (R, 2)
-    start = xy[ok, None, :] + ring[None]                               # (k, R, 2)
+    at = poses[ok, :3].copy()
+    at[~np.isfinite(at[:, 2]), 2] = 0.0
+    start = outline_points(at, np.asarray(outline, float))             # (k, R, 2)
     step = cam[:2] - start                                             # the ray's xy per unit t
     for ob in tall:
         top = min(1.0, (ob.height - marker_height) / (cam[2] - marker_height))
@@ -92,12 +100,12 @@ def _crossing(ob: Obstacle, start: np.ndarray, step: np.ndarray
 
 
 def hide_occluded(poses: np.ndarray, detected: np.ndarray, marker_height: float,
-                  camera: np.ndarray, occluders: tuple[Obstacle, ...], marker_area: float
+                  camera: np.ndarray, occluders: tuple[Obstacle, ...], outline: np.ndarray
                   ) -> None:
-    """In place: a detection an occluder hides (`occluded`, the marker's size its area's
-    square root) becomes a miss (NaN pose, not detected), as every tracker reports it."""
+    """In place: a detection an occluder hides (`occluded`, at its tracked pose) becomes a
+    miss (NaN pose, not detected), as every tracker reports it."""
     if not occluders or not detected.any():
         return
-    hidden = occluded(poses[:, :2], marker_height, camera, occluders, float(np.sqrt(marker_area)))
+    hidden = occluded(poses, marker_height, camera, occluders, outline)
     poses[hidden] = np.nan
     detected &= ~hidden

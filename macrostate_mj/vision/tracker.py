@@ -13,7 +13,7 @@ through the camera's plane homography to world metres at marker height.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import mujoco
@@ -52,6 +52,7 @@ class Tracker:
     min_value: int = MIN_VALUE
     min_fill: float = 0.4
     occluders: tuple[Obstacle, ...] = ()     # obstacles that can hide a marker: it is missed
+    outline: np.ndarray = field(default_factory=lambda: np.zeros((1, 2)))   # what must show
 
     @classmethod
     def for_world(cls, world: World, data: mujoco.MjData,
@@ -62,7 +63,7 @@ class Tracker:
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
         return cls(camera, world.colours, world.marker_height, world.marker_area,
-                   occluders=scene_occluders(world.scenario))
+                   occluders=scene_occluders(world.scenario), outline=world.marker_outline)
 
     def __post_init__(self) -> None:
         self._hues = marker_hues(self.colours)
@@ -135,6 +136,6 @@ class Tracker:
             heading = np.arctan2(tip[:, 1] - xy[:, 1], tip[:, 0] - xy[:, 0])
             poses[ok] = np.column_stack([xy, heading])
         hide_occluded(poses, detected, self.marker_height, self.camera.position, self.occluders,
-                      self.marker_area)
+                      self.outline)
         return Detections(poses, detected)
 

@@ -17,6 +17,11 @@ from macrostate_mj.vision.health import HealthMonitor, TrackingHealth, worst_of
 from macrostate_mj.vision.occlusion import occluded
 
 NAMES = ["H", "F1", "T"]
+
+
+def square(side: float) -> np.ndarray:
+    """A square marker's outline (body frame)."""
+    return side / 2 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 TRUTH = np.array([[0.0, 0.0, 0.0], [-0.3, 0.0, 0.1], [-0.6, 0.0, 0.2]])
 
 
@@ -58,12 +63,12 @@ def test_swapped_identities_missed_robots_and_offsets_are_each_found():
     t = next(r for r in report.robots if r.robot == "T")
     assert t.detected_frames == 0.5 and t.median_mm == pytest.approx(70.7, abs=0.1)
     line = next(f for f in findings if f.figure == "median_error").describe()
-    assert line.startswith("robot T tracked 70.7 mm from the truth") and "scenario check" in line
+    assert line.startswith("robot T tracked 70.7 mm from the truth") and "calibration" in line
 
 
 def test_a_robot_hidden_by_an_obstacle_is_not_counted_as_missed():
     wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))     # tall, right beside T
-    monitor = HealthMonitor(NAMES, 0.05, (wall,), 0.03**2)
+    monitor = HealthMonitor(NAMES, 0.05, (wall,), square(0.03))
     detected = np.array([True, True, False])
     monitor.add(detected, np.where(detected[:, None], TRUTH, np.nan), TRUTH,
                 np.array([0.0, 1.0, 2.0]))
@@ -97,7 +102,7 @@ def test_a_run_that_tracked_nothing_is_not_healthy_and_a_hidden_robot_is_not_mis
     assert findings[0].describe().startswith("no frame tracked")
     assert math.isnan(nothing.robots[0].detected_frames)
     wall = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))
-    hidden = HealthMonitor(NAMES, 0.05, (wall,), 0.03**2)
+    hidden = HealthMonitor(NAMES, 0.05, (wall,), square(0.03))
     hidden.add(np.array([True, True, False]), TRUTH, TRUTH, np.array([0.0, 1.0, 2.0]))
     seen = HealthMonitor(NAMES)
     _frames(seen, TRUTH, np.ones(3, bool))
@@ -168,22 +173,33 @@ def test_occlusion_follows_the_camera_rays_not_the_distance_to_an_obstacle():
     faces the camera, is in full view; on the far side, the box hides it."""
     box = Obstacle("box", (0.5, 0.0), (0.2, 0.2, 0.3))
     camera = np.array([0.0, 0.0, 2.5])
-    near = np.array([[0.34, 0.0]])                 # between the box and the camera: seen
-    far = np.array([[0.66, 0.0]])                  # behind it: hidden
-    assert not occluded(near, 0.06, camera, (box,), 0.06)[0]
-    assert occluded(far, 0.06, camera, (box,), 0.06)[0]
-    assert occluded(np.array([[0.5, 0.0]]), 0.06, camera, (box,), 0.06)[0]     # under its top
+    tag = square(0.06)
+    near = np.array([[0.34, 0.0, 0.3]])            # between the box and the camera: seen
+    far = np.array([[0.66, 0.0, 0.3]])             # behind it: hidden
+    assert not occluded(near, 0.06, camera, (box,), tag)[0]
+    assert occluded(far, 0.06, camera, (box,), tag)[0]
+    assert occluded(np.array([[0.5, 0.0, 0.0]]), 0.06, camera, (box,), tag)[0]   # under its top
     cyl = Obstacle("cylinder", (0.5, 0.0), (0.2, 0.3))
-    assert not occluded(near, 0.06, camera, (cyl,), 0.06)[0]
-    assert occluded(far, 0.06, camera, (cyl,), 0.06)[0]
+    assert not occluded(near, 0.06, camera, (cyl,), tag)[0]
+    assert occluded(far, 0.06, camera, (cyl,), tag)[0]
     low = Obstacle("box", (0.5, 0.0), (0.2, 0.2, 0.05))        # below the marker plane
-    assert not occluded(far, 0.06, camera, (low,), 0.06)[0]
-    assert not occluded(np.array([[np.nan, np.nan]]), 0.06, camera, (box,), 0.06)[0]
+    assert not occluded(far, 0.06, camera, (low,), tag)[0]
+    assert not occluded(np.array([[np.nan, np.nan, 0.0]]), 0.06, camera, (box,), tag)[0]
+
+
+def test_a_marker_partly_behind_an_obstacle_is_hidden_by_its_corners_as_it_turns():
+    """A long marker (a 20 cm bar) whose centre is in view: pointing along the box's side it
+    is seen whole; turned so one end reaches under the box, it is hidden."""
+    box = Obstacle("box", (0.5, 0.0), (0.2, 0.2, 0.3))
+    camera = np.array([0.0, 0.0, 2.5])
+    bar = np.array([[0.1, 0.0], [-0.1, 0.0]])
+    assert not occluded(np.array([[0.32, 0.0, np.pi / 2]]), 0.06, camera, (box,), bar)[0]
+    assert occluded(np.array([[0.32, 0.0, 0.0]]), 0.06, camera, (box,), bar)[0]
 
 
 def test_a_robot_hidden_in_too_many_rows_is_a_finding():
     box = Obstacle("box", (-0.6, 0.2), (0.2, 0.1, 0.5))
-    monitor = HealthMonitor(NAMES, 0.05, (box,), 0.03**2)
+    monitor = HealthMonitor(NAMES, 0.05, (box,), square(0.03))
     camera = np.array([0.0, 1.0, 2.0])
     for _ in range(10):
         monitor.add(np.array([True, True, False]), TRUTH, TRUTH, camera)
