@@ -137,3 +137,22 @@ def open_edges(mesh: trimesh.Trimesh) -> int:
     import trimesh
 
     return len(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1))
+
+
+def top_points(verts: np.ndarray, faces: np.ndarray, n: int = 101) -> np.ndarray:
+    """(k, 2) the points of an n x n grid over the mesh's bounding box that its upward faces
+    cover seen from above: the marker as a camera's pixels sample it (for the apex rule, which
+    has no closed form)."""
+    tri = np.asarray(verts, np.float64)[np.asarray(faces, np.int64)][:, :, :2]
+    lo, hi = tri.reshape(-1, 2).min(axis=0), tri.reshape(-1, 2).max(axis=0)
+    g = np.stack(np.meshgrid(*(np.linspace(lo[k], hi[k], n) for k in range(2))), -1)
+    p = g.reshape(-1, 2)
+    inside = np.zeros(len(p), bool)
+    for a, b, c in tri:
+        d = (b[1] - c[1]) * (a[0] - c[0]) + (c[0] - b[0]) * (a[1] - c[1])
+        if abs(d) < 1e-18:
+            continue
+        l1 = ((b[1] - c[1]) * (p[:, 0] - c[0]) + (c[0] - b[0]) * (p[:, 1] - c[1])) / d
+        l2 = ((c[1] - a[1]) * (p[:, 0] - c[0]) + (a[0] - c[0]) * (p[:, 1] - c[1])) / d
+        inside |= (l1 >= 0) & (l2 >= 0) & (l1 + l2 <= 1)
+    return p[inside]

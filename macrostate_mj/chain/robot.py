@@ -28,6 +28,7 @@ import numpy as np
 from macrostate_mj.chain.markers import (
     MIN_SATURATION,
     MIN_VALUE,
+    apex_behind,
     marker_colours,
     taken_for_marker,
 )
@@ -39,6 +40,7 @@ from macrostate_mj.chain.meshes import (
     mesh_file,
     open_edges,
     read_mesh,
+    top_points,
     top_view,
 )
 from macrostate_mj.core.errors import UserError
@@ -413,9 +415,12 @@ def _check_marker(model: mujoco.MjModel, data: mujoco.MjData, root: int,
     vals, vecs = np.linalg.eigh(view.covariance)
     axis = vecs[:, 1]                                   # the principal (long) axis
     angle = np.degrees(np.arccos(min(1.0, abs(float(axis[0])))))
-    if vals[1] < MARKER_ELONGATION * vals[0] or angle > MARKER_AXIS_DEG or view.skew <= 0:
+    pts = top_points(geom_vertices(model, g, data, root), geom_faces(model, g)) - view.centroid
+    if vals[1] < MARKER_ELONGATION * vals[0] or angle > MARKER_AXIS_DEG or view.skew <= 0 \
+            or apex_behind(pts[:, 0], pts[:, 1]):
         raise refuse("the marker must be longer along +x than across, with its apex (the thin "
-                     "end) forward at +x: the tracker reads the heading from its shape")
+                     "end, the narrower half) forward at +x: the tracker reads the heading from "
+                     "its shape")
 
 
 def check_colours(robot: mujoco.MjSpec | mujoco.MjModel, path: Path | str,

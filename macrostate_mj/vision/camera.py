@@ -56,26 +56,45 @@ def distort_pixels(uv: np.ndarray, k: np.ndarray, distortion: Distortion) -> np.
 class Lens:
     """Bends ideal renders into distorted frames: remap maps built once per camera (for each
     output pixel, its source in the pinhole image: `undistort_pixels` on the pixel grid), one
-    `cv2.remap` per frame. An ideal lens (all zero) returns frames untouched."""
+    `cv2.remap` per frame. An ideal lens (all zero) returns frames untouched.
+
+    A barrel lens sees more than the pinhole image of its size: its frame's edges come from
+    beyond that image. With `pad`, the maps read from an ideal render `pad` = (px, py) pixels
+    larger on each side (the same focal length and centre: `OverheadRenderer` renders it), so the
+    whole frame is scene; without, the frame is black there (`apply`'s border)."""
 
     def __init__(self, width: int, height: int, focal: float,
-                 distortion: Distortion = NO_DISTORTION):
+                 distortion: Distortion = NO_DISTORTION, pad: bool = False):
         self.distortion = tuple(float(c) for c in distortion)
         self.ideal = not any(self.distortion)
         self.k = camera_matrix(width, height, focal)
         self.maps: tuple[np.ndarray, np.ndarray] | None = None
+        self.pad = (0, 0)
         if not self.ideal:
             u, v = np.meshgrid(np.arange(width, dtype=np.float64),
                                np.arange(height, dtype=np.float64))
             src = undistort_pixels(np.stack([u, v], axis=-1), self.k, self.distortion)
+            if pad:
+                self.pad = tuple(_reach(src[..., i], size)
+                                 for i, size in enumerate((width, height)))
+                src = src + self.pad
             self.maps = cv2.convertMaps(src[..., 0].astype(np.float32),
                                         src[..., 1].astype(np.float32), cv2.CV_16SC2)
 
     def apply(self, rgb: np.ndarray) -> np.ndarray:
-        """The frame this lens makes of an ideal render (bilinear; black beyond the render)."""
+        """The frame this lens makes of an ideal render, `pad` larger on each side
+        (bilinear; black beyond the render)."""
         if self.maps is None:
             return rgb
         return cv2.remap(rgb, *self.maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+
+
+def _reach(src: np.ndarray, size: int) -> int:
+    """Pixels an ideal image of `size` must grow on each side to hold every source coordinate
+    in `src` (one more for the bilinear neighbour), at most `size` (a lens that reaches farther
+    folds, and `chain.scene.check_camera` refuses it)."""
+    beyond = max(0.0, -float(src.min()), float(src.max()) - (size - 1))
+    return min(size, int(np.ceil(beyond)) + 1) if beyond > 0 else 0
 
 
 @dataclass(frozen=True)
@@ -154,13 +173,28 @@ class OverheadRenderer:
         self.width = int(width or model.cam_resolution[cam.id][0])
         self.height = int(height or model.cam_resolution[cam.id][1])
         self.name = name
-        self.lens = Lens(self.width, self.height,
-                         focal_length(self.height, float(cam.fovy[0])), distortion)
-        self._renderer = mujoco.Renderer(model, height=self.height, width=self.width)
+        focal = focal_length(self.height, float(cam.fovy[0]))
+        self.lens = Lens(self.width, self.height, focal, distortion, pad=True)
+        px, py = self.lens.pad
+        # the ideal render the lens reads: `pad` wider on each side, the same focal length
+        self._model, self._cam = model, cam.id
+        self._fovy = float(np.degrees(2 * np.arctan((self.height + 2 * py) / (2 * focal))))
+        size = (self.width + 2 * px, self.height + 2 * py)
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, size[0])
+        model.vis.global_.offheight = max(model.vis.global_.offheight, size[1])
+        self._renderer = mujoco.Renderer(model, height=size[1], width=size[0])
 
     def render(self, data: mujoco.MjData) -> np.ndarray:
         """RGB uint8 (height, width, 3) of the current state, through the lens (if any)."""
-        self._renderer.update_scene(data, camera=self.name)
+        if self.lens.pad == (0, 0):
+            self._renderer.update_scene(data, camera=self.name)
+        else:                      # the padded render's field of view, for this scene only
+            fovy = self._model.cam_fovy[self._cam]
+            self._model.cam_fovy[self._cam] = self._fovy
+            try:
+                self._renderer.update_scene(data, camera=self.name)
+            finally:
+                self._model.cam_fovy[self._cam] = fovy
         return self.lens.apply(self._renderer.render())
 
     def close(self) -> None:

@@ -6,8 +6,8 @@ model, the marker colours and the marker's size, as on the real testbed (seed §
 Per robot: pixels whose hue is near the robot's colour (saturated, not dark) are kept near their
 median (so stray specks do not pull the fit); the centroid of the pixel set is the triangle's
 centroid (sub-pixel: an affine view keeps centroids), the principal axis of its second moments
-is the triangle's long axis, and the sign of the third moment along that axis points to the apex
-(the apex side is the thin tail of the distribution). The centroid and a point along the axis go
+is the triangle's long axis, and the apex lies on the side of the centroid whose pixels spread
+less across that axis (the base's half is the wider). The centroid and a point along the axis go
 through the camera's plane homography to world metres at marker height.
 """
 
@@ -22,6 +22,7 @@ import numpy as np
 from macrostate_mj.chain.markers import (
     MIN_SATURATION,
     MIN_VALUE,
+    apex_behind,
     hue_distance,
     hue_tolerance,
     marker_hues,
@@ -125,7 +126,7 @@ class Tracker:
             d = pts - c
             _, vecs = np.linalg.eigh(d.T @ d)
             e = vecs[:, 1]                               # long axis
-            if np.mean((d @ e) ** 3) < 0:                # apex on the thin tail
+            if apex_behind(d @ e, d @ (-e[1], e[0])):
                 e = -e
             uv[i], axis[i], detected[i] = c, e, True
         poses = np.full((n, 3), np.nan)
