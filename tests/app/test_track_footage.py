@@ -167,6 +167,30 @@ def test_an_evenly_restamped_video_disagrees_with_its_sidecar(footage, capsys, t
     assert np.median(_error_mm(tmp_path / "trk", footage / "run_drop")) < 3
 
 
+def test_an_evenly_restamped_video_without_its_sidecar_is_refused_by_the_motion(footage, capsys,
+                                                                              tmp_path):
+    """With no sidecar to say so, the robots' motion does: across a hidden gap every robot
+    moving steadily goes twice its way (`hidden_drop`); the true times never raise it. Twenty
+    seconds, so that the chain has got going."""
+    from macrostate_mj.app.track import hidden_drop
+
+    res = cli("simulate", "--scenario", str(footage / "drop.toml"), "--robots", "4",
+              "--seconds", "20", "--seed", "3", "--track", "--camera-video",
+              str(tmp_path / "long.mp4"), "--out", str(tmp_path / "run"))
+    assert res.returncode == 0, res.stderr
+    video = _reencode(tmp_path / "long.mp4", tmp_path / "even.mp4", "libx264", "even")
+    code, _, err = _track(capsys, video, footage / "drop.toml", tmp_path / "never")
+    lines = [ln for ln in err.strip().splitlines() if "tracking:" not in ln]   # no progress
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert "a dropped frame the times do not show" in err and "--times" in err
+    assert not (tmp_path / "never").exists()
+    run = pq.read_table(tmp_path / "run" / "poses.parquet").to_pandas()
+    n = run.robot.nunique()
+    tracked = run[["x_trk", "y_trk"]].to_numpy().reshape(-1, n, 2)
+    detected = run.detected.to_numpy().reshape(-1, n)
+    assert hidden_drop(tracked, detected, run.t.to_numpy()[::n]) is None
+
+
 @pytest.mark.parametrize("case,words", [
     ("both", ["--times", "--fps", "not both"]),
     ("short", ["lists 3 frame times", "give the times file of this video"]),
