@@ -36,51 +36,20 @@ def wilcoxon_p(differences: list[float]) -> float | None:
     return float(wilcoxon(differences).pvalue)
 
 
-def paired_interval(differences: list[float]) -> dict[str, float | int | None]:
-    """Paired differences over seeds: their mean and its 95 % t interval (None under 2
-    pairs), so a difference whose interval holds 0 reads as inconclusive."""
+def paired_interval(differences: list[float], ratio: float = 0.0
+                    ) -> dict[str, float | int | None]:
+    """Paired differences over independent units: their mean and its 95 % t interval (None
+    under 2 pairs; `ratio` as in `t_interval`, for folds that share training data), so a
+    difference whose interval holds 0 reads as inconclusive."""
     import numpy as np
-    from scipy.stats import ttest_1samp
 
     d = np.asarray(differences, float)
     if len(d) < 2:
         return {"mean": float(d.mean()) if len(d) else None, "low": None, "high": None,
                 "n": len(d)}
-    ci = ttest_1samp(d, 0.0).confidence_interval(0.95)
-    return {"mean": float(d.mean()), "low": float(ci.low), "high": float(ci.high), "n": len(d)}
-
-
-def zero_crossing(x: list[float], y: list[float], level: float = 0.95
-                  ) -> dict[str, float | int | None]:
-    """Where the least-squares line of `y` on `x` crosses y = 0, with its Fieller interval
-    (the x whose predicted y holds 0 within its t interval; exact for normal scatter about a
-    line, as the t intervals of the rest are): how far `x` must move for `y` to reach 0, read
-    off runs that differ in `x`. An end is None where the slope cannot be told from 0 (the
-    interval is then unbounded). `r` is the points' correlation, which says whether a line
-    reads them."""
-    import numpy as np
-    from scipy.stats import linregress, t
-
-    xs, ys = np.asarray(x, float), np.asarray(y, float)
-    n = len(xs)
-    if xs.shape != ys.shape or xs.ndim != 1 or not np.isfinite([*xs, *ys]).all():
-        raise UserError(f"a crossing needs as many finite y as x, got {len(xs)} x and "
-                        f"{len(ys)} y (non-finite ones dropped first, if meant)")
-    if n < 3 or np.ptp(xs) == 0:
-        raise UserError("a crossing needs 3 points or more, not all at one x")
-    fit = linregress(xs, ys)
-    a, b = fit.intercept, fit.slope
-    s2 = float(np.sum((ys - a - b * xs) ** 2)) / (n - 2)
-    sxx, mean = float(np.sum((xs - xs.mean()) ** 2)), float(xs.mean())
-    q = t.ppf(0.5 + level / 2, n - 2) ** 2 * s2          # (a + b x)^2 = q (1/n + (x - mean)^2/sxx)
-    c2, c1 = b * b - q / sxx, 2 * (a * b + q * mean / sxx)
-    c0 = a * a - q * (1 / n + mean * mean / sxx)
-    low = high = None
-    if c2 > 0:                                           # the slope is told from 0: bounded
-        root = np.sqrt(max(c1 * c1 - 4 * c2 * c0, 0.0))
-        low, high = sorted(float(v) for v in ((-c1 - root) / (2 * c2), (-c1 + root) / (2 * c2)))
-    return {"x": float(-a / b) if b else None, "low": low, "high": high,
-            "r": float(fit.rvalue), "n": n}
+    ci = t_interval(float(d.mean()), float(d.std()), len(d), ratio=ratio)
+    assert ci is not None
+    return {"mean": float(d.mean()), "low": ci[0], "high": ci[1], "n": len(d)}
 
 
 def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any, Any]:
@@ -102,26 +71,44 @@ def cv_blocks(n: int, folds: int, fold: int, val_share: float) -> tuple[Any, Any
 # Seeds, folds and datasets come in threes and fives, where a percentile bootstrap undercovers
 # (95 % intervals hold the mean 76 % of the time at n = 3, 84 % at 5, 89 % at 9: 2,000 normal
 # draws each); Student's t holds 95 % at every n, so intervals and order tests here are t's.
+# Cross-validated folds overlap in their training data, so their scores correlate and a plain t
+# over folds is too narrow: `ratio` (n_test / n_train, 0 for independent units) applies Nadeau
+# and Bengio's (2003) corrected resampled t, the mean's variance s^2 (1/n + n_test/n_train)
+# instead of s^2 / n, with n - 1 degrees of freedom.
 
 def _sample_sd(std: float, n: int) -> float:
     """The sample standard deviation from a population one (what results files keep)."""
     return std * (n / (n - 1)) ** 0.5
 
 
-def t_interval(mean: float, std: float, n: int, level: float = 0.95) -> tuple[float, float] | None:
-    """The `level` t interval of a mean over `n` independent units given the population `std`;
-    None under 2 units (no spread to judge by)."""
+def cv_ratio(folds: int) -> float:
+    """n_test / n_train of `folds` equal contiguous blocks, each tested once and trained on the
+    rest (`cv_blocks`; the validation share chooses the checkpoint, so it counts as training)."""
+    if folds < 2:
+        raise UserError(f"cross-validation needs at least 2 folds, not {folds}")
+    return 1 / (folds - 1)
+
+
+def _se(sd: float, n: int, ratio: float) -> float:
+    """The standard error of a mean over `n` units, corrected for overlapping training sets."""
+    return sd * (1 / n + ratio) ** 0.5
+
+
+def t_interval(mean: float, std: float, n: int, level: float = 0.95, ratio: float = 0.0
+               ) -> tuple[float, float] | None:
+    """The `level` t interval of a mean over `n` units given the population `std` (`ratio`:
+    the Nadeau-Bengio correction for folds that share training data); None under 2 units."""
     from scipy.stats import t
 
     if n < 2:
         return None
-    half = t.ppf(0.5 + level / 2, n - 1) * _sample_sd(std, n) / n ** 0.5
+    half = t.ppf(0.5 + level / 2, n - 1) * _se(_sample_sd(std, n), n, ratio)
     return mean - half, mean + half
 
 
-def p_above(mean: float, std: float, n: int) -> float | None:
-    """One-sided t p of "the units' true mean is above 0" against "at most 0"; None under 2
-    units. With std 0 the sign decides (p 0 or 1)."""
+def p_above(mean: float, std: float, n: int, ratio: float = 0.0) -> float | None:
+    """One-sided t p of "the units' true mean is above 0" against "at most 0" (`ratio` as in
+    `t_interval`); None under 2 units. With std 0 the sign decides (p 0 or 1)."""
     from scipy.stats import t
 
     if n < 2:
@@ -129,7 +116,7 @@ def p_above(mean: float, std: float, n: int) -> float | None:
     sd = _sample_sd(std, n)
     if sd == 0:
         return 0.0 if mean > 0 else 1.0
-    return float(t.sf(mean / (sd / n ** 0.5), n - 1))
+    return float(t.sf(mean / _se(sd, n, ratio), n - 1))
 
 
 def p_above_welch(a: tuple[float, float, int], b: tuple[float, float, int]) -> float | None:
@@ -148,9 +135,11 @@ def p_above_welch(a: tuple[float, float, int], b: tuple[float, float, int]) -> f
 
 
 def units_to_decide(effect: float, std: float, n: int, alpha: float = 0.05,
-                    two_sided: bool = False, limit: int = 10_000) -> int | None:
+                    two_sided: bool = False, limit: int = 10_000, ratio: float = 0.0
+                    ) -> int | None:
     """How many units a t test would need to reach `alpha` at the observed `effect` (mean, or
-    mean difference) and spread; None when the spread is unknown (n < 2) or the effect is 0."""
+    mean difference) and spread (`ratio`: resamples of the same overlap); None when the spread
+    is unknown (n < 2), the effect is 0, or no count reaches it."""
     import numpy as np
     from scipy.stats import t
 
@@ -161,20 +150,21 @@ def units_to_decide(effect: float, std: float, n: int, alpha: float = 0.05,
         return 2
     q = 1 - alpha / 2 if two_sided else 1 - alpha
     m = np.arange(2, limit + 1)
-    enough = np.flatnonzero(abs(effect) / (sd / np.sqrt(m)) > t.ppf(q, m - 1))
+    enough = np.flatnonzero(abs(effect) / _se(sd, m, ratio) > t.ppf(q, m - 1))  # type: ignore[arg-type]
     return int(m[enough[0]]) if len(enough) else None
 
 
 def units_to_narrow(std: float, n: int, half_width: float, level: float = 0.95,
-                    limit: int = 10_000) -> int | None:
+                    limit: int = 10_000, ratio: float = 0.0) -> int | None:
     """How many units would bring the `level` t interval's half-width to `half_width` at the
-    observed spread; None when the spread is unknown (n < 2)."""
+    observed spread; None when the spread is unknown (n < 2) or no count reaches it."""
     import numpy as np
     from scipy.stats import t
 
-    if n < 2:
+    if n < 2 or half_width <= 0:
         return None
     sd = _sample_sd(std, n)
     m = np.arange(2, limit + 1)
-    enough = np.flatnonzero(t.ppf(0.5 + level / 2, m - 1) * sd / np.sqrt(m) <= half_width)
+    enough = np.flatnonzero(t.ppf(0.5 + level / 2, m - 1) * _se(sd, m, ratio)  # type: ignore[arg-type]
+                            <= half_width)
     return int(m[enough[0]]) if len(enough) else None
