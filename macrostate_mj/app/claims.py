@@ -2,9 +2,12 @@
 
 `claims.toml` beside this module gives per claim the text's value or order, where ours lives in
 a results folder (a *source* expression such as ``srs(srs_text, passive, 1.0000)``) and its kind.
-Every source returns a `Figure`: ours over the independent units the folder holds (seeds, folds,
-datasets), with per-unit values where the records keep them so that orderings pair them. The
-`claims` command and the docs' chapter pages both call `judge_all`, so they cannot differ.
+Every source returns a `Figure`: ours per run, with per-run values where the records keep them
+so that orderings pair them. What is independent is declared beside the results, not guessed from
+the run count: each folder's entry of `results/index.toml` (a claim may override it) names its
+unit and how units nest (`Design`), and `judge` averages nested runs to that unit and corrects
+overlapping folds before any interval is drawn. The `claims` command and the docs' chapter pages
+both call `judge_all`, so they cannot differ.
 """
 
 from __future__ import annotations
@@ -23,19 +26,37 @@ from macrostate_mj.core.errors import UserError
 
 CLAIMS = Path(__file__).with_name("claims.toml")
 ALPHA = 0.05
-MARGIN = 0.1                    # a value claim's default margin: 10 % of the text's value
-RULE = ("A value claim agrees when the text's value lies inside our 95 % t interval over the "
-        "independent seeds, folds or datasets the row averages and that interval is no wider "
-        "than the row's margin either side (10 % of the text's value unless the row names "
-        "another), and disagrees when the interval excludes it. An ordering agrees when a "
-        "one-sided t test over the same units (paired where the records pair them, else Welch) "
-        "rejects the reverse order at p < .05, and "
-        "disagrees when it rejects the text's order; a claim over several comparisons (\"every "
-        "step\", \"each model\") agrees only when every one agrees and disagrees when any one "
-        "rejects the text's order at .05 divided by their count. Anything else is inconclusive, "
-        "with the number of units that would decide it at the observed spread. A row measured "
-        "elsewhere than where the text speaks is not comparable, and a row whose text gives "
-        "neither a number nor an order is qualitative: neither is counted as agree.")
+# a value claim's margin on its metric's own scale: (absolute, share of the text's value); 10 %
+# of an AUC would be 0.05-0.08, wider than the gaps the text ranks
+MARGINS: dict[str, tuple[float, float]] = {"auc": (0.02, 0.0), "cm": (0.0, 0.1),
+                                           "%": (0.0, 0.1)}
+# the same seed and command on two CPUs (one with AVX-512, bf16 and fp16 instructions): what
+# makes one training's figure move although each machine repeats it bit for bit
+MACHINES = ("IO-GEN's AUC on one real held-out split .757 and .694, the chained LSTM's 3-robot "
+            "error with seed 0 4.6 and 6.5 cm")
+RULE = ("Units: each row's interval is over the independent units its folder declares in "
+        "results/index.toml (a seed with its own data and test, a cross-validated fold, a "
+        "dataset, a split, or the test instances of one training), shown beside its number; "
+        "runs nested in a unit (the seeds of one split) are averaged to it first, never counted "
+        "apart, and what every unit shares (one fixed test file, one dev set) is named beside "
+        "the number: the interval holds none of its sampling. Corrections: folds that overlap "
+        "in their training data get Nadeau and Bengio's corrected resampled t (the variance of "
+        "the mean s² (1/k + n_test/n_train) instead of s²/k; n_test/n_train = 1/(k - 1) for k "
+        "contiguous folds); every other interval is Student's t over the units. Margins, on "
+        "the metric's own scale: an AUC ± 0.02, an error in cm ± 10 % of the text's value, a "
+        "percentage ± 10 % of the text's value, or the row's stated reason. A value claim "
+        "agrees when our 95 % interval lies inside the text's value ± its margin, disagrees "
+        "when it lies wholly outside it, and is inconclusive otherwise. An ordering agrees when "
+        "a one-sided t test over the same units (paired where the records pair them, else "
+        "Welch) rejects the reverse order at p < .05, and disagrees when it rejects the text's "
+        "order; a claim over several comparisons (\"every step\", \"each model\") agrees only "
+        "when every one agrees and disagrees when any one rejects the text's order at .05 "
+        "divided by their count. A figure of one training (one seed) says so and is "
+        "inconclusive: the same seed moves between machines (" + MACHINES + "), more than the "
+        "margins. Anything inconclusive gives the number of units that would decide it at the "
+        "observed spread. A row measured elsewhere than where the text speaks is not "
+        "comparable, and a row whose text gives neither a number nor an order is qualitative: "
+        "neither is counted as agree.")
 VERDICTS = ("agree", "disagree", "inconclusive", "not comparable", "qualitative")
 
 
@@ -56,14 +77,17 @@ class Figure:
     given: tuple[float, float] | None = None
     fmt: str = ".1f"
     unit: str = ""
+    ratio: float = 0.0          # n_test / n_train where the units are overlapping folds
 
     @classmethod
-    def of(cls, values: dict[str, float], fmt: str = ".1f", unit: str = "") -> Figure:
+    def of(cls, values: dict[str, float], fmt: str = ".1f", unit: str = "",
+           ratio: float = 0.0) -> Figure:
         ms = stats.mean_std(list(values.values()))
-        return cls(ms["mean"], ms["std"], ms["n"], dict(values), None, fmt, unit)  # type: ignore[arg-type]
+        return cls(ms["mean"], ms["std"], ms["n"], dict(values), None, fmt, unit,  # type: ignore[arg-type]
+                   ratio)
 
     def interval(self) -> tuple[float, float] | None:
-        return self.given or stats.t_interval(self.mean, self.std, self.n)
+        return self.given or stats.t_interval(self.mean, self.std, self.n, ratio=self.ratio)
 
     def minus(self, other: Figure | float) -> Figure:
         """Self − other: paired per unit where both keep values for ≥ 2 shared units."""
@@ -77,7 +101,7 @@ class Figure:
             shared = [k for k in self.values if k in other.values]
             if len(shared) >= 2:
                 return Figure.of({k: self.values[k] - other.values[k] for k in shared},
-                                 self.fmt, self.unit)
+                                 self.fmt, self.unit, max(self.ratio, other.ratio))
         raise _Unpaired
 
     def text(self, digits: str | None = None) -> str:
@@ -89,6 +113,77 @@ class Figure:
         spread = f" [{ci[0]:{fmt}}, {ci[1]:{fmt}}]" if ci else ""
         units = "" if self.given else f", n {self.n}"   # a folder's interval is over samples
         return f"{self.mean:{fmt}}{unit}{spread}{units}"
+
+
+@dataclass(frozen=True)
+class Design:
+    """What a folder's runs are as evidence, declared in `results/index.toml` (a claim may
+    override any key): `unit` the independent unit (seed, fold, dataset, split, test
+    instance); `within` a unit nested in it, whose runs are averaged to the outer unit found
+    in each run's key by the regex `group`; `folds` the count of cross-validated folds whose
+    training sets overlap (Nadeau-Bengio corrected); `shared` what every unit shares, said
+    beside the number; `trainings` 1 where the figure is one training's."""
+
+    unit: str
+    within: str = ""
+    group: str = ""
+    folds: int = 0
+    shared: str = ""
+    trainings: int = 0
+
+    KEYS = ("unit", "within", "group", "folds", "shared", "trainings")
+
+    @classmethod
+    def of(cls, entry: dict, where: str) -> Design:
+        if not entry.get("unit"):
+            raise ClaimsError(f"{where} declares no `unit`: name what is independent (seed, "
+                              "fold, dataset, split or test instance) in results/index.toml")
+        if bool(entry.get("within")) != bool(entry.get("group")):
+            raise ClaimsError(f"{where}: `within` and `group` come together (the nested unit "
+                              "and the regex that finds its outer unit in a run's key)")
+        return cls(**{k: entry[k] for k in cls.KEYS if k in entry})
+
+    @property
+    def ratio(self) -> float:
+        return stats.cv_ratio(self.folds) if self.folds else 0.0
+
+    def correction(self) -> str:
+        """The correction as `claims --json` and the pages name it."""
+        if not self.folds:
+            return "none: independent units, Student's t"
+        return (f"Nadeau-Bengio corrected resampled t over {self.folds} overlapping folds "
+                f"(n_test/n_train = 1/{self.folds - 1})")
+
+    def apply(self, fig: Figure) -> Figure:
+        """`fig` over this design's units: nested runs averaged to their outer unit, the
+        folds' correction attached. A folder's own interval (a bootstrap) is left as it is."""
+        if fig.given or fig.n == 0:
+            return fig
+        if self.within:
+            if not fig.values:
+                raise ClaimsError(f"runs nested in {self.unit}s need each run's value to "
+                                  "average them, and this record keeps only a mean")
+            groups: dict[str, list[float]] = {}
+            for key, value in fig.values.items():
+                match = re.search(self.group, key)
+                if not match:
+                    raise ClaimsError(f"run {key!r} names no {self.unit} ({self.group!r})")
+                groups.setdefault(match[0], []).append(value)
+            fig = Figure.of({k: sum(v) / len(v) for k, v in groups.items()}, fig.fmt, fig.unit)
+        return replace(fig, ratio=self.ratio)
+
+    def says(self, n: int | None) -> str:
+        """Beside a number: its units, how runs nest in them, the correction, what is shared."""
+        if self.trainings == 1 or n is None:
+            what = f"one training; interval over {self.unit}s" if self.trainings == 1 else ""
+        else:
+            what = f"{self.unit}s" if n != 1 else self.unit
+            if self.within:
+                what += f", {self.within}s averaged within each"
+            if self.folds:
+                what += ", Nadeau-Bengio corrected"
+        return "; ".join(p for p in (what, f"all share {self.shared}" if self.shared else "")
+                         if p)
 
 
 class _Unpaired(Exception):
@@ -332,7 +427,8 @@ class Comparison:
         except _Unpaired:
             r = self.right
             assert isinstance(r, Figure)
-            a, b = (self.left.mean, self.left.std, self.left.n), (r.mean, r.std, r.n)
+            # overlapping folds: the std that gives the corrected standard error at n units
+            a, b = ((f.mean, f.std * (1 + f.n * f.ratio) ** 0.5, f.n) for f in (self.left, r))
             hi, lo = (a, b) if sign > 0 else (b, a)
             spread = Figure(hi[0] - lo[0], (a[1] ** 2 + b[1] ** 2) ** 0.5, min(a[2], b[2]))
             return stats.p_above_welch(hi, lo), stats.p_above_welch(lo, hi), spread
@@ -340,7 +436,8 @@ class Comparison:
             lo, hi = sorted((sign * diff.given[0], sign * diff.given[1]))
             return (0.0 if lo > 0 else 1.0), (0.0 if hi < 0 else 1.0), None
         d = replace(diff, mean=sign * diff.mean)
-        return stats.p_above(d.mean, d.std, d.n), stats.p_above(-d.mean, d.std, d.n), d
+        return (stats.p_above(d.mean, d.std, d.n, d.ratio),
+                stats.p_above(-d.mean, d.std, d.n, d.ratio), d)
 
 
 @dataclass
@@ -365,12 +462,26 @@ class Judged:
     would_decide: int | None = None
     smoke: bool = False
     finding: str = ""
+    unit: str = ""
+    correction: str = ""
+    margin: str = ""
     extra: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
         keys = ("chapter", "figure", "claim", "text", "text_value", "ours", "lo", "hi", "n",
-                "kind", "verdict", "folder", "comparator", "why", "would_decide", "smoke")
+                "unit", "correction", "margin", "kind", "verdict", "folder", "comparator", "why",
+                "would_decide", "smoke")
         return {k: getattr(self, k) for k in keys}
+
+
+def margin_verdict(lo: float, hi: float, value: float, margin: float) -> str:
+    """The two-sided margin rule: agree when [lo, hi] lies inside value ± margin, disagree
+    when it lies wholly outside it, inconclusive when it straddles an edge."""
+    if value - margin <= lo and hi <= value + margin:
+        return "agree"
+    if hi < value - margin or lo > value + margin:
+        return "disagree"
+    return "inconclusive"
 
 
 def _value_verdict(ours: Figure, text_value: float, margin: float
@@ -378,14 +489,18 @@ def _value_verdict(ours: Figure, text_value: float, margin: float
     ci = ours.interval()
     if ci is None:
         return "inconclusive", "one unit: no spread to judge by", None
-    if not ci[0] <= text_value <= ci[1]:
-        return "disagree", "our 95 % interval excludes the text's value", None
-    half = (ci[1] - ci[0]) / 2
-    if half > margin:
-        return "inconclusive", (f"the text's value is inside an interval too wide to tell "
-                                f"(± {half:.2g} against a margin of ± {margin:.2g})"), (
-            stats.units_to_narrow(ours.std, ours.n, margin))
-    return "agree", "the text's value lies inside our 95 % interval", None
+    verdict = margin_verdict(ci[0], ci[1], text_value, margin)
+    band = (f"the text's {text_value:g} ± {margin:.2g} "
+            f"([{text_value - margin:.3g}, {text_value + margin:.3g}])")
+    if verdict == "agree":
+        return verdict, f"our 95 % interval lies inside {band}", None
+    if verdict == "disagree":
+        return verdict, f"our 95 % interval lies wholly outside {band}", None
+    # the units that would decide it at the observed spread: an interval narrow enough to
+    # fit inside the band (mean inside it) or to clear it (mean outside it)
+    room = margin - abs(ours.mean - text_value)
+    would = stats.units_to_narrow(ours.std, ours.n, abs(room), ratio=ours.ratio)
+    return verdict, f"our 95 % interval straddles an edge of {band}", would
 
 
 def _order_verdict(comparisons: list[Comparison]) -> tuple[str, str, int | None]:
@@ -403,10 +518,10 @@ def _order_verdict(comparisons: list[Comparison]) -> tuple[str, str, int | None]
         return "agree", f"the text's order holds (p < .05{'' if k == 1 else f', all {k}'})", None
     # units that would decide it at the observed spread: the fewest that make one reverse
     # order significant (a disagree needs one), else the most any text-order one needs
-    reverse = [stats.units_to_decide(-d.mean, d.std, d.n, ALPHA / k) for _, d in open_
-               if d is not None and d.mean < 0]
-    ahead = [stats.units_to_decide(d.mean, d.std, d.n) if d is not None and d.mean > 0
-             else None for _, d in open_]
+    reverse = [stats.units_to_decide(-d.mean, d.std, d.n, ALPHA / k, ratio=d.ratio)
+               for _, d in open_ if d is not None and d.mean < 0]
+    ahead = [stats.units_to_decide(d.mean, d.std, d.n, ratio=d.ratio)
+             if d is not None and d.mean > 0 else None for _, d in open_]
     would = (min((n for n in reverse if n), default=None) if reverse else
              max(ahead) if ahead and None not in ahead else None)  # type: ignore[type-var]
     if k == 1:
@@ -415,32 +530,57 @@ def _order_verdict(comparisons: list[Comparison]) -> tuple[str, str, int | None]
     return "inconclusive", f"{len(open_)} of {k} undecided ({names})", would
 
 
-def _side(spec: object, ours: Figure | None) -> Figure | float:
-    """A comparison's side: a number, `ours`, or a source."""
+def _side(spec: object, ours: Figure | None, design: Design) -> Figure | float:
+    """A comparison's side: a number, `ours`, or a source over the claim's units."""
     if isinstance(spec, int | float):
         return float(spec)
     if spec == "ours":
         if ours is None:
             raise ClaimsError("an order row names `ours` but the claim has none")
         return ours
-    return call(str(spec))
+    return design.apply(call(str(spec)))
 
 
-def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset()) -> Judged:
-    """One claim of `claims.toml` judged by `RULE`."""
+def _margin(claim: dict, text_value: float) -> tuple[float, str]:
+    """A value claim's margin and where it comes from: the row's own (with its reason) or its
+    metric's (`MARGINS`)."""
+    if "margin" in claim:
+        return float(claim["margin"]), claim.get("margin_why", "the row's own")
+    metric = claim.get("metric")
+    if metric not in MARGINS:
+        raise ClaimsError(f"{claim['figure']}: a value claim names its `metric` (one of "
+                          f"{sorted(MARGINS)}) or its own `margin` with `margin_why`")
+    absolute, share = MARGINS[metric]
+    return absolute + share * abs(text_value), metric
+
+
+def design_of(claim: dict, index: dict[str, dict]) -> Design:
+    """The claim's units: its folder's declaration in results/index.toml, the claim's keys
+    over it (one folder may hold tests of different designs)."""
+    folder = claim.get("folder", "")
+    entry = {k: v for k, v in index.get(folder, {}).items() if k in Design.KEYS}
+    entry |= {k: claim[k] for k in Design.KEYS if k in claim}
+    return Design.of(entry, f"results/{folder} ({claim['figure']})")
+
+
+def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset(),
+          index: dict[str, dict] | None = None) -> Judged:
+    """One claim of `claims.toml` judged by `RULE` over the units `index` declares."""
     kind = claim["kind"]
+    design = design_of(claim, index or {})
     text_value = claim.get("text_value")
     if "text_from" in claim:            # a dissertation table kept in code: "0.786 ± 0.009"
         module, _, keypath = claim["text_from"].partition(":")
         claim = {**claim, "text": str(dig(vars(import_module(module)), keypath))}
         text_value = float(re.findall(r"[\d.]+", claim["text"])[0])
-    ours = call(claim["ours"]) if claim.get("ours") else None
-    comparator, why, would = claim.get("comparator_text", ""), "", None
+    ours = design.apply(call(claim["ours"])) if claim.get("ours") else None
+    comparator, why, would, margin = claim.get("comparator_text", ""), "", None, ""
     if kind == "value":
         if ours is None or text_value is None:
             raise ClaimsError(f"{claim['figure']}: a value claim needs `ours` and `text_value`")
-        margin = float(claim.get("margin", MARGIN * abs(float(text_value))))
-        verdict, why, would = _value_verdict(ours, float(text_value), margin)
+        size, source_ = _margin(claim, float(text_value))
+        margin = f"± {size:.3g} ({source_})"
+        verdict, why, would = _value_verdict(ours, float(text_value), size)
     elif kind == "ordering":
         comparisons = []
         first, last = claim.get("steps", [1, 1])
@@ -448,7 +588,8 @@ def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset()
                 for row in claim["order"] for k in range(first, last + 1)
                 if k == first or any("{step}" in str(x) for x in row)]
         for left, op, right, *label in rows:
-            comparisons.append(Comparison(_side(left, ours), op, _side(right, ours),  # type: ignore[arg-type]
+            comparisons.append(Comparison(_side(left, ours, design), op,  # type: ignore[arg-type]
+                                          _side(right, ours, design),
                                           label[0] if label else ""))
         if ours is None:
             ours = comparisons[0].left
@@ -462,6 +603,10 @@ def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset()
     else:
         raise ClaimsError(f"{claim['figure']}: kind must be value, ordering or qualitative, "
                           f"not {kind!r}")
+    if design.trainings == 1 and verdict in ("agree", "disagree"):
+        verdict, why, would = ("inconclusive", f"one training (one seed): the rule would say "
+                               f"{verdict} ({why}), but one seed's figure moves with the seed "
+                               f"and the machine ({MACHINES}), beyond any margin here", None)
     if claim.get("not_comparable"):     # judged all the same, so a reader sees what ours says
         verdict, why, would = ("not comparable", f"{claim['not_comparable']}; on ours the rule "
                                f"says {verdict} ({why})", None)
@@ -471,8 +616,16 @@ def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset()
                   None if text_value is None else float(text_value),
                   None if ours is None else ours.mean, ci[0] if ci else None,
                   ci[1] if ci else None, None if ours is None else ours.n, kind, verdict,
-                  folder, "" if ours is None else ours.text(), comparator, why, would,
-                  folder in smoke_folders, claim.get("finding", ""))
+                  folder, "" if ours is None else _beside(ours, design), comparator, why,
+                  would, folder in smoke_folders, claim.get("finding", ""),
+                  unit=design.says(None if ours is None else ours.n) or design.unit,
+                  correction=design.correction(), margin=margin)
+
+
+def _beside(ours: Figure, design: Design) -> str:
+    """Ours as a row shows it: the number, its interval and n, and its units beside them."""
+    says = design.says(ours.n)
+    return ours.text() + (f" ({says})" if says else "")
 
 
 def load_claims(path: Path = CLAIMS) -> dict[str, list[dict]]:
@@ -489,7 +642,7 @@ def judge_all(results: Path, chapters: list[str] | None = None,
     if not (results / "index.toml").is_file():
         raise ClaimsError(f"{results} is not a results folder (no index.toml): pass --results "
                           "with a checkout's results/ folder")
-    from macrostate_mj.app.provenance import smoke_folders
+    from macrostate_mj.app.provenance import read_index, smoke_folders
 
     claims = load_claims(claims_file)
     unknown = sorted(set(chapters or []) - set(claims))
@@ -498,7 +651,9 @@ def judge_all(results: Path, chapters: list[str] | None = None,
     _ROOTS.append(results.resolve())
     try:
         smoke = smoke_folders(results)
-        return [judge(ch, c, smoke) for ch in (chapters or list(claims)) for c in claims[ch]]
+        index = read_index(results)
+        return [judge(ch, c, smoke, index) for ch in (chapters or list(claims))
+                for c in claims[ch]]
     finally:
         _ROOTS.pop()
 

@@ -8,14 +8,14 @@ import pytest
 from clitools import cli_inprocess
 from conftest import REPO
 
-from macrostate_mj.app.claims import VERDICTS, ClaimsError, judge_all
+from macrostate_mj.app.claims import VERDICTS, ClaimsError, judge_all, margin_verdict
 
 CLAIMS = """
 [[t]]
 figure = "value in"
-claim = "ours is 2, give or take 2"
-text_value = 2
-margin = 2
+claim = "ours is 3, give or take 3"
+text_value = 3
+margin = 3
 kind = "value"
 ours = "runs(good/*/r.json, x)"
 folder = "good"
@@ -24,6 +24,7 @@ folder = "good"
 figure = "value too wide"
 claim = "ours is 2, give or take 10 %"
 text_value = 2
+metric = "cm"
 kind = "value"
 ours = "runs(good/*/r.json, x)"
 folder = "good"
@@ -32,6 +33,7 @@ folder = "good"
 figure = "value out"
 claim = "ours is 10"
 text_value = 10
+metric = "cm"
 kind = "value"
 ours = "runs(good/*/r.json, x)"
 folder = "good"
@@ -40,6 +42,7 @@ folder = "good"
 figure = "one unit"
 claim = "ours is 2"
 text_value = 2
+metric = "cm"
 kind = "value"
 ours = "runs(one/*/r.json, x)"
 folder = "one"
@@ -103,8 +106,8 @@ def _results(root: Path) -> Path:
     (root / "one" / "s0").mkdir(parents=True)
     (root / "one" / "s0" / "r.json").write_text(json.dumps({"x": 2.0}))
     (root / "index.toml").write_text(
-        '[good]\nkind = "result: 5 seeds"\ncommand = "c"\nunits = 5\n\n'
-        '[one]\nkind = "smoke: one seed"\ncommand = "c"\nunits = 1\n')
+        '[good]\nkind = "result: 5 seeds"\ncommand = "c"\nunits = 5\nunit = "seed"\n\n'
+        '[one]\nkind = "smoke: one seed"\ncommand = "c"\nunits = 1\nunit = "seed"\n')
     (root / "claims.toml").write_text(CLAIMS)
     return root
 
@@ -112,9 +115,9 @@ def _results(root: Path) -> Path:
 def test_each_verdict_follows_the_rule(tmp_path):
     root = _results(tmp_path)
     got = {j.figure: j for j in judge_all(root, claims_file=root / "claims.toml")}
-    assert got["value in"].verdict == "agree" and got["value in"].lo < 2 < got["value in"].hi
+    assert got["value in"].verdict == "agree" and 0 < got["value in"].lo < got["value in"].hi < 6
     wide = got["value too wide"]
-    assert wide.verdict == "inconclusive" and "too wide" in wide.why and wide.would_decide > 100
+    assert wide.verdict == "inconclusive" and "straddles" in wide.why and wide.would_decide > 5
     assert got["value out"].verdict == "disagree"
     assert got["one unit"].verdict == "inconclusive" and got["one unit"].smoke
     assert got["paired order"].verdict == "agree" and not got["paired order"].smoke
@@ -163,3 +166,91 @@ def test_claims_bad_input_is_one_line_and_exit_2(capsys, monkeypatch, args, says
     monkeypatch.chdir(REPO)
     code, out, err = cli_inprocess(capsys, "claims", *args)
     assert code == 2 and says in err and len(err.strip().splitlines()) == 1 and not out
+
+
+@pytest.mark.parametrize("lo,hi,verdict", [
+    (0.770, 0.800, "agree"),          # inside 0.786 ± 0.02
+    (0.700, 0.760, "disagree"),       # wholly below 0.766
+    (0.810, 0.850, "disagree"),       # wholly above 0.806
+    (0.750, 0.790, "inconclusive"),   # across the lower edge
+    (0.687, 0.810, "inconclusive"),   # wider than the band, holding it
+])
+def test_the_margin_rule_has_three_outcomes_on_both_sides(lo, hi, verdict):
+    assert margin_verdict(lo, hi, 0.786, 0.02) == verdict
+
+
+NESTED = """
+[[t]]
+figure = "nested value"
+claim = "ours is 0.75"
+text_value = 0.75
+metric = "auc"
+kind = "value"
+ours = "oc_auc(oc, iogen)"
+folder = "oc"
+
+[[t]]
+figure = "cv gain"
+claim = "ours is 47 %"
+text_value = 47
+metric = "%"
+kind = "value"
+ours = "runs(cv/*/r.json, g, .0f, %)"
+folder = "cv"
+
+[[t]]
+figure = "one training"
+claim = "x below 5"
+kind = "ordering"
+ours = "runs(cv/*/r.json, g)"
+order = [["ours", "<", 60, "60"]]
+folder = "cv"
+trainings = 1
+"""
+
+
+def _nested(root: Path) -> Path:
+    """3 splits x 3 seeds of one-class AUCs whose seeds differ far more than their splits'
+    means, and 5 overlapping folds (chapter 2's per-fold gains)."""
+    runs = {f"m2_split{s}_s{k}": {"iogen": {"auc_all": 0.75 + 0.001 * s + 0.05 * (k - 1)}}
+            for s in (1, 2, 3) for k in (0, 1, 2)}
+    (root / "oc").mkdir(parents=True)
+    (root / "oc" / "results.json").write_text(json.dumps({"runs": runs}))
+    for i, g in enumerate([28.275, 36.848, 37.852, 38.695, 43.212]):
+        (root / "cv" / f"s{i}").mkdir(parents=True)
+        (root / "cv" / f"s{i}" / "r.json").write_text(json.dumps({"g": g}))
+    (root / "index.toml").write_text(
+        '[oc]\nkind = "result: 3 splits x 3 seeds"\ncommand = "c"\nunits = 3\nunit = "split"\n'
+        'within = "seed"\ngroup = \'split\\d+\'\nshared = "one dev set"\n\n'
+        '[cv]\nkind = "result: 5 folds"\ncommand = "c"\nunits = 5\nunit = "fold"\nfolds = 5\n')
+    (root / "claims.toml").write_text(NESTED)
+    return root
+
+
+def test_nested_runs_are_averaged_to_their_unit_and_folds_are_corrected(tmp_path):
+    """Nine runs of three splits count as three units, each the mean of its seeds (the seeds'
+    spread cancels: 0.751, 0.752, 0.753); five overlapping folds get Nadeau-Bengio's interval,
+    [26.8, 47.1] where the plain one is [30.2, 43.7]; `claims --json` names both."""
+    root = _nested(tmp_path)
+    got = {j.figure: j for j in judge_all(root, claims_file=root / "claims.toml")}
+    nested = got["nested value"]
+    assert nested.n == 3 and nested.ours == pytest.approx(0.752)
+    assert nested.hi - nested.lo < 0.01 and nested.verdict == "agree"
+    assert "splits, seeds averaged within each" in nested.unit and "one dev set" in nested.unit
+    cv = got["cv gain"]
+    assert (round(cv.lo, 1), round(cv.hi, 1)) == (26.8, 47.1) and cv.n == 5
+    assert cv.verdict == "inconclusive" and "Nadeau-Bengio" in cv.correction
+    assert set(cv.as_json()) >= {"unit", "correction", "margin"}
+    one = got["one training"]
+    assert one.verdict == "inconclusive" and "one training" in one.why and "agree" in one.why
+
+
+def test_a_nested_declaration_without_per_run_values_or_a_unit_is_refused(tmp_path):
+    root = _nested(tmp_path)
+    index = (root / "index.toml").read_text()
+    (root / "index.toml").write_text(index.replace('unit = "fold"\n', ""))
+    with pytest.raises(ClaimsError, match="declares no `unit`"):
+        judge_all(root, claims_file=root / "claims.toml")
+    (root / "index.toml").write_text(index.replace("group = 'split\\d+'", "group = 'fold\\d+'"))
+    with pytest.raises(ClaimsError, match="names no split"):
+        judge_all(root, claims_file=root / "claims.toml")
