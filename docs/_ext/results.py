@@ -33,7 +33,7 @@ from sphinx.util.docutils import SphinxRole
 
 from macrostate_mj.app.claims import dig, parse
 from macrostate_mj.app.provenance import read_index
-from macrostate_mj.core.stats import mean_std, paired_interval, zero_crossing
+from macrostate_mj.core.stats import mean_std, paired_interval
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
@@ -566,38 +566,6 @@ def s2r_transfer(*folders: str) -> Table:
         rows.append([nodes.literal(text=folder), f"{sim:+.2f}", f"{(real + sim) / real:.2f}x",
                      f"{tuned:+.2f}"])
     return rows
-
-
-@dataclass(frozen=True)
-class Crossing:
-    """Where the fine-tuned excess reaches 0 along the line through runs' excesses."""
-
-    cm: float
-    low: float | None
-    high: float | None
-    real: float
-    r: float
-    n: int
-
-    def __str__(self) -> str:
-        if self.low is None or self.high is None:
-            return (f"{self.cm:+.2f} cm, its interval unbounded (r = {self.r:.2f} over "
-                    f"{self.n} runs): the runs cannot place it")
-        ratio = [f"{(self.real + v) / self.real:.2f}" for v in (self.cm, self.low, self.high)]
-        return (f"{self.cm:+.2f} cm [{self.low:+.2f}, {self.high:+.2f}] (r = {self.r:.2f} over "
-                f"{self.n} runs), sim only at {ratio[0]}x real only [{ratio[1]}, {ratio[2]}]")
-
-
-@source
-def s2r_crossing(*folders: str) -> Crossing:
-    """The sim-only excess at which fine-tuning on a quarter of the pool would equal real only
-    on all of it: the least-squares line of the runs' fine-tuned excess on their sim-only
-    excess, where it crosses 0, with its 95 % Fieller interval (`core.stats.zero_crossing`);
-    as a ratio, over the runs' mean real-only error."""
-    runs = [_excesses(folder) for folder in folders]
-    c = zero_crossing([r[0] for r in runs], [r[1] for r in runs])
-    return Crossing(c["x"], c["low"], c["high"], statistics.fmean(r[2] for r in runs),  # type: ignore[arg-type]
-                    c["r"], c["n"])  # type: ignore[arg-type]
 
 
 @source
@@ -1139,10 +1107,19 @@ class Claims(Directive):
 
 
 class ClaimsSummary(Directive):
-    """``{claims-summary}``: the rule, stated once, and each chapter's count of verdicts."""
+    """``{claims-summary}``: the rule, stated once, each judged folder's units, nesting,
+    correction and what its units share (as results/index.toml declares them), and each
+    chapter's count of verdicts."""
 
     def run(self) -> list[nodes.Node]:
-        from macrostate_mj.app.claims import RULE, VERDICTS, counts, judge_all
+        from macrostate_mj.app.claims import (
+            RULE,
+            VERDICTS,
+            counts,
+            design_of,
+            judge_all,
+            load_claims,
+        )
         from macrostate_mj.app.provenance import RESULT_RULE
 
         judged = judge_all(RESULTS)
@@ -1152,7 +1129,58 @@ class ClaimsSummary(Directive):
             mine = [j for j in judged if chapter in ("all", j.chapter)]
             rows.append([chapter, *counts(mine).values(), len(mine)])
         _record(self.state.document.settings.env, "claims-summary", rows)
-        return [nodes.paragraph(text=RULE), nodes.paragraph(text=RESULT_RULE), table_node(rows)]
+        units: list[list] = [["results", "unit", "nested in it (averaged)", "correction",
+                              "every unit shares"]]
+        seen: set[tuple] = set()
+        for chapter in load_claims().values():
+            for claim in chapter:
+                d = design_of(claim, index())
+                key = (claim["folder"], d)
+                if key in seen:
+                    continue
+                seen.add(key)
+                units.append([nodes.literal(text=claim["folder"]),
+                              d.unit + (" (one training)" if d.trainings == 1 else ""),
+                              d.within or "-", d.correction(), d.shared or "-"])
+        _record(self.state.document.settings.env, "claims-units", units)
+        return [nodes.paragraph(text=RULE), table_node(units),
+                nodes.paragraph(text=RESULT_RULE), table_node(rows)]
+
+
+class ClaimsChanges(Directive):
+    """``{claims-changes} file``: the verdicts before the units, corrections and margins of
+    the rule (`claims --json` as it printed them, kept in `file` beside the page) against
+    today's, counted per chapter, and every claim whose verdict changed with today's reason."""
+
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        from macrostate_mj.app.claims import VERDICTS, counts, judge_all
+
+        here = Path(self.state.document.current_source).parent
+        before = [json.loads(line) for line in (here / self.arguments[0]).read_text()
+                  .splitlines() if line.strip()]
+        after = judge_all(RESULTS)
+        was = {(b["chapter"], b["figure"], b["claim"]): b for b in before}
+        rows: list[list] = [["chapter", *[f"{v} (before → after)" for v in VERDICTS]]]
+        for chapter in dict.fromkeys(j.chapter for j in after):
+            old = [b for b in before if b["chapter"] == chapter]
+            new = counts([j for j in after if j.chapter == chapter])
+            rows.append([chapter, *[f"{sum(b['verdict'] == v for b in old)} → {new[v]}"
+                                    for v in VERDICTS]])
+        changed: list[list] = [["chapter", "figure", "claim", "before", "after", "why"]]
+        for j in after:
+            b = was.get((j.chapter, j.figure, j.claim))
+            if b is None:
+                raise self.error(f"{j.figure} ({j.claim}) is not in {self.arguments[0]}")
+            if b["verdict"] != j.verdict:
+                changed.append([j.chapter, j.figure, j.claim,
+                                f"{b['verdict']}, n {b['n']}", f"{j.verdict}, n {j.n} ({j.unit})",
+                                j.why])
+        env = self.state.document.settings.env
+        _record(env, "claims-changes counts", rows)
+        _record(env, "claims-changes", changed)
+        return [table_node(rows), table_node(changed)]
 
 
 class Provenance(Directive):
@@ -1198,6 +1226,7 @@ def setup(app: object) -> dict:
     app.add_directive("results-table", ResultsTable)  # type: ignore[attr-defined]
     app.add_directive("claims", Claims)  # type: ignore[attr-defined]
     app.add_directive("claims-summary", ClaimsSummary)  # type: ignore[attr-defined]
+    app.add_directive("claims-changes", ClaimsChanges)  # type: ignore[attr-defined]
     app.connect("env-purge-doc", _purge)  # type: ignore[attr-defined]
     app.connect("env-merge-info", _merge)  # type: ignore[attr-defined]
     app.connect("build-finished", _dump)  # type: ignore[attr-defined]

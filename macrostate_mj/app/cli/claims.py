@@ -22,9 +22,12 @@ def claims(
                            "--json/--table"),
 ) -> None:
     """Judge every claim of the dissertation on the committed results: the text's value or
-    order against ours with its 95 % interval over seeds, folds or datasets; agree, disagree,
-    inconclusive (with the units that would decide it), not comparable or qualitative. The
-    rule is printed under the table; the docs' chapter pages show the same rows."""
+    order against ours with its 95 % interval over the independent units results/index.toml
+    declares (seeds nested in a split averaged to it, overlapping folds corrected); agree,
+    disagree, inconclusive (with the units that would decide it), not comparable or
+    qualitative. The rule, its units, corrections and margins, is printed under the table;
+    --json gives each row's unit, correction and margin; the docs' chapter pages show the same
+    rows."""
     from macrostate_mj.app.claims import RULE, counts, judge_all
 
     judged = judge_all(results, chapter or None)
