@@ -330,7 +330,7 @@ def hidden_drop(tracked: np.ndarray, detected: np.ndarray, times: np.ndarray
     speed = np.where(ok, step / dt[:, None], np.nan)
     before, after, mid = speed[:-2], speed[2:], speed[1:-1]
     usual = (before + after) / 2
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):
         steady = (usual * np.median(dt) > MIN_STEP) & (np.abs(before - after) < STEADY * usual)
         ratio = np.where(steady, mid / usual, np.inf).min(axis=1)
     flagged = np.flatnonzero((steady.sum(axis=1) >= 2) & (ratio >= DROP_RATIO))

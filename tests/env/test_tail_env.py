@@ -141,7 +141,7 @@ def test_a_camera_episode_reports_its_tracking_health():
             env.step(np.zeros(2))
         health = env.task.tracking_health()
         assert [r.robot for r in health.robots] == ["H", "F1", "T"]
-        assert all(r.frames > 0 and r.detected >= 0.9 for r in health.robots)
+        assert all(r.frames > 0 and r.detected_frames >= 0.9 for r in health.robots)
         assert health.judged(env.task.sim.cfg) == []
     finally:
         env.close()
