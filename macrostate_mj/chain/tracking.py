@@ -46,7 +46,8 @@ class TrackingLimits:
             words, lo, hi = RANGES[unit(key)]
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
-                raise UserError(f"tracking.{key} must be {words}, got {v!r}", key)
+                raise UserError(f"tracking.{key} must be {words}, got {v!r}{_hint(key, v)}",
+                                key)
 
     def describe(self) -> str:
         """The limits in one line, in their units (what `scenario check` prints)."""
@@ -61,3 +62,14 @@ def unit(key: str) -> str:
     """A limit's unit, by its name: `*_mm` millimetres, else a share."""
     return "mm" if key.endswith("_mm") else "share"
 
+
+def _hint(key: str, v: object) -> str:
+    """The value in the unit it was likely meant in: a percentage for a share, metres for
+    millimetres."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return ""
+    if unit(key) == "share" and 1 < v <= 100:
+        return f" (for {v:g} % write {v / 100:g})"
+    if unit(key) == "mm" and 0 < v < RANGES["mm"][1]:
+        return f" (for {v:g} m write {v * 1000:g})"
+    return ""
