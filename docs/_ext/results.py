@@ -31,9 +31,9 @@ from docutils import nodes
 from docutils.parsers.rst import Directive
 from sphinx.util.docutils import SphinxRole
 
-from macrostate_mj.app.claims import dig, parse
+from macrostate_mj.app.claims import Design, Figure, dig, parse
 from macrostate_mj.app.provenance import read_index
-from macrostate_mj.core.stats import mean_std, paired_interval
+from macrostate_mj.core.stats import mean_std
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
@@ -121,37 +121,87 @@ def above(path: str, keypath: str, base: str, base_keypath: str, fmt: str = ".1f
     return Q(100 * (a / b - 1), None, fmt, "%")
 
 
+def _profile(folder: str) -> dict:
+    """A run's recorded profile (`results.json`'s), empty where it keeps none."""
+    if not (RESULTS / folder / "results.json").is_file():
+        return {}
+    return load(f"{folder}/results.json").get("profile") or {}  # type: ignore[union-attr]
+
+
+def design(folders: list[str], seeds: list[str]) -> tuple[Design, dict[str, str]]:
+    """What the seeds of `folders`' runs are as evidence, by the rule `macrostate-mj claims`
+    judges by (`claims.Design`): the folder's units as `results/index.toml` declares them, or,
+    for sim-to-real runs, which declare none, as their profiles record them: model i (seed
+    `seed + i`) is tested on fold i mod `folds` (`experiment sim2real`), so the folds are the
+    units, the seeds that share a fold (runs of other seeds on the same folds) are averaged to
+    it, and the folds, which share most of their training data, are Nadeau-Bengio corrected.
+    Elsewhere each seed is a unit. With it, each seed's key, where `Design.apply` finds its
+    unit."""
+    entries = [{k: v for k, v in index().get(f.split("/")[0], {}).items() if k in Design.KEYS}
+               for f in folders]
+    profiles = [_profile(f) for f in folders]
+    if any(e.get("unit") for e in entries) or not all(p.get("folds") for p in profiles):
+        if any(e != entries[0] for e in entries):
+            raise ValueError(f"{', '.join(folders)}: runs of different units cannot pool")
+        plan = Design.of(entries[0], "results/" + folders[0]) if entries[0] else Design("seed")
+        return plan, {s: s for s in seeds}
+    if len({int(p["folds"]) for p in profiles}) > 1:
+        raise ValueError(f"{', '.join(folders)}: runs on different folds cannot pool")
+    folds, fold = int(profiles[0]["folds"]), {}
+    for p in profiles:
+        first = int(p.get("seed") or 0)
+        fold |= {str(first + i): i % folds for i in range(int(p.get("seeds") or folds))}
+    if set(seeds) - set(fold):
+        raise ValueError(f"{', '.join(folders)}: seeds {sorted(set(seeds) - set(fold))} are "
+                         "not of these runs' profiles")
+    nested = len({fold[s] for s in seeds}) < len(seeds)
+    return (Design("fold", "seed" if nested else "", r"fold\d+" if nested else "", folds),
+            {s: f"fold{fold[s]}/seed{s}" for s in seeds})
+
+
 @dataclass(frozen=True)
 class Paired:
-    """A paired difference over seeds: its mean and 95 % t interval, and what it decides."""
+    """A paired difference over the independent units of its runs (`design`): its mean and 95 %
+    t interval over them, the units named beside it, and what it decides."""
 
     mean: float
     low: float
     high: float
     n: int
+    units: str
     fmt: str = ".2f"
     unit: str = ""
 
     @classmethod
-    def of(cls, differences: list[float], fmt: str = ".2f", unit: str = "") -> Paired:
-        """The paired differences' mean and interval (`core.stats.paired_interval`)."""
-        d = paired_interval(differences)
-        return cls(d["mean"], d["low"], d["high"], d["n"], fmt, unit)  # type: ignore[arg-type]
+    def of(cls, differences: dict[str, float], folders: str | list[str], fmt: str = ".2f",
+           unit: str = "") -> Paired:
+        """Per-seed differences (keyed by seed) of `folders`' runs over their units: seeds that
+        share a fold averaged to it and overlapping folds corrected (`claims.Design.apply`),
+        the interval `claims.Figure.interval`'s: what the claims draw."""
+        folders = [folders] if isinstance(folders, str) else folders
+        plan, keys = design(folders, list(differences))
+        fig = plan.apply(Figure.of({keys[s]: d for s, d in differences.items()}))
+        ci = fig.interval()
+        if ci is None:
+            raise ValueError(f"{', '.join(folders)}: one {plan.unit}, no interval to draw")
+        return cls(fig.mean, ci[0], ci[1], fig.n, f"{fig.n} {plan.says(fig.n)}", fmt, unit)
 
     def __str__(self) -> str:
-        verdict = ("equal on every seed" if self.low == self.high == 0 else
+        each = self.units.split(" ", 1)[1].split(",")[0].removesuffix("s")
+        verdict = (f"equal on every {each}" if self.low == self.high == 0 else
                    "inconclusive" if self.low <= 0 <= self.high else "decided")
         f, u = self.fmt, f" {self.unit}" if self.unit else ""
-        return (f"{self.mean:+{f}}{u} [{self.low:+{f}}, {self.high:+{f}}], {self.n} seeds: "
+        return (f"{self.mean:+{f}}{u} [{self.low:+{f}}, {self.high:+{f}}], {self.units}: "
                 f"{verdict}")
 
 
 @source
 def paired(path: str, keypath: str, base_keypath: str, fmt: str = ".2f", unit: str = "") -> Paired:
     """Two per-seed lists (or {seed: value} maps, paired by seed) of one results file: the
-    mean of their differences (the first minus the second) and its 95 % t interval
-    (`core.stats.paired_interval`). `path` may join several runs' files with `+` (other seeds
-    of the same folds): their {seed: value} maps pool, a seed named twice refused."""
+    mean of their differences (the first minus the second) and its 95 % t interval over the
+    folder's independent units (`Paired.of`: a sim-to-real run's folds). `path` may join
+    several runs' files with `+` (other seeds of the same folds): their {seed: value} maps
+    pool, a seed named twice refused, and seeds that share a fold are averaged to it."""
     runs = [load(p) for p in path.split("+")]
     a, b = (dig(runs[0], k) for k in (keypath, base_keypath))
     for run in runs[1:]:
@@ -159,10 +209,11 @@ def paired(path: str, keypath: str, base_keypath: str, fmt: str = ".2f", unit: s
         if any(set(m) & set(have) for m, have in zip(more, (a, b), strict=True)):  # type: ignore[arg-type]
             raise ValueError(f"{path}: a seed appears in more than one run")
         a, b = {**a, **more[0]}, {**b, **more[1]}  # type: ignore[dict-item]
-    if isinstance(a, dict) and isinstance(b, dict):
-        seeds = sorted(a, key=str)
-        a, b = [a[s] for s in seeds], [b[s] for s in seeds]
-    return Paired.of([x - y for x, y in zip(a, b, strict=True)], fmt, unit)  # type: ignore[arg-type]
+    if not isinstance(a, dict):
+        a, b = dict(enumerate(a)), dict(enumerate(b))  # type: ignore[arg-type]
+    folders = [str(Path(p).parent) for p in path.split("+")]
+    return Paired.of({str(s): a[s] - b[s] for s in sorted(a, key=str)},  # type: ignore[index]
+                     folders, fmt, unit)
 
 
 @source
@@ -393,7 +444,8 @@ def s2r_pairs(base: str, other: str) -> Table:
             diff = f"{y['mean'] - x['mean']:+.2f}"
             if "head_cm_by_seed" in mine and "head_cm_by_seed" in theirs:
                 seeds = mine["head_cm_by_seed"]
-                diff = str(Paired.of([theirs["head_cm_by_seed"][s] - v for s, v in seeds.items()]))
+                diff = str(Paired.of({s: theirs["head_cm_by_seed"][s] - v
+                                      for s, v in seeds.items()}, [base, other]))
             rows.append([arm, f"{float(f) * 100:.0f}", _stat(x, ".2f"), _stat(y, ".2f"), diff])
     return rows
 
@@ -430,7 +482,8 @@ def s2r_sim(real: str, *folders: str) -> Table:
             label += nodes.Text(f" ({', '.join(how)})")
         rows.append([label, f"{ms['mean']:.2f} ± {ms['std']:.2f}", f"{ms['mean'] / full:.2f}x",
                      f"{better} / {len(first)}" if i else "",
-                     str(Paired.of([by_seed[s] - first[s] for s in first])) if i else ""])
+                     str(Paired.of({s: by_seed[s] - first[s] for s in first},
+                                   [folders[0], folders[i]])) if i else ""])
     return rows
 
 
@@ -535,13 +588,15 @@ def s2r_finetunes(folder: str) -> Table:
 @source
 def s2r_ablations(folder: str) -> Table:
     """Each group of lab parameters switched off (`--ablate`): the sim-only Head error and
-    its difference to the lab's own on the same seeds, with the 95 % interval."""
+    its difference to the lab's own on the same seeds, with the 95 % interval over the run's
+    units (`Paired.of`: its folds, corrected; the run's own `minus_lab` is over seeds)."""
     data = load(f"{folder}/results.json")
+    lab = data["arms"]["sim"]["0"]["head_cm_by_seed"]  # type: ignore[index]
     rows = [["switched off", "sim only, Head (cm)", "minus the lab's (cm)", "95 % interval"]]
     for group, cell in data["ablations"].items():  # type: ignore[index,union-attr]
-        d = cell["minus_lab"]
+        d = Paired.of({s: v - lab[s] for s, v in cell["head_cm_by_seed"].items()}, folder)
         rows.append([nodes.literal(text=group), _stat(cell["head_cm"], ".2f"),
-                     f"{d['mean']:+.2f}", f"[{d['low']:+.2f}, {d['high']:+.2f}]"])
+                     f"{d.mean:+.2f}", f"[{d.low:+.2f}, {d.high:+.2f}], {d.units}"])
     return rows
 
 

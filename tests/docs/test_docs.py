@@ -258,9 +258,8 @@ def test_the_claims_command_and_the_pages_agree_row_for_row(text_build, capsys):
         assert abs(float(shown_ours) - claim["ours"]) <= 0.5 * 10 ** -decimals + 1e-12, row
 
 
-def test_a_paired_difference_pools_the_seeds_of_several_runs(tmp_path, monkeypatch):
-    """`paired(a.json+b.json, ...)`: runs of other seeds on the same folds pool their seeds; a
-    seed named by two runs is refused rather than silently overwritten."""
+def _results_ext(tmp_path, monkeypatch):
+    """docs/_ext/results.py loaded afresh, reading `tmp_path` as its results folder."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("results_ext", DOCS / "_ext" / "results.py")
@@ -268,11 +267,55 @@ def test_a_paired_difference_pools_the_seeds_of_several_runs(tmp_path, monkeypat
     monkeypatch.setitem(sys.modules, "results_ext", ext)    # its dataclasses look it up
     spec.loader.exec_module(ext)
     monkeypatch.setattr(ext, "RESULTS", tmp_path)
+    (tmp_path / "index.toml").write_text('[a]\ncommand = "x"\nkind = "result"\nunits = 5\n')
+    return ext
+
+
+def _run(tmp_path, folder: str, first: int, x: dict, y: dict, folds: int = 5) -> None:
+    (tmp_path / folder).mkdir()
+    (tmp_path / folder / "results.json").write_text(json.dumps(
+        {"profile": {"folds": folds, "seed": first, "seeds": len(x)}, "x": x, "y": y}))
+
+
+def test_a_paired_difference_pools_the_seeds_of_several_runs(tmp_path, monkeypatch):
+    """`paired(a.json+b.json, ...)`: runs of other seeds on the same folds pool their seeds; a
+    seed named by two runs is refused rather than silently overwritten."""
+    ext = _results_ext(tmp_path, monkeypatch)
     (tmp_path / "a.json").write_text(json.dumps({"x": {"0": 2.0, "1": 4.0},
                                                  "y": {"0": 1.0, "1": 1.0}}))
     (tmp_path / "b.json").write_text(json.dumps({"x": {"5": 4.0}, "y": {"5": 1.0}}))
     pooled = ext.paired("a.json+b.json", "x", "y")
     assert pooled.n == 3 and pooled.mean == pytest.approx(7 / 3)     # 1, 3 and 3
     assert ext.paired("a.json", "x", "y").n == 2
+    assert ", 3 seeds: " in str(pooled)     # no folds recorded: each seed is a unit
     with pytest.raises(ValueError, match="more than one run"):
         ext.paired("a.json+a.json", "x", "y")
+
+
+def test_a_paired_difference_is_over_folds_not_seeds(tmp_path, monkeypatch):
+    """Sim-to-real runs: seeds s and s + 5 share fold s, so ten seeds are five units, averaged
+    to the fold before the interval, and the folds share training data, so the interval is the
+    Nadeau-Bengio corrected one the claims draw (`claims.Design`), its units named beside it."""
+    from macrostate_mj.app.claims import Design, Figure
+    from macrostate_mj.core import stats
+
+    ext = _results_ext(tmp_path, monkeypatch)
+    d1 = {"0": 1.0, "1": 0.2, "2": 0.9, "3": 0.1, "4": 0.6}
+    d2 = {"5": 0.5, "6": 0.7, "7": 0.8, "8": 0.4, "9": 0.3}
+    _run(tmp_path, "a", 0, d1, dict.fromkeys(d1, 0.0))
+    _run(tmp_path, "b", 5, d2, dict.fromkeys(d2, 0.0))
+    one = ext.paired("a/results.json", "x", "y")
+    ms = stats.mean_std(list(d1.values()))
+    ci = stats.t_interval(ms["mean"], ms["std"], 5, ratio=stats.cv_ratio(5))
+    assert (one.n, one.low, one.high) == (5, pytest.approx(ci[0]), pytest.approx(ci[1]))
+    assert ", 5 folds, Nadeau-Bengio corrected: " in str(one)
+    pooled = ext.paired("a/results.json+b/results.json", "x", "y")
+    folds = {str(f): (d1[str(f)] + d2[str(f + 5)]) / 2 for f in range(5)}
+    want = Design("fold", folds=5).apply(Figure.of(folds))
+    assert pooled.n == 5 and pooled.mean == pytest.approx(want.mean)
+    assert (pooled.low, pooled.high) == pytest.approx(want.interval())
+    assert ", 5 folds, seeds averaged within each, Nadeau-Bengio corrected: " in str(pooled)
+    _run(tmp_path, "c", 5, d2, dict.fromkeys(d2, 0.0), folds=4)
+    with pytest.raises(ValueError, match="different folds"):
+        ext.paired("a/results.json+c/results.json", "x", "y")
+
