@@ -119,7 +119,8 @@ MEANINGS = {
     "look.headlight_ambient": "0-1", "look.headlight_diffuse": "0-1",
     "planner.kind": "the Head's planner: psi_grid (the lab's cell walk), cell_walk, "
                     "preset_twists, or park (drive to planner.point and stay)",
-    "planner.point": "park: where the Head parks, [x, y] m",
+    "planner.point": "park: where the Head parks, [x, y] m (driven to straight: an obstacle "
+                     "in the way stops it there)",
     "planner.grid": "[columns, rows] of the planner's grid",
     "planner.max_turn": "psi_grid: the largest turn toward the Head's next waypoint, degrees "
                         "(180: Psi as written)",

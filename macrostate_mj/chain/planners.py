@@ -332,4 +332,10 @@ class Park:
             raise UserError(f"planner.point {list(self.point)} lies outside the "
                             f"{arena[0]:g} x {arena[1]:g} m arena less its margin "
                             f"({margin:g} m); move it inside")
+        inside = [i for i, ob in enumerate(obstacles)
+                  if ob.distance(np.array([self.point]))[0][0] < reach_radius]
+        if inside:
+            raise UserError(f"planner.point {list(self.point)} lies on or against "
+                            f"arena.obstacles[{inside[0]}] (within the reach radius, "
+                            f"{reach_radius:g} m); park beside it, not in it")
         return FixedWaypoint(self.point)

@@ -48,6 +48,9 @@ class TrackingLimits:
             if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
                 raise UserError(f"tracking.{key} must be {words}, got {v!r}{_hint(key, v)}",
                                 key)
+            if key.startswith("max_") and unit(key) == "share" and v == 1:
+                raise UserError(f"tracking.{key} = 1 is 100 %, a limit that judges nothing; "
+                                "for 1 % write 0.01", key)
 
     def describe(self) -> str:
         """The limits in one line, in their units (what `scenario check` prints)."""

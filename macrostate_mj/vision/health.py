@@ -198,10 +198,11 @@ class TrackingHealth:
         """The findings against scenario `cfg`'s `[tracking]` limits, in its markers' words."""
         return self.findings(cfg.tracking, cfg.markers)
 
-    def summary(self, marker_jitter: float = 0.0) -> str:
+    def summary(self, marker_jitter: float = 0.0, marker_offset: float = 0.0) -> str:
         """One line: the worst robot's figures (robots never in view left out). They are the
-        tracker's own; a scenario's `marker_jitter` (sigma, m) is added after them to the
-        tracked columns a dataset holds, and the line says so."""
+        tracker's own; a scenario's `marker_jitter` (sigma, m, per frame) and `marker_offset`
+        (sigma, m, per robot and episode) are added after them to the tracked columns a
+        dataset holds, and the line says so: noise the user asked for, not judged."""
         seen = [r for r in self.robots if r.frames]
         if not seen:
             return "no frames tracked"
@@ -221,9 +222,14 @@ class TrackingHealth:
                 f"p99 <= {top('heading_p99_deg')} deg, off 30 deg <= "
                 f"{top('heading_off30', '.1%')}, flipped <= {top('heading_flips', '.1%')}, "
                 f"identity errors <= {max(r.identity for r in seen):.1%}")
-        if marker_jitter > 0:     # what comparing a dataset with its truth columns shows
-            line += (f" (the tracker's own error; the tracked columns add marker_jitter, sigma "
-                     f"{1000 * marker_jitter:g} mm a coordinate)")
+        added = ([f"marker_jitter, sigma {1000 * marker_jitter:g} mm a coordinate"]
+                 if marker_jitter > 0 else [])
+        if marker_offset > 0:
+            added.append(f"each robot's marker_offset, sigma {1000 * marker_offset:g} mm a "
+                         "coordinate, fixed for an episode")
+        if added:                 # what comparing a dataset with its truth columns shows
+            line += (f" (the tracker's own error; the tracked columns add "
+                     f"{' and '.join(added)})")
         return line
 
     def as_dict(self) -> dict:

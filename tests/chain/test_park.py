@@ -27,3 +27,11 @@ def test_a_park_point_outside_the_arena_is_one_line_exit_2(tmp_path):
     res = cli("scenario", "check", str(path))
     assert_clean_error(res, "planner.point [1.5, 0.3] lies outside the 2.5 x 1.9 m arena",
                        "move it inside")
+
+
+def test_a_park_point_against_an_obstacle_is_one_line_exit_2(tmp_path):
+    path = tmp_path / "parked.toml"
+    path.write_text(PARKED.format(x=0.6) + '\n[arena]\nobstacles = [{shape = "box", '
+                    'pos = [0.62, 0.3], size = [0.2, 0.2, 0.2]}]\n')
+    res = cli("scenario", "check", str(path))
+    assert_clean_error(res, "lies on or against arena.obstacles[0]", "park beside it")

@@ -76,7 +76,6 @@ def test_a_robot_hidden_by_an_obstacle_is_not_counted_as_missed():
     assert t.hidden == 1 and t.frames == 0
     # not missed, but hidden too often: a finding of its own
     assert [f.figure for f in monitor.report().findings(TrackingLimits())] == ["hidden"]
-    assert monitor.report().findings(TrackingLimits(max_hidden=1.0)) == []
 
 
 def test_reports_survive_the_manifest_and_the_worst_episode_shows():
@@ -114,14 +113,25 @@ def test_a_run_that_tracked_nothing_is_not_healthy_and_a_hidden_robot_is_not_mis
     ("min_detected", 1.5, "share"), ("max_median_mm", 0.0, "millimetres"),
     ("max_median_mm", 0.003, "millimetres"),         # metres typed for millimetres
     ("max_p99_mm", float("inf"), "millimetres"), ("max_p99_mm", float("nan"), "millimetres"),
-    ("max_identity_errors", -0.1, "share"), ("max_heading_flips", 1, "share in"),
+    ("max_identity_errors", -0.1, "share"), ("max_heading_flips", 5, "share in"),
     ("max_hidden", 10, "share"), ("max_median_mm", True, "millimetres")])
 def test_limits_out_of_range_or_in_another_unit_are_refused(key, value, unit):
-    if key == "max_heading_flips":
-        TrackingLimits(max_heading_flips=1)        # 100 %: a share, allowed
-        value = 5
     with pytest.raises(UserError, match=f"tracking.{key} must be .*{unit}"):
         TrackingLimits(**{key: value})
+
+
+def test_a_share_limit_of_1_meant_as_1_percent_is_refused():
+    with pytest.raises(UserError, match="for 1 % write 0.01"):
+        TrackingLimits(max_heading_flips=1)
+    assert TrackingLimits(min_detected=1).min_detected == 1      # every row: allowed
+
+
+def test_the_line_says_what_the_dataset_adds_to_the_trackers_own_error():
+    monitor = HealthMonitor(NAMES)
+    _frames(monitor, TRUTH, np.ones(3, bool))
+    line = monitor.report().summary(0.002, 0.02)
+    assert "add marker_jitter, sigma 2 mm a coordinate and each robot's marker_offset, sigma " \
+           "20 mm a coordinate, fixed for an episode" in line
 
 
 def test_a_metres_limit_from_before_is_refused_naming_the_keys(tmp_path):
