@@ -15,24 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from macrostate_mj.chain.scenario import ScenarioConfig
-from macrostate_mj.chain.scene import Obstacle, Walls
-
-
-def wall_boxes(arena: tuple[float, float], walls: Walls | None) -> tuple[Obstacle, ...]:
-    """The arena's four walls as boxes standing outside its floor (as `chain.scene` builds
-    them), to occlude like obstacles; none without walls."""
-    if walls is None:
-        return ()
-    ax, ay, t, h = arena[0] / 2, arena[1] / 2, walls.thickness, walls.height
-    return (Obstacle("box", (ax + t / 2, 0.0), (t, 2 * ay + t, h)),
-            Obstacle("box", (-ax - t / 2, 0.0), (t, 2 * ay + t, h)),
-            Obstacle("box", (0.0, ay + t / 2), (2 * (ax + t), t, h)),
-            Obstacle("box", (0.0, -ay - t / 2), (2 * (ax + t), t, h)))
+from macrostate_mj.chain.scene import Obstacle
 
 
 def scene_occluders(cfg: ScenarioConfig) -> tuple[Obstacle, ...]:
     """What can hide a marker in scenario `cfg`: its obstacles and its walls."""
-    return tuple(cfg.obstacles) + wall_boxes(cfg.arena, cfg.walls)
+    return tuple(cfg.obstacles) + (() if cfg.walls is None else cfg.walls.boxes(cfg.arena))
 
 
 def outline_points(poses: np.ndarray, outline: np.ndarray) -> np.ndarray:
