@@ -1238,6 +1238,18 @@ class ClaimsChanges(Directive):
         return [table_node(rows), table_node(changed)]
 
 
+def _units(entry: dict) -> str:
+    """How many units a folder's figures rest on, and which (as `results/index.toml` declares
+    them): independent ones, or folds and splits whose training data overlap."""
+    unit = entry.get("unit")
+    if not unit:
+        return f"{entry['units']} independent units"
+    what = f"{entry['units']} {unit}s"
+    if entry.get("folds") or entry.get("split_ratio"):
+        return what + " (their training data overlap: intervals Nadeau-Bengio corrected)"
+    return what + " (independent)"
+
+
 class Provenance(Directive):
     """``{provenance} folder``: where a results folder comes from and what kind of figure it is."""
 
@@ -1252,8 +1264,7 @@ class Provenance(Directive):
 
         if entry["kind"].startswith("result") != is_result(entry):
             raise self.error(f"results/index.toml [{folder}]: its kind contradicts the rule")
-        parts = [f"results/{folder}", entry["kind"], f"{entry['units']} independent units",
-                 *disclosures(entry)]
+        parts = [f"results/{folder}", entry["kind"], _units(entry), *disclosures(entry)]
         manifest = RESULTS / folder / "manifest.json"
         if manifest.is_file():
             data = json.loads(manifest.read_text())

@@ -42,7 +42,9 @@ RULE = ("Units: each row's interval is over the independent units its folder dec
         "the number: the interval holds none of its sampling. Corrections: folds that overlap "
         "in their training data get Nadeau and Bengio's corrected resampled t (the variance of "
         "the mean s² (1/k + n_test/n_train) instead of s²/k; n_test/n_train = 1/(k - 1) for k "
-        "contiguous folds); every other interval is Student's t over the units. Margins, on "
+        "contiguous folds; random train/test splits of one pool whose training sets overlap "
+        "alike, with their n_test/n_train); every other interval is Student's t over the "
+        "units. Margins, on "
         "the metric's own scale: an AUC ± 0.02, an error in cm ± 10 % of the text's value, a "
         "percentage ± 10 % of the text's value, or the row's stated reason. A value claim "
         "agrees when our 95 % interval lies inside the text's value ± its margin, disagrees "
@@ -121,17 +123,20 @@ class Design:
     override any key): `unit` the independent unit (seed, fold, dataset, split, test
     instance); `within` a unit nested in it, whose runs are averaged to the outer unit found
     in each run's key by the regex `group`; `folds` the count of cross-validated folds whose
-    training sets overlap (Nadeau-Bengio corrected); `shared` what every unit shares, said
-    beside the number; `trainings` 1 where the figure is one training's."""
+    training sets overlap (Nadeau-Bengio corrected); `split_ratio` n_test/n_train of random
+    train/test splits resampled from one pool, whose training sets overlap too (corrected
+    alike); `shared` what every unit shares, said beside the number; `trainings` 1 where the
+    figure is one training's."""
 
     unit: str
     within: str = ""
     group: str = ""
     folds: int = 0
+    split_ratio: float = 0.0
     shared: str = ""
     trainings: int = 0
 
-    KEYS = ("unit", "within", "group", "folds", "shared", "trainings")
+    KEYS = ("unit", "within", "group", "folds", "split_ratio", "shared", "trainings")
 
     @classmethod
     def of(cls, entry: dict, where: str) -> Design:
@@ -145,14 +150,17 @@ class Design:
 
     @property
     def ratio(self) -> float:
-        return stats.cv_ratio(self.folds) if self.folds else 0.0
+        return stats.cv_ratio(self.folds) if self.folds else self.split_ratio
 
     def correction(self) -> str:
         """The correction as `claims --json` and the pages name it."""
-        if not self.folds:
-            return "none: independent units, Student's t"
-        return (f"Nadeau-Bengio corrected resampled t over {self.folds} overlapping folds "
-                f"(n_test/n_train = 1/{self.folds - 1})")
+        if self.folds:
+            return (f"Nadeau-Bengio corrected resampled t over {self.folds} overlapping folds "
+                    f"(n_test/n_train = 1/{self.folds - 1})")
+        if self.split_ratio:
+            return ("Nadeau-Bengio corrected resampled t over random splits whose training "
+                    f"sets overlap (n_test/n_train = {self.split_ratio:.3g})")
+        return "none: independent units, Student's t"
 
     def apply(self, fig: Figure) -> Figure:
         """`fig` over this design's units: nested runs averaged to their outer unit, the
@@ -180,7 +188,7 @@ class Design:
             what = f"{self.unit}s" if n != 1 else self.unit
             if self.within:
                 what += f", {self.within}s averaged within each"
-            if self.folds:
+            if self.folds or self.split_ratio:
                 what += ", Nadeau-Bengio corrected"
         return "; ".join(p for p in (what, f"all share {self.shared}" if self.shared else "")
                          if p)

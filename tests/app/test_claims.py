@@ -4,6 +4,7 @@ the committed ones: one line and exit 2 on a folder it cannot judge."""
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from clitools import cli_inprocess
 from conftest import REPO
@@ -254,3 +255,25 @@ def test_a_nested_declaration_without_per_run_values_or_a_unit_is_refused(tmp_pa
     (root / "index.toml").write_text(index.replace("group = 'split\\d+'", "group = 'fold\\d+'"))
     with pytest.raises(ClaimsError, match="names no split"):
         judge_all(root, claims_file=root / "claims.toml")
+
+
+def test_resampled_splits_whose_training_sets_overlap_are_corrected_by_their_ratio():
+    """Chapter 4's splits are drawn from one pool (266 test, 1,067 training ids each; about 79 %
+    of training ids shared): the interval over them is Nadeau-Bengio corrected with that ratio,
+    by hand: half-width t(.975, 2) * s * sqrt(1/3 + 266/1067)."""
+    from scipy import stats as sps
+
+    from macrostate_mj.app.claims import Design, Figure
+
+    split = Design.of({"unit": "split", "split_ratio": 266 / 1067}, "test")
+    plain = Design.of({"unit": "split"}, "test")
+    values = {"split1": 0.70, "split2": 0.76, "split3": 0.79}
+    fig = Figure.of(values, ".3f", "")
+    lo, hi = split.apply(fig).interval()
+    s = float(np.std(list(values.values()), ddof=1))
+    half = sps.t.ppf(0.975, 2) * s * (1 / 3 + 266 / 1067) ** 0.5
+    assert (hi - lo) / 2 == pytest.approx(half)
+    assert (hi - lo) > (plain.apply(fig).interval()[1] - plain.apply(fig).interval()[0])
+    assert "random splits whose training sets overlap (n_test/n_train = 0.249)" in \
+        split.correction()
+    assert "Nadeau-Bengio corrected" in split.says(3)
