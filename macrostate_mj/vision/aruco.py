@@ -48,7 +48,8 @@ class ArucoTracker:
         lens = world.scenario.camera.distortion if distortion is None else distortion
         camera = PinholeCamera.from_model(world.model, data, distortion=lens)
         return cls(camera, world.scenario.markers, len(world.names), world.marker_height,
-                   world.marker_area, occluders=scene_occluders(world.scenario))
+                   world.marker_area, occluders=scene_occluders(world.scenario),
+                   outline=world.marker_outline)
 
     def __post_init__(self) -> None:
         scale = self.camera.focal / (self.camera.position[2] - self.marker_height)

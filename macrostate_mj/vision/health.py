@@ -334,7 +334,7 @@ class HealthMonitor:
         if log is not None and log.detected:
             truth = np.asarray(log.poses).reshape(-1, n, 3)
             flags = np.asarray(log.detected).reshape(-1, n)
-            view = np.array([self.in_view(t, self.camera) for t in truth])
+            view = self.in_view(truth.reshape(-1, 3), self.camera).reshape(-1, n)   # one call
             rows, rows_hidden = view.sum(axis=0), (~view).sum(axis=0)
             with np.errstate(invalid="ignore"):
                 row_share = (flags & view).sum(axis=0) / rows

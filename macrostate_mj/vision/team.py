@@ -163,6 +163,8 @@ def _check_colours(world: World, camera: PinholeCamera, frames: Sequence[np.ndar
         raise UserError(f"{said} but --robots is {n}: {what}; {fix}", "robots")
     claimed = set().union(*(set(claims(b, n).tolist()) for b in blobs))
     never = [world.names[i] for i in range(n) if i not in claimed]
-    if shown < n and never:
+    if shown < n and never:          # every blob fits this team too: a robot may be unseen
         raise UserError(f"{said} but --robots is {n}: the colour of {', '.join(never)} shows "
-                        f"in none of them; {fix}", "robots")
+                        f"in none of them; {fix} if {shown} robots were filmed (if "
+                        f"{', '.join(never)} stood hidden or out of the frame throughout, the "
+                        f"footage shows too little of the team to track)", "robots")

@@ -321,3 +321,24 @@ def test_a_robot_whose_parts_render_in_marker_colour_is_refused_before_tracking(
               "--out", str(out))
     assert_clean_error(res, "geom 'shell' renders at HSV", "marker")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("scenario", ["lab", "examples/tag_hall.toml"])
+def test_the_trackers_and_the_health_test_the_same_outline(scenario):
+    """One occlusion rule: a tracker drops what the health calls hidden (colour and tags)."""
+    import mujoco
+
+    from macrostate_mj.chain.scenarios import get_scenario
+    from macrostate_mj.chain.world import build_world
+    from macrostate_mj.vision.trackers import tracker_for
+
+    ref = Path(__file__).resolve().parents[2] / scenario if scenario.endswith(".toml") \
+        else scenario
+    world = build_world(get_scenario(ref), 3)
+    data = mujoco.MjData(world.model)
+    mujoco.mj_forward(world.model, data)
+    tracker = tracker_for(world, data)
+    assert len(world.marker_outline) >= 3
+    assert np.array_equal(tracker.outline, world.marker_outline)
+    assert np.array_equal(HealthMonitor.for_world(world).outline, world.marker_outline)
+    assert tracker.occluders == HealthMonitor.for_world(world).occluders
