@@ -187,8 +187,14 @@ def test_a_broken_mesh_file_is_refused_in_one_line_naming_file_geom_and_fix(case
 
 
 def test_an_open_shell_with_shell_inertia_or_no_mass_passes(tmp_path):
-    load_robot(str(_robot(tmp_path / "a", shell=_open_shell(), mesh_attrs=' inertia="shell"')))
-    load_robot(str(_robot(tmp_path / "b", shell=_open_shell(), geom_attrs=' mass="0"')))
+    """An open CAD shell is fine where no volume is asked of it: its inertia a surface's, or
+    no mass at all; the robot loads with the shell as a mesh geom."""
+    for where, attrs in (("a", {"mesh_attrs": ' inertia="shell"'}),
+                         ("b", {"geom_attrs": ' mass="0"'})):
+        model = load_robot(str(_robot(tmp_path / where, shell=_open_shell(), **attrs))).model
+        shell = model.geom("shell")
+        assert shell.type[0] == mujoco.mjtGeom.mjGEOM_MESH
+        assert model.mesh_facenum[shell.dataid[0]] > 0
 
 
 def test_the_cli_refuses_a_broken_mesh_with_exit_2_and_writes_nothing(tmp_path, capsys):
