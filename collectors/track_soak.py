@@ -71,7 +71,7 @@ def track_summary(runs: list[TrackedRun]) -> dict:
         "faults": sum(r.fault is not None for r in runs),
         "min_detected": clean(min((r.detected_share[0] for r in worst if r.frames),
                                   default=math.nan)),
-        "max_hidden": clean(max((r.hidden_share for r in worst if r.frames + r.hidden),
+        "max_hidden": clean(max((r.hidden_share[0] for r in worst if r.frames + r.hidden),
                                 default=math.nan)),
         "max_median_mm": clean(max((r.median_mm for r in finite), default=math.nan)),
         "max_p99_mm": clean(max((r.p99_mm for r in finite), default=math.nan)),

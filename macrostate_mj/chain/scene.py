@@ -130,16 +130,6 @@ class Walls:
     height: float = 0.1                 # m
     thickness: float = 0.02             # m
 
-    def boxes(self, arena: tuple[float, float]) -> tuple[Obstacle, ...]:
-        """The four walls of an `arena`-sized floor as the boxes `build_scene` makes them
-        (east, west, north, south; the north and south ones span the corners): what can hide
-        a marker from the camera like an obstacle."""
-        ax, ay, t, h = arena[0] / 2, arena[1] / 2, self.thickness, self.height
-        return (Obstacle("box", (ax + t / 2, 0.0), (t, 2 * ay + t, h)),
-                Obstacle("box", (-ax - t / 2, 0.0), (t, 2 * ay + t, h)),
-                Obstacle("box", (0.0, ay + t / 2), (2 * (ax + t), t, h)),
-                Obstacle("box", (0.0, -ay - t / 2), (2 * (ax + t), t, h)))
-
 
 # How many sizes each obstacle shape takes: its footprint's full extents, then optionally height.
 OBSTACLE_SIZES = {"box": (2, 3), "cylinder": (1, 2)}

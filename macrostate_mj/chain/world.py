@@ -146,9 +146,9 @@ class World:
 
         model = self.model
         g = model.geom(f"{self.names[0]}/marker").id
-        xy = geom_vertices(model, g)[:, :2]
-        hull = xy[ConvexHull(xy).vertices]
-        centre = top_view(geom_vertices(model, g), geom_faces(model, g)).centroid
+        verts = geom_vertices(model, g)
+        hull = verts[ConvexHull(verts[:, :2]).vertices, :2]
+        centre = top_view(verts, geom_faces(model, g)).centroid
         return centre + (hull - centre) * self.scenario.markers.pattern
 
     def to_xml(self) -> str:

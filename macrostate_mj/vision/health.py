@@ -2,7 +2,7 @@
 knows, so that no run hands over wrong poses without saying so.
 
 A pose is position, heading and identity, on the rows a user gets. Per robot: the share of the
-dataset's rows in which it was detected, among those where it was in view (an obstacle or wall
+dataset's rows in which it was detected, among those where it was in view (an obstacle
 between its marker and the camera, by the truth and the camera's rays, is the scene, not the
 tracker: those rows are counted as hidden, and a robot hidden too often is a finding of its
 own); the same share over the frames the tracker processed, named as such; over its detections,
@@ -38,7 +38,7 @@ from macrostate_mj.vision.occlusion import occluded, scene_occluders
 # how-to/tracking-health).
 EDGE = ("or its marker leaves the frame near the image's edge (markers stand above the floor a "
         "fitted camera frames: widen camera.fovy)")
-HIDDEN = ("an obstacle or wall stands between its marker and the camera (a robot parked or driving "
+HIDDEN = ("an obstacle stands between its marker and the camera (a robot parked or driving "
           "beside something taller than its marker, off the camera's axis): move or lower the "
           "obstacle, raise the camera over it, or raise [tracking] max_hidden if you mean it")
 COLOUR_OFF = ("pixels of its marker's colour nearby pull the fit (another robot's marker "
@@ -89,7 +89,7 @@ class RobotHealth:
 
     robot: str
     frames: int                 # frames processed in which it was in view
-    hidden: int                 # frames an obstacle or wall hid its marker (not held against it)
+    hidden: int                 # frames an obstacle hid its marker (not held against it)
     detected_frames: float      # share of `frames` in which it was detected (NaN: no frames)
     rows: int                   # dataset rows judged in which it was in view
     rows_hidden: int            # dataset rows in which it was hidden
@@ -104,11 +104,12 @@ class RobotHealth:
     identity: float             # share of detections nearer another robot's truth
 
     @property
-    def hidden_share(self) -> float:
-        """Share of the dataset's rows (else of the frames) in which it was hidden."""
-        shown, hid = (self.rows, self.rows_hidden) if self.rows + self.rows_hidden else \
-            (self.frames, self.hidden)
-        return hid / (shown + hid) if shown + hid else math.nan
+    def hidden_share(self) -> tuple[float, str]:
+        """Share of the dataset's rows (else of the frames) in which it was hidden, and which."""
+        if self.rows + self.rows_hidden:
+            return self.rows_hidden / (self.rows + self.rows_hidden), "rows"
+        seen = self.frames + self.hidden
+        return (self.hidden / seen if seen else math.nan), "frames"
 
     @property
     def detected_share(self) -> tuple[float, str]:
@@ -142,7 +143,7 @@ class Finding:
         what = {
             "detected": f"detected in {v:.1%} of the {self.of} where it is in view (limit "
                         f"{lim:.0%})",
-            "hidden": f"hidden by an obstacle or wall in {v:.1%} of the {self.of} (limit "
+            "hidden": f"hidden by an obstacle in {v:.1%} of the {self.of} (limit "
                       f"{lim:.0%})",
             "median_error": f"tracked {v:.1f} mm from the truth at the median (limit {lim:g} mm)",
             "p99_error": f"tracked {v:.1f} mm from the truth at the 99th percentile (limit "
@@ -173,9 +174,10 @@ class TrackingHealth:
         out = []
         for r in self.robots:
             share, of = r.detected_share
-            if r.hidden_share > limits.max_hidden:
-                out.append(Finding(r.robot, "hidden", r.hidden_share, limits.max_hidden, HIDDEN,
-                                   "rows" if r.rows + r.rows_hidden else "frames"))
+            hidden, hidden_of = r.hidden_share
+            if hidden > limits.max_hidden:
+                out.append(Finding(r.robot, "hidden", hidden, limits.max_hidden, HIDDEN,
+                                   hidden_of))
             if r.frames == 0:              # hidden in every frame: nothing more to judge
                 continue
             past = [("identity", r.identity, limits.max_identity_errors),
@@ -208,7 +210,7 @@ class TrackingHealth:
             return "no frames tracked"
         worst = min(seen, key=lambda r: r.detected_share[0])
         share, of = worst.detected_share
-        hid = max(self.robots, key=lambda r: np.nan_to_num(r.hidden_share))
+        hid = max(self.robots, key=lambda r: np.nan_to_num(r.hidden_share[0]))
         errs = [r for r in seen if r.detected_frames > 0]
 
         def top(key: str, fmt: str = ".1f") -> str:
@@ -217,7 +219,7 @@ class TrackingHealth:
 
         frames = (f"; {worst.detected_frames:.1%} of its frames" if of == "rows" else "")
         line = (f"{len(seen)} robots, detected >= {share:.1%} of the {of} ({worst.robot}"
-                f"{frames}), hidden <= {np.nan_to_num(hid.hidden_share):.1%} ({hid.robot}), "
+                f"{frames}), hidden <= {np.nan_to_num(hid.hidden_share[0]):.1%} ({hid.robot}), "
                 f"median error <= {top('median_mm')} mm, p99 <= {top('p99_mm')} mm, heading "
                 f"p99 <= {top('heading_p99_deg')} deg, off 30 deg <= "
                 f"{top('heading_off30', '.1%')}, flipped <= {top('heading_flips', '.1%')}, "
@@ -288,7 +290,7 @@ class HealthMonitor:
     @classmethod
     def for_world(cls, world: World) -> HealthMonitor:
         """The monitor of a chain world: its robots, marker plane and size, what can hide a
-        marker (obstacles and walls)."""
+        marker (its obstacles)."""
         return cls(world.names, world.marker_height, scene_occluders(world.scenario),
                    world.marker_outline)
 

@@ -1,13 +1,12 @@
-"""Obstacles and walls as occluders of the overhead camera's view of the markers.
+"""Obstacles as occluders of the overhead camera's view of the markers.
 
 A marker is seen along the straight lines from its points to the camera's optical centre (a
 lens bends where a ray lands on the sensor, not which ray it is). A marker counts as hidden when
 one of those lines, from its centre or from its outline's corners and edges (the part the
-tracker reads, turned with the robot: a tag's quiet border may be hidden), passes through a
-solid standing on the floor (an obstacle or a wall) below its top: a partly hidden marker would be
-tracked off-centre, so the tracker calls it missed rather than trust what shows, as the real
-testbed knows its map. A marker beside an obstacle on the side away from the camera is in full
-view, and counts as seen.
+tracker reads, turned with the robot: a tag's quiet border may be hidden), passes through an
+obstacle below its top: a partly hidden marker would be tracked off-centre, so the tracker calls
+it missed rather than trust what shows, as the real testbed knows its map. A marker beside an
+obstacle on the side away from the camera is in full view, and counts as seen.
 """
 
 from __future__ import annotations
@@ -19,8 +18,10 @@ from macrostate_mj.chain.scene import Obstacle
 
 
 def scene_occluders(cfg: ScenarioConfig) -> tuple[Obstacle, ...]:
-    """What can hide a marker in scenario `cfg`: its obstacles and its walls."""
-    return tuple(cfg.obstacles) + (() if cfg.walls is None else cfg.walls.boxes(cfg.arena))
+    """What can hide a marker in scenario `cfg`: its obstacles. Not its walls: they stand
+    outside the floor and the camera looks straight down over its centre (`chain.scene.Camera`),
+    so the line from any marker on the floor to the camera stays over the floor."""
+    return tuple(cfg.obstacles)
 
 
 def outline_points(poses: np.ndarray, outline: np.ndarray) -> np.ndarray:

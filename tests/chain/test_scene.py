@@ -245,14 +245,3 @@ def test_scenario_check_prints_the_lens_the_corner_scale_the_markers_and_obstacl
     assert "lens       ideal (pinhole)" in out and "obstacles  none" in out
     assert "3.00 px/cm at the centre, 3.00 px/cm" in out
 
-
-@pytest.mark.parametrize("name", sorted(SCENARIOS))
-def test_the_walls_as_occluders_are_the_walls_built(name):
-    """`Walls.boxes` (what hides a marker) and `build_scene` (what is rendered) agree."""
-    cfg = SCENARIOS[name]
-    model = scene_of(cfg).compile()
-    for side, box in zip(("east", "west", "north", "south"), cfg.walls.boxes(cfg.arena),
-                         strict=True):
-        geom = model.geom(f"wall_{side}")
-        assert np.allclose(geom.pos[:2], box.pos) and np.allclose(2 * geom.size,
-                                                                   [*box.size[:2], box.height])

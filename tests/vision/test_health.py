@@ -214,9 +214,9 @@ def test_a_robot_hidden_in_too_many_rows_is_a_finding():
     for _ in range(10):
         monitor.add(np.array([True, True, False]), TRUTH, TRUTH, camera)
     report = monitor.report(_Log([[True, True, False]] * 10))
-    assert report.robots[2].rows_hidden == 10 and report.robots[2].hidden_share == 1.0
+    assert report.robots[2].rows_hidden == 10 and report.robots[2].hidden_share == (1.0, "rows")
     [finding] = report.findings(TrackingLimits())
-    assert finding.figure == "hidden" and "hidden by an obstacle or wall in 100.0% of the rows" \
+    assert finding.figure == "hidden" and "hidden by an obstacle in 100.0% of the rows" \
         in finding.describe()
     assert "hidden <= 100.0% (T)" in report.summary()
 
