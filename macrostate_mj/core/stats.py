@@ -168,3 +168,33 @@ def units_to_narrow(std: float, n: int, half_width: float, level: float = 0.95,
     enough = np.flatnonzero(t.ppf(0.5 + level / 2, m - 1) * _se(sd, m, ratio)  # type: ignore[arg-type]
                             <= half_width)
     return int(m[enough[0]]) if len(enough) else None
+
+
+def two_level_bootstrap(arm: Any, ref: Any, draws: int = 4000, seed: int = 0,
+                        level: float = 0.95) -> dict[str, dict[str, float]]:
+    """An arm against a reference on one test set: `arm` and `ref` are errors (model seeds x
+    test instances). Each draw resamples the test instances (the same for both: they are
+    scored on one set) and, independently per arm, the model seeds (trainings are independent
+    draws); the ratio and the difference of the means, each with its `level` percentile
+    interval. The units are the instances and the seeds: what another test set of the same
+    size, and other trainings, would show. Hand-written: `scipy.stats.bootstrap` resamples
+    one level of paired units, not instances shared by two arms with seeds apart."""
+    import numpy as np
+
+    a, b = np.asarray(arm, float), np.asarray(ref, float)
+    if a.shape[1] != b.shape[1] or a.shape[1] < 2:
+        raise ValueError("both arms must be scored on the same test instances (at least 2)")
+    rng = np.random.default_rng(seed)
+    n = a.shape[1]
+    inst = rng.integers(0, n, (draws, n))
+    sa = rng.integers(0, len(a), (draws, len(a)))
+    sb = rng.integers(0, len(b), (draws, len(b)))
+    ma = np.stack([a[s][:, i].mean() for s, i in zip(sa, inst, strict=True)])
+    mb = np.stack([b[s][:, i].mean() for s, i in zip(sb, inst, strict=True)])
+    tails = [50 - level * 50, 50 + level * 50]
+    out = {}
+    for name, point, boot in (("ratio", a.mean() / b.mean(), ma / mb),
+                              ("difference", a.mean() - b.mean(), ma - mb)):
+        low, high = np.percentile(boot, tails)
+        out[name] = {"mean": float(point), "low": float(low), "high": float(high)}
+    return out

@@ -84,6 +84,8 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "scenario show": ["lab"],
         "scenario check": ["lab"],
         "experiment sim2real": ["--real", d, "--out", str(out)],
+        "experiment s2r-sealed": ["--real", d, "--out", str(out), "--ledger",
+                                  str(tmp / "ledger.jsonl")],
         "sysid": ["--train", c, "--val", c, "--out", str(out)],
         "ants simulate": ["--out", str(out)],
         "flow": ["--frames", d, "--out", str(out)],

@@ -5,7 +5,8 @@ Real data: a folder of ThymioLoc 3-robot files, `Train.csv` then `Val.csv`, pool
 and cut into `folds` contiguous blocks (instances overlap in time, so a random split would leak).
 Model i (seed `seed + i`) is tested on block i mod `folds`, never used by any model of that
 seed; of the other blocks, the last `val_share` selects the real-trained checkpoints and the rest
-is the real training pool, of which the first 10 / 25 / 50 / 100 % are used. Four arms per seed
+is the real training pool, of which 10 / 25 / 50 / 100 % are used (contiguous parts in turn
+over the seeds: `share`). Four arms per seed
 (`arms` picks some: `sim` alone asks only how far a lab collection carries):
 - sim: trained and selected on a lab collection only (`collect --scenario SCENARIO --robots 3
   --split 80/20/0 [--randomize PROFILE]`, a `collect` run in `data/sim`, or `--sim DIR` with
@@ -415,13 +416,14 @@ class ModelTask(ShipsFiles):
                  test: np.ndarray, lr: float | None = None, init: Path | None = None,
                  mix: Data | None = None, mix_weight: float = 0.5, chained: bool = True,
                  precision: str = "fp32", select: np.ndarray | None = None,
-                 frozen: bool = False):
+                 frozen: bool = False, per_instance: bool = False):
         self.arm, self.seed, self.epochs, self.lr, self.chained = arm, seed, epochs, lr, chained
         self.precision = precision
         self.train, self.val, self.test, self.init = train, val, test, init
         self.select = select            # real data it is also scored on, to choose among labs
         self.mix, self.mix_weight = mix, mix_weight
         self.frozen = frozen            # the init's encoders kept fixed
+        self.per_instance = per_instance    # the Head's error on each test instance too
         self._key: str | None = None
 
     def train_config(self) -> Any:
@@ -441,6 +443,8 @@ class ModelTask(ShipsFiles):
             config = {"arm": self.arm, "train": self.train_config()}
             if self.mix is not None:        # keys of the other arms stay as they were
                 config["mix_weight"] = self.mix_weight
+            if self.per_instance:
+                config["per_instance"] = True
             self._key = task_key(self.stage, self.version, config, inputs)
         return self._key
 
@@ -457,6 +461,10 @@ class ModelTask(ShipsFiles):
         report = evaluate(TorchPredictor(net), self.test)
         scores = {"head_cm": report["per_robot_cm"]["H"], "mean_cm": report["mean_error_cm"],
                   "best_val_cm": info["best_val_cm"], "epochs_run": info["epochs_run"]}
+        if self.per_instance:       # what a bootstrap over test instances resamples
+            scores["head_cm_by_instance"] = [
+                evaluate(TorchPredictor(net), self.test[i:i + 1])["per_robot_cm"]["H"]
+                for i in range(len(self.test))]
         if self.select is not None:
             scores["select_head_cm"] = evaluate(TorchPredictor(net),
                                                 self.select)["per_robot_cm"]["H"]
@@ -505,7 +513,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                        _sim_task(config, s, lab[i], pooled[val], pooled[test], choose))
                       for fit, by_range in labs.items() for r, lab in by_range.items()]
     with progress.stage("models"):
-        done = _train(first, progress, total)
+        done = train_models(first, progress, total)
         sims = [{**meta, **json.loads((done[id(task)].folder / "report.json").read_text()),
                  "folder": done[id(task)].folder} for meta, task in first]
         # per fit and seed, the candidate best on the real validation block
@@ -517,18 +525,19 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
             lab = labs[config.fits[0]][ranges][i] if labs else None
             checkpoint = sim["folder"] / "model.pt" if sim else None
             for f in config.fractions:
-                count = max(1, int(np.ceil(f * len(pool))))
-                second += [({"arm": arm, "fraction": f, "count": count, "seed": s, **tuned},
-                            _arm_task(arm, config, s, pool[:count], val, test, checkpoint, lab,
+                part = share(len(pool), f, i)
+                second += [({"arm": arm, "fraction": f, "count": part.stop - part.start, "seed": s,
+                             **tuned},
+                            _arm_task(arm, config, s, pool[part], val, test, checkpoint, lab,
                                       **tuned))
                            for arm in later for tuned in _candidates(config, arm)]
-        done |= _train(second, progress, total, done)
+        done |= train_models(second, progress, total, done)
         third = [({"ablate": group, "seed": s}, _sim_task(config, s, lab, val, test, False))
                  for group in config.ablate
                  for (s, _, val, test), lab in zip(blocks, _ablated_labs(
                      config, group, labs, chosen, out, progress), strict=True)
                  if lab is not None]
-        done |= _train(third, progress, total, done)
+        done |= train_models(third, progress, total, done)
     reports, choices = choose_settings([
         {**meta, **json.loads((done[id(task)].folder / "report.json").read_text())}
         for meta, task in second], config)
@@ -627,6 +636,16 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
     return ModelTask(arm, seed, config.epochs, train, val, test, **mix, **how)
 
 
+def share(n: int, fraction: float, i: int) -> slice:
+    """Model i's `fraction` of a pool of `n` instances: contiguous part i mod the parts it
+    holds, spread evenly from the first instance to the last (a quarter: the four quarters in
+    turn), so seeds see different real data rather than one first part each."""
+    count = max(1, int(np.ceil(fraction * n)))
+    parts = max(1, round(n / count))
+    start = int(np.linspace(0, n - count, parts).round()[i % parts])
+    return slice(start, start + count)
+
+
 def best_by(rows: list[dict], key: Callable[[dict], tuple], score: str) -> dict[tuple, dict]:
     """Per `key`, the row of lowest `score` (the first of equals): how both the ranges and the
     mixed arm's share are chosen on the real validation block."""
@@ -669,7 +688,7 @@ def choose_settings(reports: list[dict], config: Config) -> tuple[list[dict], di
     return chosen, tables
 
 
-def _train(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
+def train_models(tasks: list[tuple[dict, ModelTask]], progress: Progress, total: int,
            earlier: dict[int, Outcome] | None = None) -> dict[int, Outcome]:
     """Run the tasks (cached ones are read back); their outcomes by id(task). The bar counts
     the `earlier` outcomes of the same stage too."""

@@ -1,0 +1,264 @@
+"""`experiment s2r-sealed`: the sim-to-real recipe scored on a sealed real test, each look
+counted in a ledger.
+
+Every choice is made on the real Train.csv alone. Its last `select_share` (the check block)
+picks every model's checkpoint, the lab-only model's included; the rest is the real pool.
+The recipe (the lab, its ranges, the minutes, the epochs, the fine-tuning) is this config,
+fixed before anything is scored. The real Val.csv is the sealed test: every model is scored
+on each of its instances, and nothing else reads it. A look needs a frozen recipe (the
+packages committed, no uncommitted change to them) and is appended to the ledger (`--ledger`,
+`results/sealed_ledger.jsonl` of the checkout): date, commit, recipe hash, figures and the
+looks so far (distinct recipes scored on this test; a rerun of one recipe is a repeat, not a
+look). A setting chosen on a sealed score must never be reported on it: choose on Train's
+folds (`experiment sim2real` on a folder holding Train.csv split in two), then look once.
+
+Arms per model seed i (`seed + i`): lab (trained on the lab collection, `collect --randomize
+RANGES --minutes MINUTES --split 80/20/0`), real (all of the pool), quarter (the lab model
+fine-tuned on contiguous quarter i mod 4 of the pool: seeds see different real data) and
+all (the lab model fine-tuned on the whole pool). Each arm against real: the ratio and the
+difference of the Head errors, with 95 % intervals from a two-level bootstrap over the test
+instances and the model seeds (`core.stats.two_level_bootstrap`): the units are the sealed
+test's instances (no two share a row) and the trainings.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.experiments.sim2real import ModelTask, share, train_models
+from macrostate_mj.app.params import (
+    REAL_FOLDER,
+    Chained,
+    Count,
+    OutputFile,
+    Positive,
+    Scenario,
+    Seed,
+    flag,
+)
+from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.io import write_json_atomic, write_text_atomic
+from macrostate_mj.core.paths import CHECKOUT, real_thymioloc
+from macrostate_mj.core.run import code, config_hash
+from macrostate_mj.core.stats import mean_std, two_level_bootstrap
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
+
+PRODUCTS = ["results.json"]
+ARMS = ("lab", "real", "quarter", "all")    # what each seed trains, in this order
+REFERENCE = "real"                          # what every arm is set against
+QUARTER = 0.25
+
+
+def _default_ledger() -> Path:
+    return (CHECKOUT or Path.cwd()) / "results" / "sealed_ledger.jsonl"
+
+
+@dataclass(frozen=True)
+class Config:
+    seeds: int = field(default=4, metadata=flag(Count(
+        None, "Model seeds per arm (4: each quarter of the pool fine-tunes one).", max=64)))
+    seed: int = field(default=0, metadata=flag(Seed(0, "The first model seed.")))
+    real: Path = field(default_factory=real_thymioloc, metadata=REAL_FOLDER)
+    scenario: ScenarioRef = field(default="lab", metadata=flag(Scenario, default="lab"))
+    # the lab collection's ranges: a built-in profile or a JSON file (its content is hashed)
+    randomize: str = "wider-rear"
+    sim_minutes: float = field(default=300.0, metadata=flag(Positive(
+        None, "Minutes of lab data to collect.", "--sim-minutes", max=10_000)))
+    sim_seed: int = 31
+    episode_minutes: float = 5.0
+    epochs: int = 60
+    finetune_epochs: int = 30
+    finetune_lr: float = 5e-4
+    select_share: float = 0.15      # Train's last share: the check block
+    chained: bool = field(default=False, metadata=flag(Chained, default=False))
+    precision: str = "fp32"
+    ledger: Path = field(default_factory=_default_ledger, metadata=flag(OutputFile(
+        None, "The ledger each sealed look is appended to.", (".jsonl",)),
+        shown="results/sealed_ledger.jsonl"))
+
+    @property
+    def profile(self) -> dict:
+        """The ranges as drawn (a file's content, not its name)."""
+        from collectors.randomize import Randomization
+
+        return Randomization.parse(self.randomize).profile()
+
+
+PARALLEL = Parallel("collection and trainings")
+PROFILES = {"full": Config(),
+            "quick": Config(seeds=2, sim_minutes=4.0, episode_minutes=2.0, epochs=2,
+                            finetune_epochs=1)}
+
+
+def missing(config: Config) -> str | None:
+    """The input this run cannot start without (`experiment all` skips it)."""
+    return None if Path(config.real).is_dir() else \
+        f"the real ThymioLoc folder {config.real} (`macrostate-mj data fetch retlo`)"
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def recipe(config: Config) -> dict:
+    """What a sealed figure is of: every setting that shapes a model, the ranges and the
+    scenario by content, and the real files by their bytes (the ledger's hash)."""
+    return {"scenario": config_hash(get_scenario(config.scenario)),
+            "profile": config.profile, "train": _sha(config.real / "Train.csv"),
+            "sealed": _sha(config.real / "Val.csv"),
+            **{k: getattr(config, k) for k in (
+                "seeds", "seed", "sim_minutes", "sim_seed", "episode_minutes", "epochs",
+                "finetune_epochs", "finetune_lr", "select_share", "chained", "precision")}}
+
+
+def validate(config: Config) -> tuple[np.ndarray, np.ndarray]:
+    """Refuse bad inputs and an unfrozen recipe in one line, before anything is written or
+    scored; Train's and the sealed test's instances (px)."""
+    parts = []
+    for name in ("Train.csv", "Val.csv"):
+        if not (config.real / name).is_file():
+            raise UserError(f"--real {config.real} has no {name}; pass the folder of the real "
+                            "ThymioLoc Train.csv and Val.csv (`macrostate-mj data fetch retlo`)")
+        parts.append(read_csv(config.real / name).poses)
+    if parts[0].shape[1:] != parts[1].shape[1:] or parts[0].shape[2] != 3:
+        raise UserError(f"--real {config.real}: Train.csv and Val.csv must both hold 3-robot "
+                        "instances of the same length")
+    if len(parts[1]) < 2 or len(parts[0]) < 8:
+        raise UserError(f"--real {config.real}: the sealed test needs 2 instances and Train 8 "
+                        f"(a check block and four quarters); got {len(parts[1])} and "
+                        f"{len(parts[0])}")
+    config.profile                      # noqa: B018  (a bad profile is refused here)
+    made = code()
+    if made["commit"] is None or made["dirty"]:
+        raise UserError("a sealed look needs a frozen recipe: commit the code first (the "
+                        "packages have uncommitted changes, or this is not a git checkout)")
+    return parts[0], parts[1]
+
+
+def _lab(config: Config, out: Path, progress: Progress) -> Path:
+    """The lab collection (a resumable `collect` run in `out/data/lab`)."""
+    from collectors.runner import CollectRequest, collect, finished
+
+    req = CollectRequest(get_scenario(config.scenario), 3, config.sim_minutes,
+                         config.sim_seed, out / "data" / "lab", "passive",
+                         workers=progress.workers, ray=progress.ray, split="80/20/0",
+                         overwrite=True, episode_minutes=config.episode_minutes,
+                         randomize=config.randomize)
+    if not finished(req):
+        collect(req, lambda _, minutes, resumed: progress.report(
+            "lab data", minutes, config.sim_minutes, resumed))
+    return req.out
+
+
+def _tasks(config: Config, lab: Path, pool: np.ndarray, check: np.ndarray,
+           sealed: np.ndarray, sims: dict[int, Path] | None) -> list[tuple[dict, ModelTask]]:
+    """The lab models (`sims` None), or every other arm's, fine-tuned from `sims[seed]`."""
+    how = {"chained": config.chained, "precision": config.precision, "per_instance": True}
+    tasks = []
+    for i in range(config.seeds):
+        s = config.seed + i
+        if sims is None:
+            tasks.append(({"arm": "lab", "seed": s}, ModelTask(
+                "sim", s, config.epochs, lab / "Train.csv", check, sealed, **how)))
+            continue
+        part = share(len(pool), QUARTER, i)
+        tasks += [
+            ({"arm": "real", "seed": s}, ModelTask("real", s, config.epochs, pool, check,
+                                                   sealed, **how)),
+            ({"arm": "quarter", "seed": s, "part": [part.start, part.stop]}, ModelTask(
+                "finetune", s, config.finetune_epochs, pool[part], check, sealed,
+                config.finetune_lr, sims[s], **how)),
+            ({"arm": "all", "seed": s}, ModelTask(
+                "finetune", s, config.finetune_epochs, pool, check, sealed,
+                config.finetune_lr, sims[s], **how))]
+    return tasks
+
+
+def summarize(reports: list[dict], config: Config) -> dict:
+    """Per arm the Head error over seeds, and each arm against real (ratio, difference)."""
+    by_arm = {a: sorted((r for r in reports if r["arm"] == a), key=lambda r: r["seed"])
+              for a in ARMS}
+    errors = {a: np.array([r["head_cm_by_instance"] for r in rs]) for a, rs in by_arm.items()}
+    out: dict = {"units": "sealed-test instances x model seeds (two-level bootstrap)",
+                 "instances": int(errors[REFERENCE].shape[1]), "seeds": config.seeds,
+                 "arms": {a: {"head_cm": mean_std([r["head_cm"] for r in rs]),
+                              "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in rs},
+                              **({"parts": {str(r["seed"]): r["part"] for r in rs}}
+                                 if a == "quarter" else {})}
+                          for a, rs in by_arm.items()},
+                 "against_real": {a: two_level_bootstrap(errors[a], errors[REFERENCE])
+                                  for a in ARMS if a != REFERENCE}}
+    return out
+
+
+def look(config: Config, results: dict) -> dict:
+    """Append this scoring to the ledger; its entry (a rerun of a recipe already in it is a
+    repeat and adds no look)."""
+    made = code()
+    digest = config_hash(recipe(config))
+    lines = config.ledger.read_text().splitlines() if config.ledger.is_file() else []
+    entries = [json.loads(line) for line in lines if line.strip()]
+    seen = {e["recipe_hash"] for e in entries}
+    entry = {"date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": made["commit"],
+             "code_digest": made["digest"], "recipe_hash": digest,
+             "randomize": config.randomize, "repeat": digest in seen,
+             "looks": len(seen | {digest}),
+             "figures": {a: {k: round(v, 4) for k, v in results["against_real"][a]["ratio"]
+                             .items()} for a in results["against_real"]},
+             "head_cm": {a: round(v["head_cm"]["mean"], 4)
+                         for a, v in results["arms"].items()}}
+    write_text_atomic(config.ledger, "".join(f"{line}\n" for line in lines)
+                      + json.dumps(entry, sort_keys=True) + "\n")
+    return entry
+
+
+@register
+def run(config: Config, out: Path, progress: Progress) -> list[str]:
+    """Collect the lab data, train every arm, score the sealed test, log the look."""
+    from estimators.retlo.files import pixels_to_world
+
+    with progress.stage("data"):
+        train_px, sealed_px = validate(config)
+        lab = _lab(config, out, progress)
+    train = pixels_to_world(train_px, DEFAULT_PX_PER_CM)
+    sealed = pixels_to_world(sealed_px, DEFAULT_PX_PER_CM)
+    n_check = max(1, int(round(config.select_share * len(train))))
+    pool, check = train[:-n_check], train[-n_check:]
+    with progress.stage("models"):
+        first = _tasks(config, lab, pool, check, sealed, None)
+        total = config.seeds * len(ARMS)
+        done = train_models(first, progress, total)
+        sims = {meta["seed"]: done[id(t)].folder / "model.pt" for meta, t in first}
+        second = _tasks(config, lab, pool, check, sealed, sims)
+        done |= train_models(second, progress, total, done)
+    reports = [{**meta, **json.loads((done[id(t)].folder / "report.json").read_text())}
+               for meta, t in [*first, *second]]
+    results = summarize(reports, config)
+    results |= {"recipe": recipe(config), "recipe_hash": config_hash(recipe(config)),
+                "check_instances": n_check, "pool_instances": len(pool)}
+    results["look"] = look(config, results)
+    write_json_atomic(out / "results.json", results)
+    progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["looks"])
+    return summary_lines(results)
+
+
+def summary_lines(results: dict) -> list[str]:
+    lines = [f"sealed test: {results['instances']} instances, {results['seeds']} seeds per arm "
+             f"(look {results['look']['looks']} of the ledger"
+             f"{', a repeat' if results['look']['repeat'] else ''})"]
+    for arm, cell in results["arms"].items():
+        h = cell["head_cm"]
+        against = results["against_real"].get(arm)
+        vs = "" if against is None else (
+            f"  {against['ratio']['mean']:.2f}x real [{against['ratio']['low']:.2f}, "
+            f"{against['ratio']['high']:.2f}]")
+        lines.append(f"{arm:<8} Head {h['mean']:.2f} ± {h['std']:.2f} cm{vs}")
+    return lines

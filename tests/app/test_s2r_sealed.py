@@ -1,0 +1,113 @@
+"""`experiment s2r-sealed`: the sealed test takes part in no choice, a look needs a frozen
+recipe and is counted once, the quarters go round the pool, and a quick end-to-end run (a
+small lab collection stands in for the real files)."""
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clitools import cli
+
+from macrostate_mj.app.experiments import execute, s2r_sealed
+from macrostate_mj.app.experiments.sim2real import share
+from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.stats import two_level_bootstrap
+
+FROZEN = {"commit": "0" * 40, "dirty": False, "digest": "d"}
+
+
+@pytest.fixture(scope="module")
+def stand_in(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sealed") / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
+              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
+              "--out", str(folder))
+    assert res.returncode == 0, res.stderr
+    return folder
+
+
+def _config(stand_in: Path, tmp: Path, **changes) -> s2r_sealed.Config:
+    return replace(s2r_sealed.PROFILES["quick"], real=stand_in, ledger=tmp / "ledger.jsonl",
+                   **changes)
+
+
+def test_quick_run_scores_the_sealed_test_and_counts_one_look(stand_in, tmp_path,
+                                                              monkeypatch):
+    monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
+    config = _config(stand_in, tmp_path)
+    lines = execute("s2r-sealed", config, tmp_path / "out", workers=2)
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    n_sealed = len(s2r_sealed.read_csv(stand_in / "Val.csv").poses)
+    assert results["instances"] == n_sealed and set(results["arms"]) == set(s2r_sealed.ARMS)
+    for arm, cell in results["against_real"].items():
+        ratio = cell["ratio"]
+        assert ratio["low"] <= ratio["mean"] <= ratio["high"], arm
+        assert ratio["mean"] == pytest.approx(results["arms"][arm]["head_cm"]["mean"]
+                                              / results["arms"]["real"]["head_cm"]["mean"])
+    parts = results["arms"]["quarter"]["parts"]        # two seeds, two different quarters
+    assert parts["0"][0] == 0 and parts["1"][0] > 0
+    assert {b - a for a, b in parts.values()} == {int(np.ceil(results["pool_instances"] / 4))}
+    entries = [json.loads(x) for x in config.ledger.read_text().splitlines()]
+    assert len(entries) == 1 and entries[0]["looks"] == 1 and not entries[0]["repeat"]
+    assert entries[0]["recipe_hash"] == results["recipe_hash"]
+    assert "look 1 of the ledger" in lines[0]
+
+
+def test_looks_count_distinct_recipes_and_keep_the_ledger(stand_in, tmp_path, monkeypatch):
+    monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
+    results = {"against_real": {"lab": {"ratio": {"mean": 1.4, "low": 1.2, "high": 1.6}}},
+               "arms": {"lab": {"head_cm": {"mean": 5.0}}}}
+    config = _config(stand_in, tmp_path)
+    first = s2r_sealed.look(config, results)
+    again = s2r_sealed.look(config, results)
+    other = s2r_sealed.look(replace(config, randomize="wider"), results)
+    assert (first["looks"], again["looks"], other["looks"]) == (1, 1, 2)
+    assert (first["repeat"], again["repeat"], other["repeat"]) == (False, True, False)
+    assert len(config.ledger.read_text().splitlines()) == 3
+
+
+def test_an_unfrozen_recipe_is_refused_before_anything_is_scored(stand_in, tmp_path,
+                                                                 monkeypatch):
+    monkeypatch.setattr(s2r_sealed, "code", lambda: {**FROZEN, "dirty": True})
+    with pytest.raises(UserError, match="frozen recipe"):
+        s2r_sealed.validate(_config(stand_in, tmp_path))
+    res = cli("experiment", "s2r-sealed", "--quick", "--real", str(tmp_path), "--out",
+              str(tmp_path / "out"), "--ledger", str(tmp_path / "l.jsonl"))
+    assert res.returncode == 2 and "Train.csv" in res.stderr
+    assert not (tmp_path / "out").exists() and not (tmp_path / "l.jsonl").exists()
+
+
+def test_the_sealed_test_picks_no_checkpoint_and_trains_nothing(stand_in, tmp_path):
+    config = replace(_config(stand_in, tmp_path), seeds=4)
+    train = np.arange(40.0).reshape(40, 1)
+    pool, check, sealed = train[:34], train[34:], np.full((5, 1), -1.0)
+    sims = {s: tmp_path / f"{s}.pt" for s in range(4)}
+    tasks = s2r_sealed._tasks(config, tmp_path, pool, check, sealed, None) + \
+        s2r_sealed._tasks(config, tmp_path, pool, check, sealed, sims)
+    assert len(tasks) == 4 * len(s2r_sealed.ARMS)
+    for meta, task in tasks:
+        assert task.val is check and task.test is sealed, meta
+        if isinstance(task.train, np.ndarray):
+            assert not np.isin(task.train, sealed).any() and not np.isin(task.train, check).any()
+    quarters = [t.train.ravel() for m, t in tasks if m["arm"] == "quarter"]
+    assert set(np.concatenate(quarters)) == set(pool.ravel())     # the four quarters in turn
+
+
+def test_the_quarters_go_round_the_pool():
+    assert [share(230, 0.25, i) for i in range(5)] == [
+        slice(0, 58), slice(57, 115), slice(115, 173), slice(172, 230), slice(0, 58)]
+    assert share(230, 1.0, 3) == slice(0, 230) and share(10, 0.1, 9) == slice(9, 10)
+
+
+def test_the_bootstrap_covers_the_ratio_and_widens_with_fewer_instances():
+    rng = np.random.default_rng(0)
+    ref = 4.0 + rng.normal(0, 1.0, (4, 200))
+    arm = 1.5 * ref + rng.normal(0, 0.2, (4, 200))
+    wide = two_level_bootstrap(arm[:, :20], ref[:, :20])["ratio"]
+    narrow = two_level_bootstrap(arm, ref)["ratio"]
+    assert narrow["low"] < 1.5 < narrow["high"]
+    assert narrow["high"] - narrow["low"] < wide["high"] - wide["low"]
+    with pytest.raises(ValueError):
+        two_level_bootstrap(arm[:, :3], ref[:, :4])
