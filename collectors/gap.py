@@ -16,23 +16,24 @@ from macrostate_mj.formats import motion_stats
 # and the Followers' gains, cap and wait rule drive speeds and spacing; the heading gain turns;
 # the tracker's noise makes the frame-to-frame jitter and, through it, accelerations and the
 # autocorrelations' short lags, as frames of uneven age do (the camera's frame rate and timing
-# jitter); wheel grip and motor torque limit accelerations; the rear robots' start gap sets
-# when they stop and go).
+# jitter, and rows that alternate between two frame ages); wheel grip and motor torque limit
+# accelerations; the rear robots' start gap sets when they stop and go).
 SHAPED_BY: dict[str, tuple[str, ...]] = {
     "spacing_cm": ("k_f", "k_t", "wait_slack", "follow_start"),
     "speed_cm_s": ("head_speed", "chain_speed", "k_f", "k_t", "wait_slack", "follow_start",
-                   "frame_hz", "frame_jitter", "wheel_spread", "head_turn_speed"),
+                   "frame_hz", "frame_jitter", "frame_alternation", "wheel_spread",
+                   "head_turn_speed"),
     "turn_deg_s": ("k_omega", "marker_jitter", "head_jitter_scale", "wheel_spread",
                    "marker_offset"),
     "heading_change_deg": ("k_omega", "marker_jitter", "head_jitter_scale", "wheel_spread",
                            "marker_offset"),
     "accel_cm_s2": ("motor_torque", "wheel_friction", "marker_jitter", "head_jitter_scale",
-                    "frame_hz", "frame_jitter"),
+                    "frame_hz", "frame_jitter", "frame_alternation"),
     "jitter_cm": ("marker_jitter", "head_jitter_scale", "sensor_sigma", "blur_px",
-                  "psf_sigma_px", "frame_jitter"),
+                  "psf_sigma_px", "frame_jitter", "frame_alternation"),
     "wait_share": ("wait_slack", "follow_start", "chain_speed", "k_f"),
-    "speed_acf": ("frame_hz", "frame_jitter", "marker_jitter", "head_jitter_scale", "k_f",
-                  "k_t", "head_turn_speed"),
+    "speed_acf": ("frame_hz", "frame_jitter", "frame_alternation", "marker_jitter",
+                  "head_jitter_scale", "k_f", "k_t", "head_turn_speed"),
     "turn_acf": ("k_omega", "marker_jitter", "head_jitter_scale", "frame_hz", "frame_jitter"),
 }
 assert all(set(v) <= set(PARAMETERS) for v in SHAPED_BY.values())

@@ -5,6 +5,7 @@ A profile maps parameter names to (low, high) factors applied to the scenario's 
 profile serves every scenario: `k_f: (0.8, 1.2)` multiplies the Follower gain by a uniform draw in
 [0.8, 1.2]. The `ABSOLUTE` parameters, whose scenario value is zero by default, are added in
 their own unit instead (`frame_jitter: (0, 0.1)` delays each frame by up to 0-0.1 s more,
+`frame_alternation: 0.05` takes every other row's frames 0.05 s earlier,
 `follow_start: 0.01` lets a rear robot wait 1 cm more before it sets off, `follow_hold: 0.3`
 makes one that is nearer the robot ahead than 0.3 m closer than d stop rather than back off,
 `head_turn_speed: 1` drives the Head through its turns at full speed); `max_turn: 0.5` halves
@@ -36,7 +37,7 @@ SCENARIO = ("k_f", "k_t", "k_omega", "head_speed", "chain_speed", "marker_jitter
 RULES = ("wait_slack", "follow_start", "follow_hold")   # the lab rule (`WaitForBehind`)
 MODEL = ("wheel_friction", "motor_torque")
 IMAGING = ("sensor_sigma", "blur_px", "psf_sigma_px")
-TIMING = ("frame_hz", "frame_jitter")     # the camera's frames (`ScenarioConfig.camera_hz`)
+TIMING = ("frame_hz", "frame_jitter", "frame_alternation")  # the camera's frames (`camera_hz`)
 SPREAD = ("wheel_spread", "marker_offset")   # how the robots differ (`ScenarioConfig`)
 HEAD = ("head_turn_speed", "max_turn")      # how the Head drives: through turns, and how far
 #                                             it turns for its next waypoint (a Psi planner)
@@ -44,7 +45,7 @@ PARAMETERS = (*SCENARIO, *RULES, *MODEL, *IMAGING, *TIMING, *SPREAD, *HEAD)
 # added in their unit (s, m, a share), not factors: zero by default; `ADDED` the scenario's
 # own fields among them (the rest live in the frame timing and the follower rule)
 ADDED = (*SPREAD, "head_turn_speed")
-ABSOLUTE = ("frame_jitter", "follow_start", "follow_hold", *ADDED)
+ABSOLUTE = ("frame_jitter", "frame_alternation", "follow_start", "follow_hold", *ADDED)
 
 # ±20 % on the motion rules and speeds, ±30 % on wheel grip and motor torque, the imaging noise
 # from half to twice its default, the marker jitter over the span the 1-D scan of `sysid` found
@@ -189,9 +190,11 @@ def randomized_scenario(cfg: ScenarioConfig, factors: dict[str, float]) -> Scena
                             f"planner is {type(cfg.planner).__name__}: leave max_turn out")
         cfg = replace(cfg, planner=replace(
             cfg.planner, max_turn=min(180.0, cfg.planner.max_turn * factors["max_turn"])))
-    if "frame_hz" in factors or "frame_jitter" in factors:
+    if set(TIMING) & set(factors):
         cfg = replace(cfg, frame_hz=cfg.camera_hz * factors.get("frame_hz", 1.0),
-                      frame_jitter=cfg.frame_jitter + factors.get("frame_jitter", 0.0))
+                      frame_jitter=cfg.frame_jitter + factors.get("frame_jitter", 0.0),
+                      frame_alternation=cfg.frame_alternation
+                      + factors.get("frame_alternation", 0.0))
     rule = cfg.followers
     if isinstance(rule, WaitForBehind) and set(RULES) & set(factors):
         cfg = replace(cfg, followers=replace(

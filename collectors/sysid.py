@@ -61,14 +61,19 @@ from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 # off at once, 0, to stopping, the lab's spacing) and how the Head drives (through its turns,
 # `head_turn_speed`; how far it turns for its next waypoint, `max_turn`: 45-180 degrees) are
 # fitted too; a candidate whose parked chain does not stand still (`chain.parked`) is refused
-# whatever its score.
+# whatever its score. The rows' shared timing (`frame_alternation`, s: every other row's frames
+# that much earlier) reproduces the alternation every real robot's speed shows with the Head's
+# (docs: reproduction/sim-to-real); a candidate's alternation is capped below its frame period
+# less its jitter (`feasible`), where the box is not a rectangle.
 BOUNDS: dict[str, tuple[float, float]] = {
     "k_f": (0.6, 10.0), "k_t": (0.6, 10.0), "k_omega": (0.6, 1.6), "head_speed": (0.6, 1.6),
     "chain_speed": (0.3, 1.6), "wait_slack": (0.6, 1.6), "marker_jitter": (0.6, 1.6),
     "head_jitter_scale": (0.5, 1.6), "frame_hz": (0.6, 1.6), "frame_jitter": (0.0, 0.15),
     "follow_start": (0.0, 0.04), "wheel_spread": (0.0, 0.05), "marker_offset": (0.0, 0.01),
-    "follow_hold": (0.0, 0.3), "head_turn_speed": (0.0, 1.0), "max_turn": (0.25, 1.0)}
+    "follow_hold": (0.0, 0.3), "head_turn_speed": (0.0, 1.0), "max_turn": (0.25, 1.0),
+    "frame_alternation": (0.0, 0.1)}
 FITTED = tuple(BOUNDS)
+CHECK_SHARE = 0.15         # without a check file, the last share of the real file checks
 SCORE_VERSION = 1          # bump when the motion features or the score change
 PARKED_VERSION = 1         # bump when `chain.parked`'s check changes
 
@@ -84,14 +89,47 @@ class SysidConfig(ResolvesScenario):
     shrink: float = 0.25       # stage 2's box, as a share of stage 1's
     episode_minutes: float = 5.0
     workers: int = 1
+    only: tuple[str, ...] = ()  # fit these alone (the others at the scenario's values)
+    base: str | None = None     # ranges every candidate is drawn within (`around` its factors)
+
+    @property
+    def fitted(self) -> tuple[str, ...]:
+        """The parameters searched, in `FITTED`'s order."""
+        return tuple(k for k in FITTED if k in self.only) if self.only else FITTED
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        unknown = [k for k in self.only if k not in FITTED]
+        if unknown:
+            raise UserError(f"sysid --only {', '.join(unknown)}: choose among "
+                            f"{', '.join(FITTED)}")
+        if self.base is not None:
+            from collectors.randomize import Randomization
+
+            Randomization.parse(self.base)          # refused here, in one line
+
+    def profile(self, factors: dict[str, float]) -> dict:
+        """A candidate's collection profile: its factors, or the `base` ranges around them."""
+        if self.base is None:
+            return factors
+        from collectors.randomize import Randomization, around
+
+        return around(factors, Randomization.parse(self.base).profile())
 
 
 def identity(cfg: SysidConfig) -> dict:
     """What a fit is made from: its settings, the scenario by name and by content (a cache
-    keyed by the name alone would keep scoring a lab file that has since changed)."""
+    keyed by the name alone would keep scoring a lab file that has since changed); `only` and
+    `base` where set (a full fit's keys stay as they were)."""
     scenario = cfg.scenario
-    return {**{k: v for k, v in asdict(cfg).items() if k not in ("workers", "scenario")},
-            "scenario": scenario.name, "scenario_hash": config_hash(scenario)}
+    skip = ("workers", "scenario", *(k for k in ("only", "base") if not getattr(cfg, k)))
+    out = {**{k: v for k, v in asdict(cfg).items() if k not in skip},
+           "scenario": scenario.name, "scenario_hash": config_hash(scenario)}
+    if cfg.base is not None:
+        from collectors.randomize import Randomization
+
+        out["base"] = Randomization.parse(cfg.base).profile()   # by content, not by name
+    return out
 
 
 def score(rows: list[dict]) -> float:
@@ -100,42 +138,53 @@ def score(rows: list[dict]) -> float:
     return sum(r["sum"] for r in motion_stats.rank(rows))
 
 
-def _sobol(n: int, seed: int) -> np.ndarray:
+def _sobol(n: int, seed: int, dims: int) -> np.ndarray:
     """The first n of a scrambled Sobol sequence of power-of-two length, in [0, 1)."""
     from scipy.stats import qmc
 
     m = max(0, int(np.ceil(np.log2(max(n, 1)))))
-    return qmc.Sobol(len(FITTED), scramble=True, seed=seed).random_base2(m)[:n]
+    return qmc.Sobol(dims, scramble=True, seed=seed).random_base2(m)[:n]
 
 
-def box() -> tuple[np.ndarray, np.ndarray]:
-    """The search box's lower and upper corners, in FITTED's order: log-factors, and the
+def box(names: tuple[str, ...] = FITTED) -> tuple[np.ndarray, np.ndarray]:
+    """The search box's lower and upper corners, in `names`' order: log-factors, and the
     `ABSOLUTE` parameters' values as they are (0, the scenario as written, is the origin of
     both)."""
     return tuple(np.array([BOUNDS[k][i] if k in ABSOLUTE else np.log(BOUNDS[k][i])
-                           for k in FITTED]) for i in (0, 1))
+                           for k in names]) for i in (0, 1))
 
 
-def values(x: np.ndarray) -> dict[str, float]:
+def values(x: np.ndarray, names: tuple[str, ...] = FITTED) -> dict[str, float]:
     """A point of the box as the profile `collect --randomize` reads (factors, and values)."""
     return {k: float(round(v if k in ABSOLUTE else np.exp(v), 4))
-            for k, v in zip(FITTED, x, strict=True)}
+            for k, v in zip(names, x, strict=True)}
 
 
-def point(fitted: dict[str, float]) -> np.ndarray:
+def point(fitted: dict[str, float], names: tuple[str, ...] = FITTED) -> np.ndarray:
     """`values`' inverse."""
-    return np.array([fitted[k] if k in ABSOLUTE else np.log(fitted[k]) for k in FITTED])
+    return np.array([fitted[k] if k in ABSOLUTE else np.log(fitted[k]) for k in names])
+
+
+def feasible(factors: dict[str, float], scenario: ScenarioConfig) -> dict[str, float]:
+    """The factors with the rows' alternation capped below the candidate's frame period less
+    its jitter (the scenario refuses more: frames would overtake each other)."""
+    if not factors.get("frame_alternation"):
+        return factors
+    period = min(1 / (scenario.camera_hz * factors.get("frame_hz", 1.0)), 1 / scenario.log_hz)
+    room = period - scenario.frame_jitter - factors.get("frame_jitter", 0.0)
+    cap = float(np.floor(0.95 * (room - scenario.frame_alternation) * 1e4) / 1e4)
+    return {**factors, "frame_alternation": min(factors["frame_alternation"], max(cap, 0.0))}
 
 
 def candidates(cfg: SysidConfig, centre: np.ndarray | None = None) -> np.ndarray:
-    """Points of the box (k, len(FITTED)): stage 1 over the whole box (point 0 = no change to
-    the fitted values), or stage 2 around `centre`."""
-    lo, hi = box()
+    """Points of the box (k, len(cfg.fitted)): stage 1 over the whole box (point 0 = no
+    change to the fitted values), or stage 2 around `centre`."""
+    lo, hi = box(cfg.fitted)
     if centre is None:
-        pts = _sobol(cfg.first - 1, cfg.seed)
-        return np.vstack([np.zeros(len(FITTED)), lo + pts * (hi - lo)])
+        pts = _sobol(cfg.first - 1, cfg.seed, len(lo))
+        return np.vstack([np.zeros(len(lo)), lo + pts * (hi - lo)])
     half = cfg.shrink * (hi - lo) / 2
-    pts = _sobol(cfg.refine, cfg.seed + 1)
+    pts = _sobol(cfg.refine, cfg.seed + 1, len(lo))
     return np.clip(centre - half + pts * 2 * half, lo, hi)
 
 
@@ -151,7 +200,7 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
     def compute() -> dict[str, bytes]:
         folder.mkdir(parents=True, exist_ok=True)
         profile = folder / "factors.json"
-        write_text_atomic(profile, json.dumps(factors, sort_keys=True))
+        write_text_atomic(profile, json.dumps(cfg.profile(factors), sort_keys=True))
         req = CollectRequest(cfg.scenario, cfg.robots, cfg.minutes, cfg.seed, folder,
                              "passive", workers=cfg.workers,
                              episode_minutes=cfg.episode_minutes, randomize=str(profile))
@@ -217,15 +266,17 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
 
     def run(points: np.ndarray) -> None:
         for x in points:
-            tried.append(evaluate(values(x), out, cfg, real, train))
+            factors = feasible(values(x, cfg.fitted), cfg.scenario)
+            tried.append(evaluate(factors, out, cfg, real, train))
             if progress is not None:
                 progress(len(tried), total)
 
     run(candidates(cfg))
-    run(candidates(cfg, point(best_still(tried)["factors"])))
+    run(candidates(cfg, point(best_still(tried)["factors"], cfg.fitted)))
     best = best_still(tried)
     before = tried[0]
-    report = {"config": identity(cfg), "fitted": best["factors"], "candidates": tried,
+    report = {"config": identity(cfg), "fitted": best["factors"],
+              "profile": cfg.profile(best["factors"]), "candidates": tried,
               "train": {"before": before["score"], "after": best["score"]}, "val": {},
               "rows": {}}
     for name, cand in (("before", before), ("after", best)):
@@ -237,21 +288,34 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
 
 
 def write(report: dict, out: Path) -> None:
-    """fit.json (the whole report) and fitted.json (the factors: a `--randomize` profile)."""
+    """fit.json (the whole report) and fitted.json (the best candidate's collection profile:
+    its factors, within the `base` ranges where given; what `--randomize` reads)."""
     write_json_atomic(out / "fit.json", report)
     write_text_atomic(out / "fitted.json",
-                      json.dumps(report["fitted"], indent=1, sort_keys=True))
+                      json.dumps(report["profile"], indent=1, sort_keys=True))
 
 
-def sysid(cfg: SysidConfig, train: Path, val: Path, out: Path, overwrite: bool = False,
+def split_check(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A real file's instances cut in two: the fit's, and the last `CHECK_SHARE` it is
+    checked on (what a fit does without a check file, leaving every other file unread)."""
+    n_check = max(1, int(round(CHECK_SHARE * len(poses))))
+    if len(poses) - n_check < 1:
+        raise UserError(f"a real file of {len(poses)} instances is too short to keep "
+                        f"{CHECK_SHARE:.0%} of it for the check; give --val")
+    return poses[:-n_check], poses[-n_check:]
+
+
+def sysid(cfg: SysidConfig, train: Path, val: Path | None, out: Path, overwrite: bool = False,
           progress: Callable[[int, int], None] | None = None) -> dict:
     """`macrostate-mj sysid` as one call: the real files checked (before the folder is
     touched), the fit under its run in `out` (candidates cached there), fit.json and
-    fitted.json written; the report."""
+    fitted.json written; the report. Without `val`, the fit leaves Train's last
+    `CHECK_SHARE` out and is checked on it."""
     from macrostate_mj.core.run import Run
 
     made_of = {**identity(cfg), "train": str(train), "val": str(val)}
-    real = real_poses(train, cfg.robots), real_poses(val, cfg.robots)
+    real = real_poses(train, cfg.robots), real_poses(val, cfg.robots) if val else None
+    real = split_check(real[0]) if real[1] is None else real
     with Run(out, "sysid", made_of, cfg.seed, ["fit.json", "fitted.json"], overwrite) as run:
         with run.stage("fit"):
             report = fit(cfg, *real, out, progress)

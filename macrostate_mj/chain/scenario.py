@@ -34,7 +34,7 @@ LAYOUT: dict[str, dict[str, str]] = {
               "reach_radius": "reach_radius", "avoid_radius": "avoid_radius",
               "avoid_gain": "avoid_gain", "head_turn_speed": "head_turn_speed"},
     "rates": {"command_hz": "command_hz", "log_hz": "log_hz", "frame_hz": "frame_hz",
-              "frame_jitter": "frame_jitter"},
+              "frame_jitter": "frame_jitter", "frame_alternation": "frame_alternation"},
     "noise": {"marker_jitter": "marker_jitter", "head_jitter_scale": "head_jitter_scale",
               "marker_offset": "marker_offset"},
 }
@@ -107,6 +107,11 @@ class ScenarioConfig:
     frame_jitter: float = 0.0       # each frame's delay after its nominal instant, uniform in
     #                                 [0, frame_jitter) s: a tracker whose frames take uneven
     #                                 time, so each 2 Hz row's frame has an uneven age
+    frame_alternation: float = 0.0  # the frames every other log row reads are taken this much
+    #                                 earlier (s), the camera in step with the log: the rows
+    #                                 alternate between two frame ages, a timing every robot
+    #                                 of a row shares (the real ThymioLoc rows' speeds
+    #                                 alternate: docs, reproduction/sim-to-real)
 
     wheel_spread: float = 0.0       # robots are not alike: each wheel's radius differs from
     #                                 the robot file's by a factor 1 + N(0, spread) drawn per
@@ -174,6 +179,13 @@ class ScenarioConfig:
             raise UserError(f"{self.name}: {named('frame_jitter')} must be a delay >= 0 s "
                             f"under one frame period ({1 / self.camera_hz:g} s), got {j!r}",
                             "frame_jitter")
+        a = self.frame_alternation
+        if not (isinstance(a, int | float) and math.isfinite(a)
+                and 0 <= a < min(1 / self.camera_hz, 1 / self.log_hz) - j):
+            raise UserError(f"{self.name}: {named('frame_alternation')} must be a time >= 0 s "
+                            "under one frame period less the frame_jitter "
+                            f"({min(1 / self.camera_hz, 1 / self.log_hz) - j:g} s), got {a!r}",
+                            "frame_alternation")
 
     def _check_robot(self) -> None:
         """The robot file meets the contract and can drive the Head's speed (the robot's

@@ -177,13 +177,24 @@ def two_level_bootstrap(arm: Any, ref: Any, draws: int = 4000, seed: int = 0,
     scored on one set) and, independently per arm, the model seeds (trainings are independent
     draws); the ratio and the difference of the means, each with its `level` percentile
     interval. The units are the instances and the seeds: what another test set of the same
-    size, and other trainings, would show. Hand-written: `scipy.stats.bootstrap` resamples
-    one level of paired units, not instances shared by two arms with seeds apart."""
+    size, and other trainings, would show. Each arm's seed effects (its rows' means about
+    their mean) are widened by sqrt(n / (n - 1)) first: resampling n seeds alone shrinks their
+    variance by (n - 1) / n. Measured by simulation (45 instances, 4 seeds, 300 test sets):
+    95 % intervals held the true ratio 94.7 % of the time with a seed spread of 4 % of the
+    error (the real arms' spread), 90 % with 6 %; more seeds close the gap (8 seeds at 15 %:
+    94.7 %). Hand-written: `scipy.stats.bootstrap` resamples one level of paired units, not
+    instances shared by two arms with seeds apart."""
     import numpy as np
+
+    def widened(x: np.ndarray) -> np.ndarray:
+        means = x.mean(axis=1, keepdims=True)
+        return x + (np.sqrt(len(x) / max(len(x) - 1, 1)) - 1) * (means - means.mean())
 
     a, b = np.asarray(arm, float), np.asarray(ref, float)
     if a.shape[1] != b.shape[1] or a.shape[1] < 2:
         raise ValueError("both arms must be scored on the same test instances (at least 2)")
+    point_a, point_b = a.mean(), b.mean()
+    a, b = widened(a), widened(b)
     rng = np.random.default_rng(seed)
     n = a.shape[1]
     inst = rng.integers(0, n, (draws, n))
@@ -193,8 +204,8 @@ def two_level_bootstrap(arm: Any, ref: Any, draws: int = 4000, seed: int = 0,
     mb = np.stack([b[s][:, i].mean() for s, i in zip(sb, inst, strict=True)])
     tails = [50 - level * 50, 50 + level * 50]
     out = {}
-    for name, point, boot in (("ratio", a.mean() / b.mean(), ma / mb),
-                              ("difference", a.mean() - b.mean(), ma - mb)):
+    for name, point, boot in (("ratio", point_a / point_b, ma / mb),
+                              ("difference", point_a - point_b, ma - mb)):
         low, high = np.percentile(boot, tails)
         out[name] = {"mean": float(point), "low": float(low), "high": float(high)}
     return out

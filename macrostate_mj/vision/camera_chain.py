@@ -20,7 +20,9 @@ miss or a dropped frame, or with `windows=False`, the whole frame is processed.
 
 Frames are taken at the scenario's `frame_hz` (the command rate unless set), each delayed by
 up to `frame_jitter` s (its own stream, drawn only when above zero): the 2 Hz log then records
-frames of uneven age, and the logged speeds alternate from row to row (as the real Head's do).
+frames of uneven age. With `frame_alternation` the frames are taken in step with the log, those
+every other row reads that much earlier: the rows alternate between two frame ages, shared by
+every robot of a row, and the logged speeds alternate from row to row (as the real ones do).
 A `marker_offset` moves each robot's tracked point off its body's centre (drawn per episode,
 turning with the body): real markers are not stuck on exactly.
 
@@ -35,6 +37,7 @@ positions before it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -79,6 +82,7 @@ class CameraChain:
         self.sim = sim
         self.on_frame: Callable[[float, np.ndarray], None] | None = None    # see `film`
         self.period, self.phase = 1 / sim.cfg.camera_hz, phase      # a `Hook`: frame rate
+        self._phase = phase         # as given (`start` puts the frames in step with the log)
         self._episode_rng = rng
         self.noise = noise or sim.cfg.imaging       # default: the scenario's own
         self.renderer = OverheadRenderer(sim.model, distortion=sim.cfg.camera.distortion)
@@ -105,12 +109,16 @@ class CameraChain:
         mujoco.mj_forward(sim.model, sim.data)
         self.rng = rng
         self._offset = None
+        # frames that alternate with the log's rows are taken in step with it
+        self.phase = sim.log_phase if sim.cfg.frame_alternation > 0 else self._phase
+        if sim.cfg.frame_alternation > 0:
+            self.tick_time = self._timed
         if sim.cfg.frame_jitter > 0 or sim.cfg.marker_offset > 0:
             # streams of their own (children of the imaging stream's seed, which they leave as
             # it was): each frame's delay, and each robot's marker offset on its body
             self._timing, placing = rng.spawn(2)
             if sim.cfg.frame_jitter > 0:
-                self.tick_time = self._jittered
+                self.tick_time = self._timed
             if sim.cfg.marker_offset > 0:
                 self._offset = placing.normal(0.0, sim.cfg.marker_offset,
                                               (len(sim.world.names), 2))
@@ -131,10 +139,17 @@ class CameraChain:
         if self.health is not None:
             self.health.reset()
 
-    def _jittered(self, count: int) -> float:
-        """When frame `count` is taken (s after the first nominal instant): its nominal instant
-        plus a delay uniform in [0, frame_jitter) (`ChainSim` asks once per frame)."""
-        return count * self.period + float(self._timing.uniform(0.0, self.sim.cfg.frame_jitter))
+    def _timed(self, count: int) -> float:
+        """When frame `count` is taken (s after the first nominal instant; `ChainSim` asks
+        once per frame): its nominal instant, `frame_alternation` earlier where the log row
+        that first reads it is odd, plus a delay uniform in [0, frame_jitter)."""
+        cfg, t = self.sim.cfg, count * self.period
+        if cfg.frame_alternation > 0:
+            row = math.ceil(t * cfg.log_hz - 1e-9)
+            t -= cfg.frame_alternation * (row % 2)
+        if cfg.frame_jitter > 0:
+            t += float(self._timing.uniform(0.0, cfg.frame_jitter))
+        return t
 
     def film(self, on_frame: Callable[[float, np.ndarray], None]) -> None:
         """Hand every frame the tracker gets, whole, to `on_frame(t, rgb)` (a camera video):

@@ -110,7 +110,9 @@ def test_experiment_all_sets_the_precision_of_every_training_that_has_one():
 
 # The committed folder each experiment's full profile reproduces (`experiment all --profile
 # full`), and the settings it leaves out: retlo's lab 5-robot test is a collection of its own.
-# srs_full (3 model seeds a dataset, earlier code) has its own profile.
+# srs_full (3 model seeds a dataset, earlier code) has its own profile. s2r_sealed's manifest
+# holds its ledger's path on the machine that ran it and its scenario resolved (the lab by
+# name here; the ledger's recipe hash holds its content).
 REPRODUCES = {("caging", "full"): ("caging", ()),
               ("caging-multi", "full"): ("caging_two_tails", ()),
               ("retlo-sim", "full"): ("retlo_sim_seeds/seed0", ()),
@@ -118,7 +120,8 @@ REPRODUCES = {("caging", "full"): ("caging", ()),
               ("retlo", "full"): ("retlo_fig27_rerun", ("test",)),
               ("srs", "full"): ("srs_text", ()), ("srs", "full-seeds"): ("srs_full", ()),
               ("sim2real", "full"): ("s2r_mixed", ()), ("oc", "full"): ("oc_dev_table41", ()),
-              ("uncertainty", "full"): ("retlo_uncertainty", ())}
+              ("uncertainty", "full"): ("retlo_uncertainty", ()),
+              ("s2r-sealed", "full"): ("s2r_sealed", ("ledger", "scenario"))}
 
 
 def _plain(value):

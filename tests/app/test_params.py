@@ -23,7 +23,7 @@ from macrostate_mj.app.cli.app import app
 
 # Options of free text that their commands parse (and test) themselves.
 TEXT_OPTIONS = {"--overlays", "--ray", "--split", "--randomize", "--days", "--crop", "--splits",
-                "--ms", "--model", "--set", "--ablate", "--mirror"}
+                "--ms", "--model", "--set", "--ablate", "--mirror", "--only", "--base"}
 
 
 def _commands() -> dict[str, object]:

@@ -68,11 +68,15 @@ def test_looks_count_distinct_recipes_and_keep_the_ledger(stand_in, tmp_path, mo
     assert len(config.ledger.read_text().splitlines()) == 3
 
 
-def test_an_unfrozen_recipe_is_refused_before_anything_is_scored(stand_in, tmp_path,
+def test_a_look_is_refused_unless_frozen_and_deliberate(stand_in, tmp_path,
                                                                  monkeypatch):
     monkeypatch.setattr(s2r_sealed, "code", lambda: {**FROZEN, "dirty": True})
     with pytest.raises(UserError, match="frozen recipe"):
         s2r_sealed.validate(_config(stand_in, tmp_path))
+    res = cli("experiment", "all", "--quick", "--only", "s2r-sealed", "--out",
+              str(tmp_path / "all"))
+    assert res.returncode == 2 and "sealed test" in res.stderr
+    assert not (tmp_path / "all").exists()
     res = cli("experiment", "s2r-sealed", "--quick", "--real", str(tmp_path), "--out",
               str(tmp_path / "out"), "--ledger", str(tmp_path / "l.jsonl"))
     assert res.returncode == 2 and "Train.csv" in res.stderr

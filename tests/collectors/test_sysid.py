@@ -16,6 +16,7 @@ from collectors.sysid import (
     best_still,
     box,
     candidates,
+    feasible,
     identity,
     point,
     score,
@@ -116,3 +117,41 @@ def test_the_fit_keeps_only_candidates_whose_parked_chain_stands_still():
     assert best_still([moving, still]) is still
     with pytest.raises(ValueError, match="none of 1 candidates parks its chain still"):
         best_still([moving])
+
+
+def test_a_fit_of_some_parameters_within_a_recipe_s_ranges_checked_on_train_s_end(tmp_path):
+    """`--only`: the others keep the scenario's values (a smaller box); `--base`: each
+    candidate drawn within the recipe's ranges around its factors; no `--val`: the fit leaves
+    the Train file's last 15 % out and is checked on it. A full fit's keys stay as they were;
+    an alternation the frames have no room for is capped, not refused mid-fit."""
+    cfg = SysidConfig(only=("marker_jitter", "frame_alternation"), base="wider-rear")
+    assert cfg.fitted == ("marker_jitter", "frame_alternation")
+    assert candidates(cfg).shape == (16, 2)
+    profile = cfg.profile({"marker_jitter": 0.8, "frame_alternation": 0.05})
+    assert profile["marker_jitter"] == pytest.approx((0.56, 1.12))
+    assert profile["frame_alternation"] == 0.05 and profile["follow_hold"] == 0.3
+    assert "only" not in identity(SysidConfig()) and "base" not in identity(SysidConfig())
+    assert identity(cfg)["base"]["follow_hold"] == 0.3
+    lab = get_scenario("lab")
+    assert feasible({"frame_alternation": 0.09, "frame_hz": 1.6, "frame_jitter": 0.1}, lab)[
+        "frame_alternation"] == pytest.approx(0.95 * (1 / 6.4 - 0.1), abs=1e-4)
+    assert feasible({"frame_alternation": 0.05}, lab) == {"frame_alternation": 0.05}
+    with pytest.raises(Exception, match="--only"):
+        SysidConfig(only=("nonsense",))
+    stand_in = tmp_path / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "2", "--seed", "9",
+              "--split", "100/0/0", "--out", str(stand_in))
+    assert res.returncode == 0, res.stderr
+    res = cli("sysid", "--train", str(stand_in / "Train.csv"), "--only", "frame_alternation",
+              "--base", "wider-rear", "--minutes", "1", "--first", "2", "--refine", "1",
+              "--out", str(tmp_path / "fit"))
+    assert res.returncode == 0, res.stderr
+    assert "on the last 15% of Train.csv" in res.stdout
+    profile = json.loads((tmp_path / "fit" / "fitted.json").read_text())
+    fit = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert set(fit["fitted"]) == {"frame_alternation"}       # within the recipe's ranges
+    assert profile == {**json.loads(json.dumps(cfg.profile({}))), **fit["fitted"]}
+    res = cli("sysid", "--train", str(stand_in / "Train.csv"), "--only", "nonsense",
+              "--out", str(tmp_path / "bad"))
+    assert res.returncode == 2 and "--only nonsense" in res.stderr
+    assert not (tmp_path / "bad").exists()

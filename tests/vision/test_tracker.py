@@ -310,3 +310,29 @@ def test_robots_that_differ_wheels_and_markers_drawn_per_episode_from_the_seed()
     offset = np.median(body, axis=0)                 # per robot, in its body frame
     assert np.all(np.abs(body - offset).max(axis=0) < 0.004)     # fixed on the body
     assert np.abs(offset).max() > 0.002
+
+
+def test_rows_that_alternate_read_frames_of_two_ages_shared_by_every_robot():
+    """`frame_alternation`: the camera in step with the log, the frames every other row reads
+    taken that much earlier; each row's tracked time (every robot's the same) is its own
+    instant or that much before it, alternating, so the rows' intervals alternate as the real
+    ThymioLoc rows' do. A scenario refuses an alternation the frames have no room for."""
+    from macrostate_mj.chain.sim import PoseLog
+    from macrostate_mj.core.errors import UserError
+
+    cfg = get_scenario("lab").with_overrides(frame_alternation=0.05)
+    sim = ChainSim(build_world(cfg, 3))
+    sim.reset(np.random.default_rng(4))
+    chain = CameraChain(sim, NoiseConfig(drop_prob=0.0), rng=np.random.default_rng([4, 1]))
+    log = PoseLog(sim.world.names, tracker=chain)
+    sim.episode(10.0, [chain, Every(0.5, log.append, sim.log_phase)])
+    rows = np.asarray(log.times)
+    seen = log.tracked_arrays()["tracked_time"]
+    ages = np.round(rows[:, None] - seen, 6)
+    assert np.all(ages == ages[:, :1])                      # shared by the row's robots
+    k = np.arange(len(rows))
+    assert np.allclose(ages[:, 0], np.where(k % 2, 0.05, 0.0), atol=sim.model.opt.timestep)
+    assert np.allclose(np.diff(seen[:, 0]), np.where(k[1:] % 2, 0.45, 0.55),
+                       atol=2 * sim.model.opt.timestep)
+    with pytest.raises(UserError, match="frame_alternation"):
+        get_scenario("lab").with_overrides(frame_alternation=0.25)

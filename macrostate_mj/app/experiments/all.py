@@ -37,7 +37,10 @@ PRODUCTS = [INDEX, *MEMBERS]                                   # the index, a fo
 
 
 def _members() -> dict:
-    return {name: module for name, module in registry().items() if name in MEMBERS}
+    """The experiments `all` runs: every one but those that look at a sealed test (`SEALED`:
+    a look is counted, so it is never the side effect of another command)."""
+    return {name: module for name, module in registry().items()
+            if name in MEMBERS and not getattr(module, "SEALED", False)}
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,14 @@ class Config:
 
 PROFILES = {"full": Config("full"), "quick": Config("quick")}
 PARALLEL = Parallel("every experiment's tasks")
+
+
+def validate(config: Config) -> None:
+    """Refuse, before the folder is claimed, an experiment `all` never runs."""
+    sealed = [n for n in config.only if n not in _members()]
+    if sealed:
+        raise UserError(f"experiment {sealed[0]} scores a sealed test, each look counted: run "
+                        "it on its own, not through `experiment all`")
 
 
 @register

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import typer
 
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.experiments.sim2real import ModelTask, share, train_models
@@ -52,6 +53,7 @@ from macrostate_mj.core.stats import mean_std, two_level_bootstrap
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json"]
+SEALED = True       # a look is counted: `experiment all` never takes one
 ARMS = ("lab", "real", "quarter", "all")    # what each seed trains, in this order
 REFERENCE = "real"                          # what every arm is set against
 QUARTER = 0.25
@@ -69,7 +71,10 @@ class Config:
     real: Path = field(default_factory=real_thymioloc, metadata=REAL_FOLDER)
     scenario: ScenarioRef = field(default="lab", metadata=flag(Scenario, default="lab"))
     # the lab collection's ranges: a built-in profile or a JSON file (its content is hashed)
-    randomize: str = "wider-rear"
+    randomize: str = field(default="wider-rear", metadata=flag(typer.Option(
+        None, "--randomize", help="The lab collection's ranges: a built-in profile or a JSON "
+        "file (`sysid`'s fitted.json); its content, not its name, is the recipe's."),
+        default="wider-rear"))
     sim_minutes: float = field(default=300.0, metadata=flag(Positive(
         None, "Minutes of lab data to collect.", "--sim-minutes", max=10_000)))
     sim_seed: int = 31
