@@ -624,6 +624,39 @@ def s2r_transfer(*folders: str) -> Table:
 
 
 @source
+def sealed(folder: str) -> Table:
+    """`experiment s2r-sealed`: each arm's Head error on the sealed test (mean ± std over its
+    seeds) and, against real only, the ratio and the difference with their 95 % intervals
+    (instances x seeds)."""
+    r = load(f"{folder}/results.json")
+    rows = [["arm", "Head error (cm)", "÷ real only [95 %]", "minus real only (cm) [95 %]"]]
+    for arm, cell in r["arms"].items():  # type: ignore[union-attr]
+        h = cell["head_cm"]
+        vs = r["against_real"].get(arm)  # type: ignore[index]
+        compared = ["1", "0"]               # real only against itself
+        if vs is not None:
+            q, d = vs["ratio"], vs["difference"]
+            compared = [f"{q['mean']:.2f} [{q['low']:.2f}, {q['high']:.2f}]",
+                        f"{d['mean']:+.2f} [{d['low']:+.2f}, {d['high']:+.2f}]"]
+        rows.append([arm, f"{h['mean']:.2f} ± {h['std']:.2f} ({h['n']} seeds)", *compared])
+    return rows
+
+
+@source
+def sealed_change(before: str, after: str, arm: str) -> Paired:
+    """One arm of two `s2r-sealed` runs on the same sealed test: the later's Head error minus
+    the earlier's, with its 95 % interval (`core.stats.two_level_bootstrap`: the instances
+    shared, each run's seeds apart)."""
+    from macrostate_mj.core.stats import two_level_bootstrap
+
+    a, b = ([list(v) for v in load(f"{f}/results.json")["arms"][arm][  # type: ignore[index]
+        "head_cm_by_instance"].values()] for f in (after, before))
+    d = two_level_bootstrap(a, b)["difference"]
+    units = f"{len(a[0])} test instances, {len(a)} and {len(b)} seeds"
+    return Paired(d["mean"], d["low"], d["high"], len(a[0]), units, ".2f", "cm")
+
+
+@source
 def gap_ranked(*files: str) -> Table:
     """Ranked sim-to-real gaps (`stats --compare --rank --json` files, one per lab): per
     statistic the worst robot's KS distance in each, in the first file's order."""

@@ -70,6 +70,12 @@ def test_looks_count_distinct_recipes_and_keep_the_ledger(stand_in, tmp_path, mo
 
 def test_a_look_is_refused_unless_frozen_and_deliberate(stand_in, tmp_path,
                                                                  monkeypatch):
+    monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
+    for bad, named in (({"seeds": 0}, "seeds"), ({"epochs": 2.5}, "epochs"),
+                       ({"select_share": 1.0}, "select_share"), ({"finetune_lr": -1}, "lr"),
+                       ({"randomize": "nonsense"}, "nonsense")):
+        with pytest.raises(UserError, match=named):          # from Python, as from the CLI
+            s2r_sealed.validate(replace(_config(stand_in, tmp_path), **bad))
     monkeypatch.setattr(s2r_sealed, "code", lambda: {**FROZEN, "dirty": True})
     with pytest.raises(UserError, match="frozen recipe"):
         s2r_sealed.validate(_config(stand_in, tmp_path))

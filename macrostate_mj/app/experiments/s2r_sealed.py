@@ -5,9 +5,10 @@ Every choice is made on the real Train.csv alone. Its last `select_share` (the c
 picks every model's checkpoint, the lab-only model's included; the rest is the real pool.
 The recipe (the lab, its ranges, the minutes, the epochs, the fine-tuning) is this config,
 fixed before anything is scored. The real Val.csv is the sealed test: every model is scored
-on each of its instances, and nothing else reads it. A look needs a frozen recipe (the
-packages committed, no uncommitted change to them) and is appended to the ledger (`--ledger`,
-`results/sealed_ledger.jsonl` of the checkout): date, commit, recipe hash, figures and the
+on each of its instances, and nothing else reads it. A look needs a frozen recipe (in a
+checkout, no uncommitted change to the packages; an installed wheel is its version) and is
+appended to the ledger (`--ledger`; `results/sealed_ledger.jsonl` of the checkout, or of the
+working folder): date, commit, recipe hash, figures and the
 looks so far (distinct recipes scored on this test; a rerun of one recipe is a repeat, not a
 look). A setting chosen on a sealed score must never be reported on it: choose on Train's
 folds (`experiment sim2real` on a folder holding Train.csv split in two), then look once.
@@ -32,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from macrostate_mj import __version__
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.experiments.sim2real import ModelTask, share, train_models
 from macrostate_mj.app.params import (
@@ -127,6 +129,15 @@ def recipe(config: Config) -> dict:
 def validate(config: Config) -> tuple[np.ndarray, np.ndarray]:
     """Refuse bad inputs and an unfrozen recipe in one line, before anything is written or
     scored; Train's and the sealed test's instances (px)."""
+    for name in ("seeds", "epochs", "finetune_epochs"):
+        value = getattr(config, name)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise UserError(f"{name} {value!r}: a whole number of at least 1")
+    for name, low, high in (("select_share", 0.0, 1.0), ("finetune_lr", 0.0, 1.0),
+                            ("sim_minutes", 0.0, 1e4)):
+        value = getattr(config, name)
+        if not (isinstance(value, int | float) and low < value < high):
+            raise UserError(f"{name} {value!r}: must lie in ({low:g}, {high:g})")
     parts = []
     for name in ("Train.csv", "Val.csv"):
         if not (config.real / name).is_file():
@@ -141,10 +152,9 @@ def validate(config: Config) -> tuple[np.ndarray, np.ndarray]:
                         f"(a check block and four quarters); got {len(parts[1])} and "
                         f"{len(parts[0])}")
     config.profile                      # noqa: B018  (a bad profile is refused here)
-    made = code()
-    if made["commit"] is None or made["dirty"]:
+    if code()["dirty"]:
         raise UserError("a sealed look needs a frozen recipe: commit the code first (the "
-                        "packages have uncommitted changes, or this is not a git checkout)")
+                        "packages have uncommitted changes)")
     return parts[0], parts[1]
 
 
@@ -196,6 +206,9 @@ def summarize(reports: list[dict], config: Config) -> dict:
                  "instances": int(errors[REFERENCE].shape[1]), "seeds": config.seeds,
                  "arms": {a: {"head_cm": mean_std([r["head_cm"] for r in rs]),
                               "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in rs},
+                              # per seed, each sealed instance's error: what compares runs
+                              "head_cm_by_instance": {str(r["seed"]): r["head_cm_by_instance"]
+                                                      for r in rs},
                               **({"parts": {str(r["seed"]): r["part"] for r in rs}}
                                  if a == "quarter" else {})}
                           for a, rs in by_arm.items()},
@@ -213,7 +226,7 @@ def look(config: Config, results: dict) -> dict:
     entries = [json.loads(line) for line in lines if line.strip()]
     seen = {e["recipe_hash"] for e in entries}
     entry = {"date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": made["commit"],
-             "code_digest": made["digest"], "recipe_hash": digest,
+             "version": __version__, "code_digest": made["digest"], "recipe_hash": digest,
              "randomize": config.randomize, "repeat": digest in seen,
              "looks": len(seen | {digest}),
              "figures": {a: {k: round(v, 4) for k, v in results["against_real"][a]["ratio"]

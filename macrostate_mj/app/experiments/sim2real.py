@@ -32,8 +32,8 @@ several candidates (`none` for no ranges) and each seed's sim model is the candi
 Head error on that fold's real validation block is lowest (`ranges`); the test block never
 takes part. What each modelled difference is worth (`ablate`, `--ablate`): per seed, a lab
 collected from that seed's own profile with the named parameters switched off (their factor 1,
-or their value 0) trains one more sim-only model; its Head error minus the lab's, paired over
-the seeds with a 95 % interval (`ablations`).
+or their value 0) trains one more sim-only model; its Head error minus the lab's, paired by
+seed, averaged to the folds, with a 95 % interval over them (`ablations`).
 Every model is the LSTM of `train retlo --model lstm`, a cached task
 (`cache/sim2real-model/<key>/`: its report, and a sim model's checkpoint) keyed by its training
 settings and the bytes of its data (the lab CSVs, the real blocks, a fine-tuned model's sim
@@ -75,7 +75,7 @@ from macrostate_mj.core.cache import Outcome, ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure, UserError
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import real_thymioloc
-from macrostate_mj.core.stats import cv_blocks, mean_std, paired_interval
+from macrostate_mj.core.stats import cv_blocks, cv_ratio, mean_std, paired_interval
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 PRODUCTS = ["results.json", "sim2real.png"]
@@ -186,7 +186,7 @@ class Config:
     ablate: tuple[tuple[str, ...], ...] = field(default=(), metadata=flag(typer.Option(
         None, "--ablate", help="Switch these lab parameters off (comma-separated, e.g. "
         "frame_hz,frame_jitter; repeatable, one group each): each group trains sim-only models "
-        "on a lab collected without them, paired with the lab's own over the seeds. Needs "
+        "on a lab collected without them, paired with the lab's own over the folds. Needs "
         "--fit or --randomize."), parse=lambda groups: tuple(
             tuple(n.strip() for n in g.split(",") if n.strip()) for g in groups)))
 
@@ -767,16 +767,22 @@ def by_range(sims: list[dict], chosen: dict[tuple[str, int], dict], config: Conf
 def by_ablation(reports: list[dict], chosen: dict[tuple[str, int], dict], config: Config
                 ) -> dict:
     """Per switched-off group, the sim-only Head error and its difference to the lab's own
-    sim model on the same seed (mean and 95 % interval over the seeds whose profile held the
-    group; none where no seed's did)."""
+    sim model on the same seed, averaged to each fold (seeds s and s + folds share one) with
+    the mean and 95 % interval over the folds, corrected for the training data they share
+    (Nadeau-Bengio; none where no seed's profile held the group)."""
     lab = {s: r["head_cm"] for (f, s), r in chosen.items() if f == config.fits[0]}
     out = {}
     for group in config.ablate:
         cell = [r for r in reports if r["ablate"] == group]
+        by_fold: dict[int, list[float]] = {}
+        for r in cell:
+            by_fold.setdefault((r["seed"] - config.seed) % config.folds, []).append(
+                r["head_cm"] - lab[r["seed"]])
         out[",".join(group)] = {
             "head_cm": mean_std([r["head_cm"] for r in cell]),
             "head_cm_by_seed": {str(r["seed"]): r["head_cm"] for r in cell},
-            "minus_lab": paired_interval([r["head_cm"] - lab[r["seed"]] for r in cell])}
+            "minus_lab": paired_interval([float(np.mean(d)) for d in by_fold.values()],
+                                         cv_ratio(config.folds))}
     return out
 
 
@@ -822,7 +828,7 @@ def summary_lines(results: dict) -> list[str]:
             continue
         spread = "" if d["low"] is None else f" [{d['low']:+.2f}, {d['high']:+.2f}]"
         lines.append(f"without {name}: Head {d['mean']:+.2f} cm{spread} against the lab's "
-                     f"({d['n']} seeds)")
+                     f"({d['n']} folds)")
     if "sim_over_real" in results:
         lines.append(f"sim only / real only (100 %): {results['sim_over_real']:.2f}x")
     for f, g in results.get("equivalent_real_fraction", {}).items():
