@@ -8,10 +8,10 @@ fixed before anything is scored. The real Val.csv is the sealed test: every mode
 on each of its instances, and nothing else reads it. A look needs a frozen recipe (in a
 checkout, no uncommitted change to the packages; an installed wheel is its version) and is
 appended to the ledger (`--ledger`; `results/sealed_ledger.jsonl` of the checkout, or of the
-working folder): date, commit, recipe hash, figures and the
-looks so far (distinct recipes scored on this test; a rerun of one recipe is a repeat, not a
-look). A setting chosen on a sealed score must never be reported on it: choose on Train's
-folds (`experiment sim2real` on a folder holding Train.csv split in two), then look once.
+working folder): date, commit, recipe hash, figures and the looks so far (distinct sets of
+models scored on this test; a rerun that scores the same models is a repeat, not a look).
+A setting chosen on a sealed score must never be reported on it: choose on Train's folds
+(`experiment sim2real` on a folder holding Train.csv split in two), then look once.
 
 Arms per model seed i (`seed + i`): lab (trained on the lab collection, `collect --randomize
 RANGES --minutes MINUTES --split 80/20/0`), real (all of the pool), quarter (the lab model
@@ -217,18 +217,18 @@ def summarize(reports: list[dict], config: Config) -> dict:
     return out
 
 
-def look(config: Config, results: dict) -> dict:
-    """Append this scoring to the ledger; its entry (a rerun of a recipe already in it is a
-    repeat and adds no look)."""
+def look(config: Config, results: dict, models: str) -> dict:
+    """Append this scoring to the ledger; its entry. `models` is what was scored (the hash of
+    every model's task key: its settings and the bytes of its data), so a rerun that scores the
+    same models is a repeat and adds no look, whatever else changed in the code."""
     made = code()
-    digest = config_hash(recipe(config))
     lines = config.ledger.read_text().splitlines() if config.ledger.is_file() else []
-    entries = [json.loads(line) for line in lines if line.strip()]
-    seen = {e["recipe_hash"] for e in entries}
+    seen = {json.loads(line)["models_hash"] for line in lines if line.strip()}
     entry = {"date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": made["commit"],
-             "version": __version__, "code_digest": made["digest"], "recipe_hash": digest,
-             "randomize": config.randomize, "repeat": digest in seen,
-             "looks": len(seen | {digest}),
+             "version": __version__, "code_digest": made["digest"],
+             "recipe_hash": config_hash(recipe(config)), "models_hash": models,
+             "randomize": config.randomize, "repeat": models in seen,
+             "looks": len(seen | {models}),
              "figures": {a: {k: round(v, 4) for k, v in results["against_real"][a]["ratio"]
                              .items()} for a in results["against_real"]},
              "head_cm": {a: round(v["head_cm"]["mean"], 4)
@@ -262,7 +262,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     results = summarize(reports, config)
     results |= {"recipe": recipe(config), "recipe_hash": config_hash(recipe(config)),
                 "check_instances": n_check, "pool_instances": len(pool)}
-    results["look"] = look(config, results)
+    models = config_hash(sorted(t.key() for _, t in [*first, *second]))
+    results["look"] = look(config, results, models)
     write_json_atomic(out / "results.json", results)
     progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["looks"])
     return summary_lines(results)
