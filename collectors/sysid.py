@@ -5,12 +5,12 @@ a fixed-factor profile that `collect --randomize fitted.json` reads): the Follow
 gains, the heading gain, the Head's and the chain's speed caps, the lab wait rule's slack, the
 tracker's position noise (`marker_jitter`) and the Head's share of it (`head_jitter_scale`),
 the camera's frame rate; and values added to the scenario's zero: the frames' timing jitter
-(s), the rear robots' start gap (m), the wheels' radius spread and the markers' offset (m).
-The rear robots' rule when nearer than d to the robot ahead (`follow_hold`: how much nearer
-before they back off; the real ones could not reverse, seed §2.6.2.1) and how the Head drives
-(`head_turn_speed`, `max_turn`) are fitted too, under one constraint: a candidate whose parked
-chain does not stand still (`chain.parked`; with stiff gains, a rear robot that may back off
-turns on the spot) is refused, whatever its score.
+(s), the rows' alternation (s), the rear robots' start gap (m), the wheels' radius spread and
+the markers' offset (m). The rear robots' rule when nearer than d to the robot ahead
+(`follow_hold`: how much nearer before they back off; the real ones could not reverse, seed
+§2.6.2.1) and how the Head drives (`head_turn_speed`, `max_turn`) are fitted too, under one
+constraint: a candidate whose parked chain does not stand still (`chain.parked`; with stiff
+gains, a rear robot that may back off turns on the spot) is refused, whatever its score.
 What is minimised: the summed two-sample KS distance (`formats.motion_stats`) between a seeded
 collection and the real Train file, over every per-robot (or per-pair) row of every feature;
 the ten lags of each autocorrelation count as one feature (their KS averaged), so they do not
@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from collectors.randomize import ABSOLUTE
+from collectors.gap import ranked_gap
+from collectors.randomize import ABSOLUTE, Randomization, around, randomized_scenario
 from collectors.runner import CollectRequest, collect, finished
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import SCENARIOS, ResolvesScenario
@@ -104,30 +105,24 @@ class SysidConfig(ResolvesScenario):
             raise UserError(f"sysid --only {', '.join(unknown)}: choose among "
                             f"{', '.join(FITTED)}")
         if self.base is not None:
-            from collectors.randomize import Randomization
-
             Randomization.parse(self.base)          # refused here, in one line
 
     def profile(self, factors: dict[str, float]) -> dict:
         """A candidate's collection profile: its factors, or the `base` ranges around them."""
         if self.base is None:
             return factors
-        from collectors.randomize import Randomization, around
-
         return around(factors, Randomization.parse(self.base).profile())
 
 
 def identity(cfg: SysidConfig) -> dict:
     """What a fit is made from: its settings, the scenario by name and by content (a cache
     keyed by the name alone would keep scoring a lab file that has since changed); `only` and
-    `base` where set (a full fit's keys stay as they were)."""
+    `base` where set."""
     scenario = cfg.scenario
     skip = ("workers", "scenario", *(k for k in ("only", "base") if not getattr(cfg, k)))
     out = {**{k: v for k, v in asdict(cfg).items() if k not in skip},
            "scenario": scenario.name, "scenario_hash": config_hash(scenario)}
     if cfg.base is not None:
-        from collectors.randomize import Randomization
-
         out["base"] = Randomization.parse(cfg.base).profile()   # by content, not by name
     return out
 
@@ -219,7 +214,6 @@ def evaluate(factors: dict[str, float], out: Path, cfg: SysidConfig, real: dict,
 def parked_check(factors: dict[str, float], out: Path, cfg: SysidConfig) -> dict:
     """Does the candidate's lab park its chain still (`chain.parked`: teams of 3 and 5)?
     Cached by the factors and the scenario, like the candidate's collection."""
-    from collectors.randomize import randomized_scenario
     from macrostate_mj.chain.parked import parks_still
 
     made_of = {"factors": factors, "scenario": identity(cfg)["scenario_hash"]}
@@ -288,11 +282,16 @@ def fit(cfg: SysidConfig, train: np.ndarray, val: np.ndarray, out: Path,
 
 
 def write(report: dict, out: Path) -> None:
-    """fit.json (the whole report) and fitted.json (the best candidate's collection profile:
-    its factors, within the `base` ranges where given; what `--randomize` reads)."""
+    """fit.json (the whole report), fitted.json (the best candidate's collection profile: its
+    factors, within the `base` ranges where given; what `--randomize` reads) and the ranked
+    gap on the check data before and after (`check_before.jsonl`, `check_after.jsonl`: the
+    rows of `stats --compare --rank --json`)."""
     write_json_atomic(out / "fit.json", report)
     write_text_atomic(out / "fitted.json",
                       json.dumps(report["profile"], indent=1, sort_keys=True))
+    for name, rows in report["rows"].items():
+        write_text_atomic(out / f"check_{name}.jsonl", "".join(
+            json.dumps(r, sort_keys=True) + "\n" for r in ranked_gap(rows["val"])))
 
 
 def split_check(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -663,7 +663,9 @@ def gap_ranked(*files: str) -> Table:
     runs = [[json.loads(line) for line in (RESULTS / f).read_text().splitlines()]
             for f in files]
     effects = "effects" in runs[0][0]     # `--effects`: the first file's, beside each row
-    rows = [["statistic", *(Path(f).stem for f in files), "shaped in the lab by",
+    stems = [Path(f).stem for f in files]
+    named = stems if len(set(stems)) == len(stems) else [f.removesuffix(".jsonl") for f in files]
+    rows = [["statistic", *named, "shaped in the lab by",
              *(["Head error without it (cm)"] if effects else [])]]
     for r in runs[0]:
         cells = []

@@ -111,14 +111,12 @@ class CameraChain:
         self._offset = None
         # frames that alternate with the log's rows are taken in step with it
         self.phase = sim.log_phase if sim.cfg.frame_alternation > 0 else self._phase
-        if sim.cfg.frame_alternation > 0:
+        if sim.cfg.frame_alternation > 0 or sim.cfg.frame_jitter > 0:
             self.tick_time = self._timed
         if sim.cfg.frame_jitter > 0 or sim.cfg.marker_offset > 0:
             # streams of their own (children of the imaging stream's seed, which they leave as
             # it was): each frame's delay, and each robot's marker offset on its body
             self._timing, placing = rng.spawn(2)
-            if sim.cfg.frame_jitter > 0:
-                self.tick_time = self._timed
             if sim.cfg.marker_offset > 0:
                 self._offset = placing.normal(0.0, sim.cfg.marker_offset,
                                               (len(sim.world.names), 2))
