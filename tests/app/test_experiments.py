@@ -111,8 +111,9 @@ def test_experiment_all_sets_the_precision_of_every_training_that_has_one():
 # The committed folder each experiment's full profile reproduces (`experiment all --profile
 # full`), and the settings it leaves out: retlo's lab 5-robot test is a collection of its own.
 # srs_full (3 model seeds a dataset, earlier code) has its own profile. s2r_sealed's manifest
-# holds its ledger's path on the machine that ran it and its scenario resolved (the lab by
-# name here; the ledger's recipe hash holds its content).
+# holds its ledger's path on the machine that ran it, its scenario resolved (the lab by name
+# here; the ledger's recipe hash holds its content) and its profile by path (results/
+# sysid_timing2/fitted.json; here by name, `wider-rear-timed`: the same content, tested).
 REPRODUCES = {("caging", "full"): ("caging", ()),
               ("caging-multi", "full"): ("caging_two_tails", ()),
               ("retlo-sim", "full"): ("retlo_sim_seeds/seed0", ()),
@@ -121,7 +122,8 @@ REPRODUCES = {("caging", "full"): ("caging", ()),
               ("srs", "full"): ("srs_text", ()), ("srs", "full-seeds"): ("srs_full", ()),
               ("sim2real", "full"): ("s2r_mixed", ()), ("oc", "full"): ("oc_dev_table41", ()),
               ("uncertainty", "full"): ("retlo_uncertainty", ()),
-              ("s2r-sealed", "full"): ("s2r_sealed", ("ledger", "scenario"))}
+              ("s2r-sealed", "full"): ("s2r_sealed_timing", ("ledger", "scenario",
+                                                             "randomize"))}
 
 
 def _plain(value):

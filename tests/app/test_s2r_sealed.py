@@ -55,14 +55,13 @@ def test_quick_run_scores_the_sealed_test_and_counts_one_look(stand_in, tmp_path
     assert "look 1 of the ledger" in lines[0]
 
 
-def test_looks_count_distinct_models_scored_and_keep_the_ledger(stand_in, tmp_path, monkeypatch):
-    monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
+def test_looks_count_distinct_models_scored_and_keep_the_ledger(stand_in, tmp_path):
     results = {"against_real": {"lab": {"ratio": {"mean": 1.4, "low": 1.2, "high": 1.6}}},
                "arms": {"lab": {"head_cm": {"mean": 5.0}}}}
     config = _config(stand_in, tmp_path)
-    first = s2r_sealed.look(config, results, "models-a")
-    again = s2r_sealed.look(replace(config, randomize="wider"), results, "models-a")
-    other = s2r_sealed.look(config, results, "models-b")
+    first = s2r_sealed.look(config, results, "models-a", FROZEN)
+    again = s2r_sealed.look(replace(config, randomize="wider"), results, "models-a", FROZEN)
+    other = s2r_sealed.look(config, results, "models-b", FROZEN)
     assert (first["looks"], again["looks"], other["looks"]) == (1, 1, 2)
     assert (first["repeat"], again["repeat"], other["repeat"]) == (False, True, False)
     assert len(config.ledger.read_text().splitlines()) == 3

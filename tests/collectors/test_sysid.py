@@ -98,6 +98,16 @@ def test_a_tiny_fit_end_to_end(tmp_path):
     assert all(Path(c["folder"]).parent == moved / "candidates" for c in again["candidates"])
 
 
+def test_the_timed_profile_is_the_committed_fit():
+    """`wider-rear-timed` is results/sysid_timing2's fitted.json (`wider-rear`'s ranges around
+    the fitted timing), the profile the sealed look of the recipe drew."""
+    from collectors.randomize import PROFILES
+
+    committed = Path(__file__).resolve().parents[2] / "results" / "sysid_timing2"
+    fitted = json.loads((committed / "fitted.json").read_text())
+    assert json.loads(json.dumps(PROFILES["wider-rear-timed"])) == fitted
+
+
 def test_the_refit_profile_is_the_committed_fit():
     """`--randomize refit` holds the factors `results/sysid_refit` fitted, not a copy that
     drifts from them."""

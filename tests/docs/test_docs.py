@@ -64,7 +64,7 @@ TYPED = {
                               "95"},
     "reproduction/beyond": {"0", "1", "1000", "19", "2", "2.5", "2023", "245,760", "3", "5",
                             "50", "90"},
-    "reproduction/sim-to-real": {"0", "0.5", "0.75", "1", "13", "2", "3", "30", "5", "8", "95"},
+    "reproduction/sim-to-real": {"0.02", "0.3", "1", "15", "2", "26", "3", "30", "300", "95"},
     "benchmarks": {"1", "1.0", "1024", "45"},
 }
 LABELS = re.compile(r"(Fig|Table|§|Chapter|chapter|Figure|m =|σ =|[Ss]plit|seed|D[+-])\s*[\d.]+")

@@ -73,10 +73,10 @@ class Config:
     real: Path = field(default_factory=real_thymioloc, metadata=REAL_FOLDER)
     scenario: ScenarioRef = field(default="lab", metadata=flag(Scenario, default="lab"))
     # the lab collection's ranges: a built-in profile or a JSON file (its content is hashed)
-    randomize: str = field(default="wider-rear", metadata=flag(typer.Option(
+    randomize: str = field(default="wider-rear-timed", metadata=flag(typer.Option(
         None, "--randomize", help="The lab collection's ranges: a built-in profile or a JSON "
         "file (`sysid`'s fitted.json); its content, not its name, is the recipe's."),
-        default="wider-rear"))
+        default="wider-rear-timed"))
     sim_minutes: float = field(default=300.0, metadata=flag(Positive(
         None, "Minutes of lab data to collect.", "--sim-minutes", max=10_000)))
     sim_seed: int = 31
@@ -217,11 +217,11 @@ def summarize(reports: list[dict], config: Config) -> dict:
     return out
 
 
-def look(config: Config, results: dict, models: str) -> dict:
+def look(config: Config, results: dict, models: str, made: dict) -> dict:
     """Append this scoring to the ledger; its entry. `models` is what was scored (the hash of
     every model's task key: its settings and the bytes of its data), so a rerun that scores the
-    same models is a repeat and adds no look, whatever else changed in the code."""
-    made = code()
+    same models is a repeat and adds no look, whatever else changed in the code; `made` the
+    code that scored them (`core.run.code()` when the run began)."""
     lines = config.ledger.read_text().splitlines() if config.ledger.is_file() else []
     seen = {json.loads(line)["models_hash"] for line in lines if line.strip()}
     entry = {"date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": made["commit"],
@@ -245,6 +245,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     with progress.stage("data"):
         train_px, sealed_px = validate(config)
+        made = code()           # the frozen code, as it was when the look began
         lab = _lab(config, out, progress)
     train = pixels_to_world(train_px, DEFAULT_PX_PER_CM)
     sealed = pixels_to_world(sealed_px, DEFAULT_PX_PER_CM)
@@ -263,7 +264,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     results |= {"recipe": recipe(config), "recipe_hash": config_hash(recipe(config)),
                 "check_instances": n_check, "pool_instances": len(pool)}
     models = config_hash(sorted(t.key() for _, t in [*first, *second]))
-    results["look"] = look(config, results, models)
+    results["look"] = look(config, results, models, made)
     write_json_atomic(out / "results.json", results)
     progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["looks"])
     return summary_lines(results)
