@@ -90,6 +90,7 @@ MEANINGS = {
     "rates.command_hz": "control and camera rate, Hz", "rates.log_hz": "pose log rate, Hz",
     "rates.frame_hz": "the camera's frame rate, Hz (auto: the command rate)",
     "rates.frame_jitter": "each frame's delay after its nominal instant, uniform up to it, s",
+    "rates.frame_alternation": "the frames every other log row reads taken this much earlier, s",
     "robot.wheel_spread": "each wheel's effective radius factor 1 + N(0, spread), drawn per "
                           "episode",
     "noise.marker_offset": "each robot's marker off its centre, m (σ per body axis, per "

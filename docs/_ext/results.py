@@ -628,10 +628,12 @@ def sealed(folder: str) -> Table:
     """`experiment s2r-sealed`: each arm's Head error on the sealed test (mean ± std over its
     seeds) and, against real only, the ratio and the difference with their 95 % intervals
     (instances x seeds)."""
+    from macrostate_mj.app.experiments.s2r_sealed import ARMS
+
     r = load(f"{folder}/results.json")
     rows = [["arm", "Head error (cm)", "÷ real only [95 %]", "minus real only (cm) [95 %]"]]
-    for arm, cell in r["arms"].items():  # type: ignore[union-attr]
-        h = cell["head_cm"]
+    for arm in ARMS:                         # in the experiment's order
+        h = r["arms"][arm]["head_cm"]  # type: ignore[index]
         vs = r["against_real"].get(arm)  # type: ignore[index]
         compared = ["1", "0"]               # real only against itself
         if vs is not None:
