@@ -29,3 +29,17 @@ def reference_data() -> Path:
     if not REFERENCE.is_dir():
         pytest.skip(f"reference data not found at {REFERENCE} (set MACROSTATE_REFERENCE_DATA)")
     return REFERENCE
+
+
+@pytest.fixture(scope="module")
+def stand_in(tmp_path_factory):
+    """A small lab collection standing in for the real Train.csv and Val.csv (read only): the
+    sim-to-real experiments run end to end without the reference data."""
+    from clitools import cli
+
+    folder = tmp_path_factory.mktemp("s2r") / "stand_in"
+    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
+              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
+              "--out", str(folder))
+    assert res.returncode == 0, res.stderr
+    return folder

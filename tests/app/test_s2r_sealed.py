@@ -18,16 +18,6 @@ from macrostate_mj.core.stats import two_level_bootstrap
 FROZEN = {"commit": "0" * 40, "dirty": False, "digest": "d"}
 
 
-@pytest.fixture(scope="module")
-def stand_in(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("sealed") / "stand_in"
-    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
-              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
-              "--out", str(folder))
-    assert res.returncode == 0, res.stderr
-    return folder
-
-
 def _config(stand_in: Path, tmp: Path, **changes) -> s2r_sealed.Config:
     return replace(s2r_sealed.PROFILES["quick"], real=stand_in, ledger=tmp / "ledger.jsonl",
                    **changes)

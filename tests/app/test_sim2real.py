@@ -18,17 +18,6 @@ from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.stats import cv_blocks
 
 
-@pytest.fixture(scope="module")
-def stand_in(tmp_path_factory):
-    """A small lab collection standing in for the real Train.csv and Val.csv (read only)."""
-    folder = tmp_path_factory.mktemp("s2r") / "stand_in"
-    res = cli("collect", "--scenario", "lab", "--robots", "3", "--minutes", "4",
-              "--episode-minutes", "2", "--seed", "77", "--split", "80/20/0",
-              "--out", str(folder))
-    assert res.returncode == 0, res.stderr
-    return folder
-
-
 @pytest.mark.parametrize("fold", range(5))
 def test_folds_are_contiguous_and_disjoint(fold):
     pool, val, test = cv_blocks(325, 5, fold, 0.15)
