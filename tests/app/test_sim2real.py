@@ -474,3 +474,42 @@ def test_sim_models_are_picked_on_the_lab_or_on_the_real_validation_block(tmp_pa
     assert not (tmp_path / "bad").exists()
     with pytest.raises(UserError, match="--sim-select"):     # from Python, the same check
         sim2real.validate(replace(PROFILES["quick"], sim_select="test"))
+
+
+def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tmp_path,
+                                                                     monkeypatch):
+    """`--train-only`: the folds are cut from Train.csv alone and a `--fit train` is checked
+    on Train's last 15 %; a folder without Val.csv is enough, so the sealed file is never
+    read (its absence proves it)."""
+    import collectors.sysid
+
+    seen = []
+
+    def fit(cfg, train, val, out, progress=None):
+        seen.append((train, val))
+        score = {"before": 1.0, "after": 0.5}
+        return {"fitted": {"k_f": 1.0}, "train": score, "val": score}
+
+    def lab(config, out, progress, randomize):
+        out.mkdir(parents=True, exist_ok=True)
+        for name in ("Train.csv", "Val.csv"):
+            shutil.copy(stand_in / name, out / name)
+        return out
+
+    folder = tmp_path / "train_only"
+    folder.mkdir()
+    shutil.copy(stand_in / "Train.csv", folder / "Train.csv")
+    monkeypatch.setattr(collectors.sysid, "fit", fit)
+    monkeypatch.setattr(sim2real, "_collect", lab)
+    config = replace(PROFILES["quick"], real=folder, arms=("sim", "real"), fits=("train",),
+                     randomize=("wide",), train_only=True)
+    train = sim2real.read_csv(folder / "Train.csv").poses
+    assert np.array_equal(sim2real.validate(config), train)
+    execute("sim2real", config, tmp_path / "out")
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert results["real_instances"] == len(train)
+    n_check = round(0.15 * len(train))
+    assert np.array_equal(seen[0][0], train[:-n_check]) and np.array_equal(seen[0][1],
+                                                                         train[-n_check:])
+    with pytest.raises(UserError, match="Val.csv"):
+        sim2real.validate(replace(config, train_only=False))

@@ -11,7 +11,7 @@ appended to the ledger (`--ledger`; `results/sealed_ledger.jsonl` of the checkou
 working folder): date, commit, recipe hash, figures and the looks so far (distinct sets of
 models scored on this test; a rerun that scores the same models is a repeat, not a look).
 A setting chosen on a sealed score must never be reported on it: choose on Train's folds
-(`experiment sim2real` on a folder holding Train.csv split in two), then look once.
+(`experiment sim2real --train-only`, which never opens Val.csv), then look once.
 
 Arms per model seed i (`seed + i`): lab (trained on the lab collection, `collect --randomize
 RANGES --minutes MINUTES --split 80/20/0`), real (all of the pool), quarter (the lab model

@@ -2,7 +2,8 @@
 data sim pre-training saves (a data-efficiency curve).
 
 Real data: a folder of ThymioLoc 3-robot files, `Train.csv` then `Val.csv`, pooled in that order
-and cut into `folds` contiguous blocks (instances overlap in time, so a random split would leak).
+and cut into `folds` contiguous blocks (instances overlap in time, so a random split would leak);
+with `train_only`, Train.csv alone, Val.csv left sealed for `experiment s2r-sealed`.
 Model i (seed `seed + i`) is tested on block i mod `folds`, never used by any model of that
 seed; of the other blocks, the last `val_share` selects the real-trained checkpoints and the rest
 is the real training pool, of which 10 / 25 / 50 / 100 % are used (contiguous parts in turn
@@ -67,6 +68,7 @@ from macrostate_mj.app.params import (
     Precision,
     Scenario,
     Seed,
+    Switch,
     flag,
 )
 from macrostate_mj.chain.scenario import ScenarioConfig
@@ -156,6 +158,12 @@ class Config:
         parse=lambda given: tuple(a for a in ARMS if a in given)))
     # train on chained Followers too (`TrainConfig.chained`)
     chained: bool = field(default=True, metadata=flag(Chained))
+    # cross-validate on Train.csv alone, Val.csv never read: the real Val file stays the sealed
+    # test `experiment s2r-sealed` scores once (choose here, then look there)
+    train_only: bool = field(default=False, metadata=flag(Switch(
+        False, "Cross-validate on the real Train.csv alone, never reading Val.csv: what "
+        "chooses a setting before `experiment s2r-sealed` scores it on the sealed Val.csv.",
+        "--train-only/--with-val")))
     # what chooses each sim model's checkpoint: the lab's Val.csv (sim data only, the text's
     # protocol), or the fold's real validation block (what a lab with a real file can do; the
     # test block still takes no part)
@@ -234,18 +242,21 @@ def missing(config: Config) -> str | None:
         f"the real ThymioLoc folder {config.real} (`macrostate-mj data fetch retlo`)"
 
 
-def _require_splits(folder: Path, flag: str, hint: str) -> None:
-    """One-line error unless `folder` holds Train.csv and Val.csv."""
-    missing = [f for f in REAL_FILES if not (folder / f).is_file()]
+def _require_splits(folder: Path, flag: str, hint: str, files: tuple[str, ...] = REAL_FILES
+                    ) -> None:
+    """One-line error unless `folder` holds `files` (Train.csv and Val.csv)."""
+    missing = [f for f in files if not (folder / f).is_file()]
     if missing:
         raise UserError(f"{flag} {folder} has no {missing[0]}; pass {hint}")
 
 
-def read_real(folder: Path) -> np.ndarray:
-    """The pooled real instances (px, degrees), Train then Val; one-line errors otherwise."""
+def read_real(folder: Path, train_only: bool = False) -> np.ndarray:
+    """The pooled real instances (px, degrees), Train then Val (Train alone with
+    `train_only`: Val.csv is not even opened); one-line errors otherwise."""
+    files = REAL_FILES[:1] if train_only else REAL_FILES
     _require_splits(folder, "--real", "the folder of the real ThymioLoc Train.csv and Val.csv "
-                    "(`macrostate-mj data fetch retlo` gets them)")
-    parts = [read_csv(folder / f).poses for f in REAL_FILES]
+                    "(`macrostate-mj data fetch retlo` gets them)", files)
+    parts = [read_csv(folder / f).poses for f in files]
     if len({p.shape[1:] for p in parts}) != 1 or parts[0].shape[2] != 3:
         raise UserError(f"--real {folder}: Train.csv and Val.csv must both hold 3-robot "
                         "instances of the same length")
@@ -273,7 +284,7 @@ def validate(config: Config) -> np.ndarray:
         raise UserError("--finetune-epochs: name at least one count (30 by default)")
     if config.sim_select not in SIM_SELECT:
         raise UserError(f"--sim-select {config.sim_select}: choose {' or '.join(SIM_SELECT)}")
-    pooled = read_real(config.real)
+    pooled = read_real(config.real, config.train_only)
     unknown = [a for a in config.arms if a not in ARMS]
     if unknown or not config.arms:
         raise UserError(f"--arm {', '.join(unknown) or '(none)'}: choose among "
@@ -386,9 +397,12 @@ def lab_data(config: Config, fit: str, pooled: np.ndarray, folds: list[tuple], o
             None if r == PLAIN else r)] * len(folds)
             for r in config.candidates}, {}
     if fit == "train":
+        from collectors.sysid import split_check
+
         n_train = len(read_csv(config.real / REAL_FILES[0]).poses)
-        folders, fitted = _fitted_lab(config, pooled[:n_train], pooled[n_train:], out,
-                                      "train", progress)
+        train, check = split_check(pooled) if config.train_only else (
+            pooled[:n_train], pooled[n_train:])      # checked on Train's end, or on Val
+        folders, fitted = _fitted_lab(config, train, check, out, "train", progress)
         return {r: [f] * len(folds) for r, f in folders.items()}, {"train": fitted}
     made: dict[int, tuple[dict[str, Path], dict]] = {}
     for fold, pool, val in folds:
