@@ -122,6 +122,8 @@ def identity(cfg: SysidConfig) -> dict:
     skip = ("workers", "scenario", *(k for k in ("only", "base") if not getattr(cfg, k)))
     out = {**{k: v for k, v in asdict(cfg).items() if k not in skip},
            "scenario": scenario.name, "scenario_hash": config_hash(scenario)}
+    if cfg.only:
+        out["only"] = list(cfg.fitted)      # as searched, whatever order they were named in
     if cfg.base is not None:
         out["base"] = Randomization.parse(cfg.base).profile()   # by content, not by name
     return out

@@ -191,8 +191,9 @@ def two_level_bootstrap(arm: Any, ref: Any, draws: int = 4000, seed: int = 0,
         return x + (np.sqrt(len(x) / max(len(x) - 1, 1)) - 1) * (means - means.mean())
 
     a, b = np.asarray(arm, float), np.asarray(ref, float)
-    if a.shape[1] != b.shape[1] or a.shape[1] < 2:
-        raise ValueError("both arms must be scored on the same test instances (at least 2)")
+    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or a.shape[1] < 2:
+        raise ValueError("both arms must be errors (seeds x test instances) on the same test "
+                         "instances, at least 2")
     point_a, point_b = a.mean(), b.mean()
     a, b = widened(a), widened(b)
     rng = np.random.default_rng(seed)

@@ -39,35 +39,54 @@ def test_quick_run_scores_the_sealed_test_and_counts_one_look(stand_in, tmp_path
     parts = results["arms"]["quarter"]["parts"]        # two seeds, two different quarters
     assert parts["0"][0] == 0 and parts["1"][0] > 0
     assert {b - a for a, b in parts.values()} == {int(np.ceil(results["pool_instances"] / 4))}
-    entries = [json.loads(x) for x in config.ledger.read_text().splitlines()]
-    assert len(entries) == 1 and entries[0]["looks"] == 1 and not entries[0]["repeat"]
-    assert entries[0]["recipe_hash"] == results["recipe_hash"]
+    begun, entry = [json.loads(x) for x in config.ledger.read_text().splitlines()]
+    assert begun["event"] == "begun" and begun["recipe_hash"] == results["recipe_hash"]
+    assert entry["looks"] == 1 and not entry["repeat"] and not entry["code_changed"]
+    assert entry["recipe_hash"] == results["recipe_hash"]
     assert "look 1 of the ledger" in lines[0]
 
 
-def test_looks_count_distinct_models_scored_and_keep_the_ledger(stand_in, tmp_path):
-    results = {"against_real": {"lab": {"ratio": {"mean": 1.4, "low": 1.2, "high": 1.6}}},
-               "arms": {"lab": {"head_cm": {"mean": 5.0}}}}
+def test_looks_count_the_sealed_scores_seen_at_this_sealed_file(stand_in, tmp_path,
+                                                              monkeypatch):
+    """A rescore of the same models is a repeat (whatever else changed); other scores are a
+    new look; a look begun and never finished counts (its scores may have been read), unless
+    the same recipe finished at that commit; another sealed file's looks are not this one's."""
+    monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
+
+    def scored(errors):
+        return {"against_real": {"lab": {"ratio": {"mean": 1.4, "low": 1.2, "high": 1.6}}},
+                "arms": {"lab": {"head_cm": {"mean": 5.0},
+                                 "head_cm_by_instance": {"0": errors}}}}
+
     config = _config(stand_in, tmp_path)
-    first = s2r_sealed.look(config, results, "models-a", FROZEN)
-    again = s2r_sealed.look(replace(config, randomize="wider"), results, "models-a", FROZEN)
-    other = s2r_sealed.look(config, results, "models-b", FROZEN)
+    s2r_sealed.begin(config, FROZEN)
+    first = s2r_sealed.look(config, scored([1.0, 2.0]), FROZEN)
+    again = s2r_sealed.look(replace(config, randomize="wider"), scored([1.0, 2.0]), FROZEN)
+    other = s2r_sealed.look(config, scored([1.0, 2.5]), FROZEN)
     assert (first["looks"], again["looks"], other["looks"]) == (1, 1, 2)
     assert (first["repeat"], again["repeat"], other["repeat"]) == (False, True, False)
-    assert len(config.ledger.read_text().splitlines()) == 3
+    s2r_sealed.begin(replace(config, seeds=3), FROZEN)          # interrupted: never finished
+    entries = s2r_sealed.ledger_entries(config.ledger)
+    assert len(entries) == 5 and s2r_sealed.looks(entries, first["sealed"]) == 3
+    assert s2r_sealed.looks(entries, "another sealed file") == 0
+    config.ledger.write_text(config.ledger.read_text() + "not json\n")
+    with pytest.raises(UserError, match="--ledger"):
+        s2r_sealed.validate(config)
 
 
 def test_a_look_is_refused_unless_frozen_and_deliberate(stand_in, tmp_path,
                                                                  monkeypatch):
     monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
-    for bad, named in (({"seeds": 0}, "seeds"), ({"epochs": 2.5}, "epochs"),
+    for bad, named in (({"seeds": 1}, "seeds"), ({"epochs": 2.5}, "epochs"),
                        ({"select_share": 1.0}, "select_share"), ({"finetune_lr": -1}, "lr"),
+                       ({"select_share": 0.99}, "pool"),
                        ({"randomize": "nonsense"}, "nonsense")):
         with pytest.raises(UserError, match=named):          # from Python, as from the CLI
             s2r_sealed.validate(replace(_config(stand_in, tmp_path), **bad))
-    monkeypatch.setattr(s2r_sealed, "code", lambda: {**FROZEN, "dirty": True})
-    with pytest.raises(UserError, match="frozen recipe"):
-        s2r_sealed.validate(_config(stand_in, tmp_path))
+    for unfrozen in ({**FROZEN, "dirty": True}, {**FROZEN, "commit": None, "dirty": None}):
+        monkeypatch.setattr(s2r_sealed, "code", lambda made=unfrozen: made)
+        with pytest.raises(UserError, match="frozen recipe"):     # git could not tell, too
+            s2r_sealed.validate(_config(stand_in, tmp_path))
     res = cli("experiment", "all", "--quick", "--only", "s2r-sealed", "--out",
               str(tmp_path / "all"))
     assert res.returncode == 2 and "sealed test" in res.stderr
@@ -110,3 +129,5 @@ def test_the_bootstrap_covers_the_ratio_and_widens_with_fewer_instances():
     assert narrow["high"] - narrow["low"] < wide["high"] - wide["low"]
     with pytest.raises(ValueError):
         two_level_bootstrap(arm[:, :3], ref[:, :4])
+    with pytest.raises(ValueError):
+        two_level_bootstrap(arm[0], ref[0])               # one seed's row is not a table

@@ -78,6 +78,7 @@ def validate(config: Config) -> None:
 @register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Run (or keep, or skip) every chosen experiment; write the index; summary lines."""
+    validate(config)                    # from Python too, not only the command's parse
     chosen = {n: m for n, m in _members().items() if not config.only or n in config.only}
     index: dict = {"profile": config.profile, "experiments": {}}
     failed = []

@@ -8,8 +8,9 @@ fixed before anything is scored. The real Val.csv is the sealed test: every mode
 on each of its instances, and nothing else reads it. A look needs a frozen recipe (in a
 checkout, no uncommitted change to the packages; an installed wheel is its version) and is
 appended to the ledger (`--ledger`; `results/sealed_ledger.jsonl` of the checkout, or of the
-working folder): date, commit, recipe hash, figures and the looks so far (distinct sets of
-models scored on this test; a rerun that scores the same models is a repeat, not a look).
+working folder): a line when the sealed test is first scored (an interrupted look still
+counts), then date, commit, recipe hash, figures and the looks so far at this sealed file
+(distinct sealed scores seen: a rescore of the same models is a repeat, not a look).
 A setting chosen on a sealed score must never be reported on it: choose on Train's folds
 (`experiment sim2real --train-only`, which never opens Val.csv), then look once.
 
@@ -48,7 +49,7 @@ from macrostate_mj.app.params import (
 )
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic, write_text_atomic
+from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.paths import CHECKOUT, real_thymioloc
 from macrostate_mj.core.run import code, config_hash
 from macrostate_mj.core.stats import mean_std, two_level_bootstrap
@@ -129,10 +130,10 @@ def recipe(config: Config) -> dict:
 def validate(config: Config) -> tuple[np.ndarray, np.ndarray]:
     """Refuse bad inputs and an unfrozen recipe in one line, before anything is written or
     scored; Train's and the sealed test's instances (px)."""
-    for name in ("seeds", "epochs", "finetune_epochs"):
-        value = getattr(config, name)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise UserError(f"{name} {value!r}: a whole number of at least 1")
+    for name, least in (("seeds", 2), ("epochs", 1), ("finetune_epochs", 1)):
+        value = getattr(config, name)      # two seeds at least: the intervals resample them
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise UserError(f"{name} {value!r}: a whole number of at least {least}")
     for name, low, high in (("select_share", 0.0, 1.0), ("finetune_lr", 0.0, 1.0),
                             ("sim_minutes", 0.0, 1e4)):
         value = getattr(config, name)
@@ -147,15 +148,53 @@ def validate(config: Config) -> tuple[np.ndarray, np.ndarray]:
     if parts[0].shape[1:] != parts[1].shape[1:] or parts[0].shape[2] != 3:
         raise UserError(f"--real {config.real}: Train.csv and Val.csv must both hold 3-robot "
                         "instances of the same length")
-    if len(parts[1]) < 2 or len(parts[0]) < 8:
-        raise UserError(f"--real {config.real}: the sealed test needs 2 instances and Train 8 "
-                        f"(a check block and four quarters); got {len(parts[1])} and "
-                        f"{len(parts[0])}")
+    pool = len(parts[0]) - _check_size(config, len(parts[0]))
+    if len(parts[1]) < 2 or pool < 4:
+        raise UserError(f"--real {config.real}: the sealed test needs 2 instances and Train's "
+                        f"pool 4 (one a quarter) beside its check block; got {len(parts[1])} "
+                        f"and {pool} (Train holds {len(parts[0])}, select_share "
+                        f"{config.select_share:g})")
     config.profile                      # noqa: B018  (a bad profile is refused here)
-    if code()["dirty"]:
-        raise UserError("a sealed look needs a frozen recipe: commit the code first (the "
-                        "packages have uncommitted changes)")
+    ledger_entries(config.ledger)       # an unreadable ledger is refused before any look
+    frozen()
     return parts[0], parts[1]
+
+
+def _check_size(config: Config, n_train: int) -> int:
+    """How many of Train's last instances pick the checkpoints (the check block)."""
+    return max(1, int(round(config.select_share * n_train)))
+
+
+def frozen() -> dict:
+    """The code as it is now, refused unless it is frozen: in a checkout, no uncommitted change
+    to the packages, and git able to say so; an installed wheel is its version."""
+    made = code()
+    if made["dirty"] or made["dirty"] is None and CHECKOUT is not None and \
+            (CHECKOUT / ".git").exists():
+        raise UserError("a sealed look needs a frozen recipe: commit the code first (the "
+                        "packages have uncommitted changes, or git could not tell)")
+    return made
+
+
+def ledger_entries(path: Path) -> list[dict]:
+    """The ledger's entries (none where it does not exist yet); one line if unreadable."""
+    if not path.is_file():
+        return []
+    try:
+        return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    except (OSError, ValueError) as err:
+        raise UserError(f"--ledger {path} cannot be read as JSON lines ({err}); give a ledger "
+                        "this command wrote, or a new path") from None
+
+
+def _append(path: Path, entry: dict) -> None:
+    """One line appended under an exclusive lock (looks run at once never lose a line)."""
+    import fcntl
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        f.write(json.dumps(entry, sort_keys=True) + "\n")
 
 
 def _lab(config: Config, out: Path, progress: Progress) -> Path:
@@ -217,24 +256,49 @@ def summarize(reports: list[dict], config: Config) -> dict:
     return out
 
 
-def look(config: Config, results: dict, models: str, made: dict) -> dict:
-    """Append this scoring to the ledger; its entry. `models` is what was scored (the hash of
-    every model's task key: its settings and the bytes of its data), so a rerun that scores the
-    same models is a repeat and adds no look, whatever else changed in the code; `made` the
-    code that scored them (`core.run.code()` when the run began)."""
-    lines = config.ledger.read_text().splitlines() if config.ledger.is_file() else []
-    seen = {json.loads(line)["models_hash"] for line in lines if line.strip()}
+def looks(entries: list[dict], sealed: str) -> int:
+    """How many looks the ledger counts at the sealed file `sealed` (its bytes' hash): distinct
+    sealed scores seen, plus each recipe begun at a commit that never finished there (its
+    scores may have been read from the cache; a resumed run that finishes is not counted
+    twice)."""
+    mine = [e for e in entries if e.get("sealed") == sealed]
+    seen = {e["scores_hash"] for e in mine if "scores_hash" in e}
+    finished = {(e["recipe_hash"], e["commit"]) for e in mine if "scores_hash" in e}
+    open_ = {(e["recipe_hash"], e["commit"]) for e in mine
+             if e.get("event") == "begun"} - finished
+    return len(seen) + len(open_)
+
+
+def begin(config: Config, made: dict) -> None:
+    """A line before the sealed test is first scored: an interrupted look still counts."""
+    _append(config.ledger, {"event": "begun", "date": time.strftime("%Y-%m-%d", time.gmtime()),
+                            "commit": made["commit"], "code_digest": made["digest"],
+                            "recipe_hash": config_hash(recipe(config)),
+                            "sealed": recipe(config)["sealed"]})
+
+
+def look(config: Config, results: dict, made: dict) -> dict:
+    """Append this scoring to the ledger; its entry. A look is counted by what was seen: the
+    sealed scores (every model's error on every sealed instance), so a rescore of the same
+    models is a repeat and adds no look, and models retrained by other code are a new one;
+    `made` the code that scored them (`core.run.code()` when the run began; `code_changed`
+    where the packages' digest differs at the end)."""
+    scores = config_hash({a: v["head_cm_by_instance"] for a, v in results["arms"].items()})
+    sealed = recipe(config)["sealed"]
+    entries = ledger_entries(config.ledger)
+    before = {e["scores_hash"] for e in entries
+              if e.get("sealed") == sealed and "scores_hash" in e}
     entry = {"date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": made["commit"],
              "version": __version__, "code_digest": made["digest"],
-             "recipe_hash": config_hash(recipe(config)), "models_hash": models,
-             "randomize": config.randomize, "repeat": models in seen,
-             "looks": len(seen | {models}),
+             "code_changed": code()["digest"] != made["digest"],
+             "recipe_hash": config_hash(recipe(config)), "scores_hash": scores,
+             "sealed": sealed, "randomize": config.randomize, "repeat": scores in before,
              "figures": {a: {k: round(v, 4) for k, v in results["against_real"][a]["ratio"]
                              .items()} for a in results["against_real"]},
              "head_cm": {a: round(v["head_cm"]["mean"], 4)
                          for a, v in results["arms"].items()}}
-    write_text_atomic(config.ledger, "".join(f"{line}\n" for line in lines)
-                      + json.dumps(entry, sort_keys=True) + "\n")
+    entry["looks"] = looks([*entries, entry], sealed)
+    _append(config.ledger, entry)
     return entry
 
 
@@ -245,12 +309,13 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     with progress.stage("data"):
         train_px, sealed_px = validate(config)
-        made = code()           # the frozen code, as it was when the look began
+        made = frozen()         # the frozen code, as it was when the look began
         lab = _lab(config, out, progress)
     train = pixels_to_world(train_px, DEFAULT_PX_PER_CM)
     sealed = pixels_to_world(sealed_px, DEFAULT_PX_PER_CM)
-    n_check = max(1, int(round(config.select_share * len(train))))
+    n_check = _check_size(config, len(train))
     pool, check = train[:-n_check], train[-n_check:]
+    begin(config, made)
     with progress.stage("models"):
         first = _tasks(config, lab, pool, check, sealed, None)
         total = config.seeds * len(ARMS)
@@ -263,8 +328,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     results = summarize(reports, config)
     results |= {"recipe": recipe(config), "recipe_hash": config_hash(recipe(config)),
                 "check_instances": n_check, "pool_instances": len(pool)}
-    models = config_hash(sorted(t.key() for _, t in [*first, *second]))
-    results["look"] = look(config, results, models, made)
+    results["look"] = look(config, results, made)
     write_json_atomic(out / "results.json", results)
     progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["looks"])
     return summary_lines(results)

@@ -580,7 +580,11 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                                      for lab in by_range.values() for p in lab}),
                     models_trained=len({t.key() for _, t in [*first, *second, *third]}
                                        - hits))
-    return summary_lines(results)
+    lines = summary_lines(results)
+    if not config.train_only:       # said where the run ends: a sealed file was read
+        lines.append("these folds pool Val.csv, the sim-to-real work's sealed test (experiment "
+                     "s2r-sealed): choose settings with --train-only, then look once there")
+    return lines
 
 
 def _profile(config: Config, lab: Path, randomize: str) -> dict:
