@@ -43,7 +43,7 @@ def test_quick_run_scores_the_sealed_test_and_counts_one_look(stand_in, tmp_path
     assert begun["event"] == "begun" and begun["recipe_hash"] == results["recipe_hash"]
     assert entry["looks"] == 1 and not entry["repeat"] and not entry["code_changed"]
     assert entry["recipe_hash"] == results["recipe_hash"]
-    assert "look 1 of the ledger" in lines[0]
+    assert "look 1 of 1 in the ledger" in lines[0] and entry["look"] == 1
 
 
 def test_looks_count_the_sealed_scores_seen_at_this_sealed_file(stand_in, tmp_path,
@@ -64,6 +64,7 @@ def test_looks_count_the_sealed_scores_seen_at_this_sealed_file(stand_in, tmp_pa
     again = s2r_sealed.look(replace(config, randomize="wider"), scored([1.0, 2.0]), FROZEN)
     other = s2r_sealed.look(config, scored([1.0, 2.5]), FROZEN)
     assert (first["looks"], again["looks"], other["looks"]) == (1, 1, 2)
+    assert (first["look"], again["look"], other["look"]) == (1, 1, 2)
     assert (first["repeat"], again["repeat"], other["repeat"]) == (False, True, False)
     s2r_sealed.begin(replace(config, seeds=3), FROZEN)          # interrupted: never finished
     entries = s2r_sealed.ledger_entries(config.ledger)

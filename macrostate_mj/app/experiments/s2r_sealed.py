@@ -297,7 +297,9 @@ def look(config: Config, results: dict, made: dict) -> dict:
                              .items()} for a in results["against_real"]},
              "head_cm": {a: round(v["head_cm"]["mean"], 4)
                          for a, v in results["arms"].items()}}
-    entry["looks"] = looks([*entries, entry], sealed)
+    seen = [e for e in [*entries, entry] if e.get("sealed") == sealed and "scores_hash" in e]
+    entry["look"] = list(dict.fromkeys(e["scores_hash"] for e in seen)).index(scores) + 1
+    entry["looks"] = looks([*entries, entry], sealed)     # which look these scores are; how many
     _append(config.ledger, entry)
     return entry
 
@@ -330,14 +332,15 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                 "check_instances": n_check, "pool_instances": len(pool)}
     results["look"] = look(config, results, made)
     write_json_atomic(out / "results.json", results)
-    progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["looks"])
+    progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["look"])
     return summary_lines(results)
 
 
 def summary_lines(results: dict) -> list[str]:
+    seen = results["look"]
     lines = [f"sealed test: {results['instances']} instances, {results['seeds']} seeds per arm "
-             f"(look {results['look']['looks']} of the ledger"
-             f"{', a repeat' if results['look']['repeat'] else ''})"]
+             f"(look {seen['look']} of {seen['looks']} in the ledger"
+             f"{', a repeat' if seen['repeat'] else ''})"]
     for arm, cell in results["arms"].items():
         h = cell["head_cm"]
         against = results["against_real"].get(arm)
