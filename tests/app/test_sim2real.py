@@ -432,12 +432,7 @@ def test_ablations_switch_parameters_off_in_each_seed_s_own_profile(stand_in, tm
 def test_ablations_that_cannot_be_measured_are_refused_or_said(stand_in, tmp_path, monkeypatch):
     """A group the lab's profile does not hold trains nothing and says so; a repeated group,
     or an ablation with no sim models to train, is refused in one line."""
-    def lab(config, out, progress, randomize):
-        out.mkdir(parents=True, exist_ok=True)
-        for name in ("Train.csv", "Val.csv"):
-            shutil.copy(stand_in / name, out / name)
-        return out
-
+    lab = _copying(stand_in)
     ranges = tmp_path / "ranges.json"
     ranges.write_text(json.dumps({"k_f": [0.9, 1.1]}))
     monkeypatch.setattr(sim2real, "_collect", lab)
@@ -490,12 +485,7 @@ def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tm
         score = {"before": 1.0, "after": 0.5}
         return {"fitted": {"k_f": 1.0}, "train": score, "val": score}
 
-    def lab(config, out, progress, randomize):
-        out.mkdir(parents=True, exist_ok=True)
-        for name in ("Train.csv", "Val.csv"):
-            shutil.copy(stand_in / name, out / name)
-        return out
-
+    lab = _copying(stand_in)
     folder = tmp_path / "train_only"
     folder.mkdir()
     shutil.copy(stand_in / "Train.csv", folder / "Train.csv")
@@ -513,3 +503,13 @@ def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tm
                                                                          train[-n_check:])
     with pytest.raises(UserError, match="Val.csv"):
         sim2real.validate(replace(config, train_only=False))
+
+
+def _copying(stand_in: Path):
+    """A stand-in for the lab collection (`sim2real._collect`): the stand-in files copied."""
+    def lab(config, out, progress, randomize):
+        out.mkdir(parents=True, exist_ok=True)
+        for name in ("Train.csv", "Val.csv"):
+            shutil.copy(stand_in / name, out / name)
+        return out
+    return lab
