@@ -174,7 +174,7 @@ def tracking_verdict(req: CollectRequest, stats: dict[int, dict]) -> dict:
     findings = {str(i): [f.describe() for f in r.judged(cfg)] for i, r in reports.items()}
     findings = {i: lines for i, lines in findings.items() if lines}
     worst = worst_of(list(reports.values()))
-    return {"summary": worst.summary(cfg.marker_jitter, cfg.marker_offset),
+    return {"summary": worst.described(cfg),
             "health": worst.as_dict(),
             "healthy": not findings, "limits": cfg.tracking, "findings": findings,
             "keep_unhealthy": req.keep_unhealthy}

@@ -40,7 +40,7 @@ def track_one(task: SoakTask) -> TrackedRun:
     report = ran.tracker.health.report(ran.log)
     return TrackedRun(task.seed, None if ran.failure is None else str(ran.failure),
                       report.as_dict(), [f.describe() for f in report.judged(cfg)],
-                      report.summary(cfg.marker_jitter, cfg.marker_offset), ran.tracker.frames,
+                      report.described(cfg), ran.tracker.frames,
                       time.perf_counter() - t0)
 
 

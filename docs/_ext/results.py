@@ -147,10 +147,12 @@ def design(folders: list[str], seeds: list[str]) -> tuple[Design, dict[str, str]
         return plan, {s: s for s in seeds}
     if len({int(p["folds"]) for p in profiles}) > 1:
         raise ValueError(f"{', '.join(folders)}: runs on different folds cannot pool")
+    from macrostate_mj.app.experiments.sim2real import fold_of
+
     folds, fold = int(profiles[0]["folds"]), {}
     for p in profiles:
         first = int(p.get("seed") or 0)
-        fold |= {str(first + i): i % folds for i in range(int(p.get("seeds") or folds))}
+        fold |= {str(first + i): fold_of(i, folds) for i in range(int(p.get("seeds") or folds))}
     if set(seeds) - set(fold):
         raise ValueError(f"{', '.join(folders)}: seeds {sorted(set(seeds) - set(fold))} are "
                          "not of these runs' profiles")

@@ -135,7 +135,7 @@ def tracking_record(chain: CameraChain, cfg: ScenarioConfig, log: PoseLog) -> di
     findings = [f.describe() for f in health.judged(cfg)]
     return {"frames": chain.frames, "dropped": chain.dropped, "noise": chain.noise,
             "marker_jitter_m": cfg.marker_jitter, "health": health.as_dict(),
-            "limits": cfg.tracking, "summary": health.summary(cfg.marker_jitter, cfg.marker_offset),
+            "limits": cfg.tracking, "summary": health.described(cfg),
             "healthy": not findings, "findings": findings}
 
 

@@ -200,6 +200,10 @@ class TrackingHealth:
         """The findings against scenario `cfg`'s `[tracking]` limits, in its markers' words."""
         return self.findings(cfg.tracking, cfg.markers)
 
+    def described(self, cfg: ScenarioConfig) -> str:
+        """`summary` with scenario `cfg`'s noise added to the dataset named beside it."""
+        return self.summary(cfg.marker_jitter, cfg.marker_offset)
+
     def summary(self, marker_jitter: float = 0.0, marker_offset: float = 0.0) -> str:
         """One line: the worst robot's figures (robots never in view left out). They are the
         tracker's own; a scenario's `marker_jitter` (sigma, m, per frame) and `marker_offset`

@@ -53,20 +53,24 @@ def test_looks_count_the_sealed_scores_seen_at_this_sealed_file(stand_in, tmp_pa
     the same recipe finished at that commit; another sealed file's looks are not this one's."""
     monkeypatch.setattr(s2r_sealed, "code", lambda: FROZEN)
 
+    config = _config(stand_in, tmp_path)
+    rec = s2r_sealed.recipe(config)
+
     def scored(errors):
         return {"against_real": {"lab": {"ratio": {"mean": 1.4, "low": 1.2, "high": 1.6}}},
                 "arms": {"lab": {"head_cm": {"mean": 5.0},
-                                 "head_cm_by_instance": {"0": errors}}}}
+                                 "head_cm_by_instance": {"0": errors}}},
+                "recipe": rec, "recipe_hash": s2r_sealed.config_hash(rec)}
 
-    config = _config(stand_in, tmp_path)
-    s2r_sealed.begin(config, FROZEN)
+    s2r_sealed.begin(config, FROZEN, rec)
     first = s2r_sealed.look(config, scored([1.0, 2.0]), FROZEN)
     again = s2r_sealed.look(replace(config, randomize="wider"), scored([1.0, 2.0]), FROZEN)
     other = s2r_sealed.look(config, scored([1.0, 2.5]), FROZEN)
     assert (first["looks"], again["looks"], other["looks"]) == (1, 1, 2)
     assert (first["look"], again["look"], other["look"]) == (1, 1, 2)
     assert (first["repeat"], again["repeat"], other["repeat"]) == (False, True, False)
-    s2r_sealed.begin(replace(config, seeds=3), FROZEN)          # interrupted: never finished
+    other_recipe = s2r_sealed.recipe(replace(config, seeds=3))
+    s2r_sealed.begin(config, FROZEN, other_recipe)              # interrupted: never finished
     entries = s2r_sealed.ledger_entries(config.ledger)
     assert len(entries) == 5 and s2r_sealed.looks(entries, first["sealed"]) == 3
     assert s2r_sealed.looks(entries, "another sealed file") == 0

@@ -269,12 +269,12 @@ def looks(entries: list[dict], sealed: str) -> int:
     return len(seen) + len(open_)
 
 
-def begin(config: Config, made: dict) -> None:
-    """A line before the sealed test is first scored: an interrupted look still counts."""
+def begin(config: Config, made: dict, rec: dict) -> None:
+    """A line before the sealed test is first scored (`rec`: the `recipe`): an interrupted
+    look still counts."""
     _append(config.ledger, {"event": "begun", "date": time.strftime("%Y-%m-%d", time.gmtime()),
                             "commit": made["commit"], "code_digest": made["digest"],
-                            "recipe_hash": config_hash(recipe(config)),
-                            "sealed": recipe(config)["sealed"]})
+                            "recipe_hash": config_hash(rec), "sealed": rec["sealed"]})
 
 
 def look(config: Config, results: dict, made: dict) -> dict:
@@ -282,16 +282,16 @@ def look(config: Config, results: dict, made: dict) -> dict:
     sealed scores (every model's error on every sealed instance), so a rescore of the same
     models is a repeat and adds no look, and models retrained by other code are a new one;
     `made` the code that scored them (`core.run.code()` when the run began; `code_changed`
-    where the packages' digest differs at the end)."""
+    where the packages' digest differs at the end); `results` holds the recipe and its hash."""
     scores = config_hash({a: v["head_cm_by_instance"] for a, v in results["arms"].items()})
-    sealed = recipe(config)["sealed"]
+    sealed = results["recipe"]["sealed"]
     entries = ledger_entries(config.ledger)
     before = {e["scores_hash"] for e in entries
               if e.get("sealed") == sealed and "scores_hash" in e}
     entry = {"date": time.strftime("%Y-%m-%d", time.gmtime()), "commit": made["commit"],
              "version": __version__, "code_digest": made["digest"],
              "code_changed": code()["digest"] != made["digest"],
-             "recipe_hash": config_hash(recipe(config)), "scores_hash": scores,
+             "recipe_hash": results["recipe_hash"], "scores_hash": scores,
              "sealed": sealed, "randomize": config.randomize, "repeat": scores in before,
              "figures": {a: {k: round(v, 4) for k, v in results["against_real"][a]["ratio"]
                              .items()} for a in results["against_real"]},
@@ -317,7 +317,8 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     sealed = pixels_to_world(sealed_px, DEFAULT_PX_PER_CM)
     n_check = _check_size(config, len(train))
     pool, check = train[:-n_check], train[-n_check:]
-    begin(config, made)
+    rec = recipe(config)            # the real files' bytes hashed once
+    begin(config, made, rec)
     with progress.stage("models"):
         first = _tasks(config, lab, pool, check, sealed, None)
         total = config.seeds * len(ARMS)
@@ -328,7 +329,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     reports = [{**meta, **json.loads((done[id(t)].folder / "report.json").read_text())}
                for meta, t in [*first, *second]]
     results = summarize(reports, config)
-    results |= {"recipe": recipe(config), "recipe_hash": config_hash(recipe(config)),
+    results |= {"recipe": rec, "recipe_hash": config_hash(rec),
                 "check_instances": n_check, "pool_instances": len(pool)}
     results["look"] = look(config, results, made)
     write_json_atomic(out / "results.json", results)

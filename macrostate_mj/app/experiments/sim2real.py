@@ -499,9 +499,9 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     with progress.stage("data"):
         pixels = validate(config)
-        folds = [(i % config.folds, *cv_blocks(len(pixels), config.folds, i % config.folds,
-                                               config.val_share)[:2])
-                 for i in range(config.seeds)]
+        held = [fold_of(i, config.folds) for i in range(config.seeds)]
+        folds = [(f, *cv_blocks(len(pixels), config.folds, f, config.val_share)[:2])
+                 for f in held]
         labs, fits = {}, {}
         for fit in config.fits if config.arms != ("real",) else ():
             labs[fit], made = lab_data(config, fit, pixels, folds, out, progress)
@@ -518,7 +518,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     blocks, first = [], []
     for i in range(config.seeds):
         s = config.seed + i
-        pool, val, test = cv_blocks(len(pooled), config.folds, i % config.folds,
+        pool, val, test = cv_blocks(len(pooled), config.folds, fold_of(i, config.folds),
                                     config.val_share)
         blocks.append((s, pooled[pool], pooled[val], pooled[test]))
         if sim_models:
@@ -652,6 +652,12 @@ def _arm_task(arm: str, config: Config, seed: int, train: np.ndarray, val: np.nd
                          test, config.finetune_lr, checkpoint, **mix, **how,
                          frozen=arm == "finetune-frozen")
     return ModelTask(arm, seed, config.epochs, train, val, test, **mix, **how)
+
+
+def fold_of(i: int, folds: int) -> int:
+    """The fold model i (seed `seed + i`) is tested on: seeds i and i + folds share one, so
+    the folds, not the seeds, are the independent units (docs' intervals average to them)."""
+    return i % folds
 
 
 def share(n: int, fraction: float, i: int) -> slice:
@@ -794,7 +800,7 @@ def by_ablation(reports: list[dict], chosen: dict[tuple[str, int], dict], config
         cell = [r for r in reports if r["ablate"] == group]
         by_fold: dict[int, list[float]] = {}
         for r in cell:
-            by_fold.setdefault((r["seed"] - config.seed) % config.folds, []).append(
+            by_fold.setdefault(fold_of(r["seed"] - config.seed, config.folds), []).append(
                 r["head_cm"] - lab[r["seed"]])
         out[",".join(group)] = {
             "head_cm": mean_std([r["head_cm"] for r in cell]),
