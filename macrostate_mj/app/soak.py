@@ -5,11 +5,18 @@ the failure that names the first bad seed and the command that reproduces it."""
 from __future__ import annotations
 
 import contextlib
+import json
 from collections.abc import Callable
 from pathlib import Path
 
+from macrostate_mj.app.results.sources import (
+    load,
+    root,
+    source,
+)
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.core.errors import RunFailure
+from macrostate_mj.core.evidence import Table
 
 
 def soak(scenario: ScenarioConfig, robots: int, seeds: int, seconds: float, first_seed: int,
@@ -61,3 +68,45 @@ def check(runs: list, scenario: ScenarioConfig, robots: int, seconds: float,
                                     track=tracked)
             raise RunFailure(f"{len(failed)} of {len(runs)} runs {what}; first: seed {first}: "
                              f"{reason(failed[0])}; reproduce: {reproduce_command(again)}")
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def soak_table(*folders: str) -> Table:
+    """Soaks' summaries, one column each: runs, simulated time and every fault count."""
+    summaries = [load(f"{folder}/soak.json")["summary"] for folder in folders]  # type: ignore[index]
+    keys = ["scenario", "robots", "runs", "seconds", "tips", "nans", "escapes", "climbs",
+            "intrusions", "warnings", "max_tilt_deg", "max_lift_mm"]
+    rows = [["figure", *(["value"] if len(folders) == 1 else [Path(f).name for f in folders])]]
+    for key in (k for k in keys if k in summaries[0]):
+        rows.append([key, *(_soak_cell(summary[key]) for summary in summaries)])
+    return rows
+
+
+def _soak_cell(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.2f}" if not value.is_integer() else str(int(value))
+    return str(value)
+
+
+@source
+def track_soak(folder: str) -> Table:
+    """Tracked soaks, one sub-folder a lab (`soak --track --out`): its summary row each."""
+    rows = [["folder", "markers", "robots", "runs x s", "unhealthy", "min detected (rows)",
+             "max hidden", "max median mm", "max p99 mm", "max heading p99 deg", "max flipped",
+             "max identity", "s/run"]]
+    for soak_file in sorted((root() / folder).glob("*/soak.json")):
+        summary = json.loads(soak_file.read_text())["summary"]
+        manifest = json.loads((soak_file.parent / "manifest.json").read_text())
+        scenario = manifest["config"]["tasks"]["scenario"]
+        kind = scenario.get("markers", {}).get("dictionary") and "aruco" or "colour"
+        rows.append([soak_file.parent.name, kind, str(summary["robots"]),
+                     f"{summary['runs']} x {summary['seconds']:g}", str(summary["unhealthy"]),
+                     f"{summary['min_detected']:.4f}", f"{summary['max_hidden']:.4f}",
+                     f"{summary['max_median_mm']:.2f}", f"{summary['max_p99_mm']:.2f}",
+                     f"{summary['max_heading_p99_deg']:.1f}",
+                     f"{summary['max_heading_flips']:.4f}", f"{summary['max_identity']:.4f}",
+                     f"{summary['wall_s_per_run']:.1f}"])
+    return rows
+

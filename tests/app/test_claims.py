@@ -9,7 +9,7 @@ import pytest
 from clitools import cli_inprocess
 from conftest import REPO
 
-from macrostate_mj.app.claims import VERDICTS, ClaimsError, judge_all, margin_verdict
+from macrostate_mj.app.results.claims import VERDICTS, ClaimsError, judge_all, margin_verdict
 
 CLAIMS = """
 [[t]]
@@ -263,7 +263,7 @@ def test_resampled_splits_whose_training_sets_overlap_are_corrected_by_their_rat
     by hand: half-width t(.975, 2) * s * sqrt(1/3 + 266/1067)."""
     from scipy import stats as sps
 
-    from macrostate_mj.app.claims import Design, Figure
+    from macrostate_mj.app.results.claims import Design, Figure
 
     split = Design.of({"unit": "split", "split_ratio": 266 / 1067}, "test")
     plain = Design.of({"unit": "split"}, "test")

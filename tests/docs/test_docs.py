@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from macrostate_mj.app.claims import load_claims
-from macrostate_mj.app.provenance import DISCLOSED, is_result, read_index
+from macrostate_mj.app.results.claims import load_claims
+from macrostate_mj.app.results.provenance import DISCLOSED, is_result, read_index
 
 DOCS = REPO / "docs"
 RESULTS = REPO / "results"
@@ -296,7 +296,7 @@ def test_a_paired_difference_is_over_folds_not_seeds(tmp_path, monkeypatch):
     """Sim-to-real runs: seeds s and s + 5 share fold s, so ten seeds are five units, averaged
     to the fold before the interval, and the folds share training data, so the interval is the
     Nadeau-Bengio corrected one the claims draw (`claims.Design`), its units named beside it."""
-    from macrostate_mj.app.claims import Design, Figure
+    from macrostate_mj.app.results.claims import Design, Figure
     from macrostate_mj.core import stats
 
     ext = _results_ext(tmp_path, monkeypatch)

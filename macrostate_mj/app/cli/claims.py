@@ -9,7 +9,7 @@ from pathlib import Path
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.params import Choice, InputDir, Switch
 
-CLAIMS = Path(__file__).parents[1] / "claims.toml"      # app/claims.toml: its chapters
+CLAIMS = Path(__file__).parents[1] / "results" / "claims.toml"   # app/results/claims.toml
 CHAPTERS = tuple(tomllib.loads(CLAIMS.read_text()))
 
 
@@ -28,7 +28,7 @@ def claims(
     qualitative. The rule, its units, corrections and margins, is printed under the table;
     --json gives each row's unit, correction and margin; the docs' chapter pages show the same
     rows."""
-    from macrostate_mj.app.claims import RULE, counts, judge_all
+    from macrostate_mj.app.results.claims import RULE, counts, judge_all
 
     judged = judge_all(results, chapter or None)
     if as_json:

@@ -12,6 +12,7 @@ still run. `index.json` lists what each produced, its status, config hash and wa
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +28,13 @@ from macrostate_mj.app.experiments import (
     registry,
 )
 from macrostate_mj.app.params import Choice, Precision, flag
+from macrostate_mj.app.results.sources import (
+    load,
+    root,
+    source,
+)
 from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.evidence import Table
 from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.run import MANIFEST, config_hash, run_finished
 
@@ -116,3 +123,21 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         raise RunFailure(f"experiment all: {', '.join(failed)} failed (see {out / INDEX}); the "
                          "others are kept, and a rerun resumes the failed ones")
     return [*lines, f"index: {out / INDEX}"]
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def all_index(folder: str) -> Table:
+    """An `experiment all` folder's index: per experiment its status, wall time and stage
+    timings (from its manifest)."""
+    index = load(f"{folder}/index.json")
+    rows = [["experiment", "profile", "status", "wall (min)", "stages (min)"]]
+    for name, entry in index["experiments"].items():  # type: ignore[index]
+        file = root() / folder / name / "manifest.json"
+        stages = json.loads(file.read_text()).get("timings_s", {}) if file.is_file() else {}
+        rows.append([name, index["profile"], entry["status"],  # type: ignore[index]
+                     f"{entry['wall_s'] / 60:.1f}",
+                     ", ".join(f"{k} {v / 60:.1f}" for k, v in stages.items() if k != "total")])
+    return rows
+

@@ -26,14 +26,16 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.app.params import Count, Positive, Seed, flag
+from macrostate_mj.app.results.sources import record_of, source, stat
 from macrostate_mj.core.cache import run_tasks, task_key
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.evidence import Q, Table
+from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import show
 
 if TYPE_CHECKING:
@@ -148,6 +150,20 @@ class EstimatorTask:
         return {"mlp.npz": fit_runs(runs, rng, t["epochs"]).to_npz()}
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Per Tail, the caged share of seeds, the time to cage and the final spacing, and each
+    episode's record; a seed is one episode of each Tail."""
+
+    UNIT = "seed"
+
+    config: dict
+    caging: dict
+    table: dict[str, dict]
+    retlo_over_oracle: Any
+    episodes: list
+
+
 @register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Every policy on every seed; results.json, snapshots.png, videos; summary lines."""
@@ -179,7 +195,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     results = {"config": asdict(cfg), "caging": asdict(CagingConfig()), "table": table,
                "retlo_over_oracle": table["retlo"]["success_rate"] / oracle if oracle else None,
                "episodes": episodes}
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment caging").write(out)
     picked = [dict(f, label=p) for p in ("oracle", "retlo", "passive")
               for f in snapshots[p][1:5]]
     plot_snapshots(picked, CagingConfig(), (1.2, 0.7), out / "snapshots.png",
@@ -202,3 +218,32 @@ def _summary(eps: list[dict]) -> dict:
             "faults": sum(e["fault"] is not None for e in eps),
             "head_estimate_error_m": stat([e["head_estimate_error_m"] for e in eps
                                            if e["head_estimate_error_m"] is not None])}
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def caging(folder: str) -> Table:
+    """Every Tail of a caging run (or of `experiment caging-multi`'s arms): caged seeds, time
+    to cage, spacing CV, the Head estimate."""
+    table = record_of(folder).table  # type: ignore[attr-defined]
+    rows = [["Tail", "caged", "time to cage (s)", "final spacing CV", "Head estimate (cm)"]]
+    for tail, arm in table.items():
+        caged = round(arm["success_rate"] * arm["seeds"])
+        rows.append([tail, f"{caged} / {arm['seeds']}", stat(arm["time_to_cage_s"], ".1f"),
+                     stat(arm["spacing_cv"], ".3f"),
+                     stat(arm.get("head_estimate_error_m", {}), ".1f", 100)])
+    return rows
+
+
+@source
+def caging_cell(folder: str, tail: str, field: str) -> Q:
+    """A caging arm: `caged` (% of seeds), `seeds`, or `time` (mean ± std s, caged runs)."""
+    arm = record_of(folder).table[tail]  # type: ignore[attr-defined]
+    if field == "caged":
+        return Q(100 * float(arm["success_rate"]), None, ".0f", "%")  # type: ignore[index]
+    if field == "seeds":
+        return Q(arm["seeds"], None, "d")  # type: ignore[index]
+    time = arm["time_to_cage_s"]  # type: ignore[index]
+    return Q(float(time["mean"]), float(time["std"]), ".1f", "s")
+

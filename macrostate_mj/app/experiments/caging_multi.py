@@ -26,14 +26,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from macrostate_mj.app.experiments import Progress, caging, register
 from macrostate_mj.app.params import Count, Positive, Seed, flag
 from macrostate_mj.core.cache import run_tasks
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import mean_std, show, wilcoxon_p
 
 if TYPE_CHECKING:
@@ -142,6 +142,19 @@ def run_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None = 
     return team_episode(policy, seed, cfg, model)
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Per arm, the caged share and time to cage, the paired differences between arms over
+    seeds both caged, and each episode's record."""
+
+    UNIT = "seed"
+
+    config: dict
+    table: dict[str, dict]
+    paired: Any
+    episodes: list
+
+
 @register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Every arm on every seed; results.json; summary lines."""
@@ -163,8 +176,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     by = {a: [e for e in episodes if e["policy"] == a] for a in ARMS}
     table = {a: summary(eps) for a, eps in by.items()}
     paired = {name: paired_comparison(by[one], by[two]) for name, (one, two) in PAIRS.items()}
-    write_json_atomic(out / "results.json", {"config": asdict(cfg), "table": table,
-                                             "paired": paired, "episodes": episodes})
+    Results(asdict(cfg), table, paired, episodes).write(out)
     lines = [f"{a:<15} caged {t['success_rate'] * 100:.0f} % of {t['seeds']} seeds, time "
              f"{show(t['time_to_cage_s'])} s" for a, t in table.items()]
     return [*lines, *(f"{PAIRS[n][1]} - {PAIRS[n][0]} over {p['both_caged']} seeds both caged: "

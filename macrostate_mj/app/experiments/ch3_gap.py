@@ -24,9 +24,14 @@ from typing import Any, ClassVar
 from estimators.retlo.files import read_world
 from macrostate_mj.app.experiments import Parallel, Progress, register, srs
 from macrostate_mj.app.params import Count, Scenarios, Seed, flag
+from macrostate_mj.app.results.sources import (
+    record,
+    source,
+)
 from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import run_tasks
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.evidence import Table
+from macrostate_mj.core.records import Record
 
 PRODUCTS = ["results.json"]
 # a variant of chapter 3's training: its `TrainConfig` from ours
@@ -90,6 +95,18 @@ def _name(ref: ScenarioRef) -> str:
     return Path(str(getattr(ref, "name", ref))).stem
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Per scenario and ablation variant, the model's 5-robot, validation and per-module Head
+    errors (one dataset and one model each)."""
+
+    UNIT = "dataset"
+
+    scenarios: dict[str, dict]
+    variants: dict[str, dict]
+    sizes: dict
+
+
 @register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect each scenario's datasets, train every model; results.json and summary lines."""
@@ -117,7 +134,27 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                              if v == "ours"},
                "variants": {v: reports[i] for i, (name, v) in enumerate(runs) if name == first},
                "sizes": {"train": config.train, "val": config.val, "test": config.test}}
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment ch3-gap").write(out)
     return [f"{what:<16} 5-robot {r['all_cm']:.1f} cm (validation {r['best_val_cm']:.1f} cm)"
             for part in ("scenarios", "variants") for what, r in results[part].items()
             ] + [f"results: {out / 'results.json'}"]
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def ch3_gap(folder: str) -> Table:
+    """`experiment ch3-gap`: each model's 5-robot error, its validation error, and its Head
+    error per 3-robot module given true inputs (cm; one dataset and one model each)."""
+    data = record(Results, folder).as_json()
+    first = next(iter(data["scenarios"]))  # type: ignore[index]
+    rows: Table = []
+    for part, label in (("scenarios", "scenario"), ("variants", f"training on {first}")):
+        for name, r in data[part].items():  # type: ignore[index]
+            if part == "variants" and name == "ours":
+                continue                    # the first scenario's row already
+            rows.append([label, name, f"{r['all_cm']:.1f}", f"{r['best_val_cm']:.1f}",
+                         *(f"{v:.1f}" for v in r["modules_cm"].values())])
+    modules = list(data["scenarios"][first]["modules_cm"])  # type: ignore[index]
+    return [["", "", "5-robot error", "validation", *modules], *rows]
+

@@ -28,8 +28,14 @@ import numpy as np
 
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.params import Choice, Count, InputFileOr, Positive, Seed, flag
+from macrostate_mj.app.results.sources import (
+    record,
+    source,
+    stat,
+)
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.evidence import Table
+from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import mean_std, show
 from macrostate_mj.env.estimated import HEURISTIC
 
@@ -121,6 +127,23 @@ def check_checkpoint(cfg: Config) -> None:
             raise UserError(str(err), "checkpoint") from None
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Per Tail, its evaluation over seeded episodes (paired against passive), the PPO
+    training's account and the scripted Tails' tuning."""
+
+    UNIT = "seed"
+
+    config: dict
+    ppo: dict
+    training: dict
+    table: dict[str, dict]
+    episodes: Any
+    chain_offset: Any
+    srs_novelty: Any
+    estimator_sha256: str
+
+
 @register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
@@ -165,7 +188,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
                hashlib.sha256(Path(cfg.checkpoint).read_bytes()).hexdigest(),
                "chain_offset": tuned, "table": table, "episodes": episodes,
                "srs_novelty": None if novelty is None else asdict(novelty)}
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment learned-tail").write(out)
     plot_learning_curve(training["curve"], float(np.mean([e["return"] for e in by["passive"]])),
                         out / "learning_curve.png")
     lines = [f"{p:<12} Head error {show(t['head_error_m'], 3)} m, vs passive p = "
@@ -258,4 +281,43 @@ def _summary(eps: list[dict], passive: list[dict]) -> dict:
 
 def _p(p: float | None) -> str:
     return "-" if p is None else f"{p:.3g}"
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def learned_tail(folder: str) -> Table:
+    """Each Tail's frozen-estimator error (cm) on held-out seeds, its paired test against the
+    Passive Tail, the chain's spacing and its breaks."""
+    table = record(Results, folder).as_json()["table"]  # type: ignore[index]
+    rows = [["Tail", "Head error (cm)", "all robots (cm)", "p vs passive", "better seeds",
+             "spacing (cm)", "breaks"]]
+    for tail, arm in table.items():
+        test = arm.get("vs_passive") or {}
+        if test.get("wilcoxon_p") is None:      # the Passive Tail against itself
+            test = {}
+        rows.append([tail, stat(arm["head_error_m"], ".1f", 100),
+                     stat(arm["all_error_m"], ".1f", 100),
+                     f"{test['wilcoxon_p']:.2g}" if test else "",
+                     f"{test['better']} / {test['pairs']}" if test else "",
+                     f"{arm['spacing_m']['mean'] * 100:.1f}", f"{arm['breaks']} / {arm['seeds']}"])
+    return rows
+
+
+@source
+def learned_tail_seeds(*folders: str) -> Table:
+    """The learned Tail of each PPO training seed (one `experiment learned-tail --seed` run
+    per folder) on the same held-out seeds: its Head error, the paired test against Passive,
+    its breaks."""
+    rows = [["PPO seed", "Head error (cm)", "Passive (cm)", "p vs passive", "better seeds",
+             "breaks"]]
+    for folder in folders:
+        data = record(Results, folder).as_json()
+        table = data["table"]  # type: ignore[index]
+        learned, test = table["learned"], table["learned"]["vs_passive"]
+        rows.append([str(data["config"]["seed"]), stat(learned["head_error_m"], ".1f", 100),  # type: ignore[index]
+                     stat(table["passive"]["head_error_m"], ".1f", 100),
+                     f"{test['wilcoxon_p']:.2g}", f"{test['better']} / {test['pairs']}",
+                     f"{learned['breaks']} / {learned['seeds']}"])
+    return rows
 

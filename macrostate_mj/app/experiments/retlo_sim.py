@@ -16,6 +16,7 @@ the networks, their training and the chain estimates `estimators.retlo`'s, the f
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -29,11 +30,14 @@ from estimators.retlo.mlp import ChainedMLP, mse, train_mlp, training_pairs
 from estimators.retlo.report import chain_errors, one_step_errors, summarize, unseen_names
 from macrostate_mj.app.experiments import Progress, register
 from macrostate_mj.app.params import Count, Seed, flag
+from macrostate_mj.app.results.sources import ms, record, root, runs_of, source
 from macrostate_mj.chain.planners import ROBOTARIUM_HEAD_PRESETS
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.chain.scenarios import get_scenario
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.evidence import Table
 from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.records import Record
 
 THRESHOLD = 0.03   # the robot diameter: estimates closer than this are accurate (§2.5.3)
 PRODUCTS = ["results.json", "per_step_errors.json", "trajectories.png",
@@ -77,6 +81,19 @@ class Config:
 
 
 PROFILES = {"full": Config(), "quick": Config(epochs=1, train_steps=20, test_steps=40)}
+
+
+@dataclass(frozen=True)
+class Results(Record):
+    """Fig 2.2's cases: per case the chained MLPs' and the 2X heuristic's errors (m) per robot
+    and over all, with the training's account; one run is one training seed."""
+
+    UNIT = "seed"
+
+    config: dict
+    threshold: float
+    training: dict
+    cases: dict[str, dict]
 
 
 @register
@@ -127,7 +144,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
             progress.report("estimate cases", i + 1, len(CASES))
         plot_trajectories({f"{p} ({n} robots)": run for (n, p), run in paths.items()},
                           scen.arena, out / "trajectories.png")
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment retlo-sim").write(out)
     write_json_atomic(out / "per_step_errors.json", per_step)
     progress.record(floors={f"{n}-{p}": floor for (n, p), (_, floor) in paths.items()})
     lines.append(f"mean error / share of steps under {THRESHOLD} m; results in {out}")
@@ -149,3 +166,31 @@ def _training(cfg: Config, scen: ScenarioConfig, runs: np.ndarray, model: Chaine
         "rmse_on_clean_runs": dict(zip(("x_H", "y_H", "theta_F"),
                                        np.sqrt(mse(model, clean_base, clean_targets)).tolist(),
                                        strict=True))}
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def retlo_sim(pattern: str) -> Table:
+    """Fig 2.2: per case, the chained MLPs' mean and max error (cm) and the 2X heuristic's,
+    mean ± std over the run folders `pattern` matches (one a training seed)."""
+    runs = [record(Results, str(f.relative_to(root()))).cases for f in runs_of(pattern)]
+    robots = sorted({r for c in runs[0].values() for r in c["per_robot"]}, key=_robot_order)
+    rows = [["case", "all, mean", "all, max", *[f"{r}, mean" for r in robots], "2X, all mean"]]
+
+    def cell(get: Callable[[dict], float]) -> str:
+        return ms([100 * get(run) for run in runs], ".1f")
+
+    for key, case in runs[0].items():
+        rows.append([f"{key}: {case['title']}",
+                     cell(lambda r, k=key: r[k]["all"]["mean_error"]),
+                     cell(lambda r, k=key: r[k]["all"]["max_error"]),
+                     *[cell(lambda r, k=key, b=b: r[k]["per_robot"][b]["mean_error"])
+                       if b in case["per_robot"] else "" for b in robots],
+                     cell(lambda r, k=key: r[k]["heuristic2x"]["all"]["mean_error"])])
+    return rows
+
+
+def _robot_order(name: str) -> tuple[int, int]:
+    return (1, 0) if name == "H" else (0, int(name[1:]))
+

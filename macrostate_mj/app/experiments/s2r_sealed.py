@@ -47,10 +47,15 @@ from macrostate_mj.app.params import (
     Seed,
     flag,
 )
+from macrostate_mj.app.results.sources import (
+    record,
+    source,
+)
 from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.evidence import Paired, Table
 from macrostate_mj.core.paths import CHECKOUT, real_thymioloc
+from macrostate_mj.core.records import Record
 from macrostate_mj.core.run import code, config_hash
 from macrostate_mj.core.stats import mean_std, two_level_bootstrap
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
@@ -304,6 +309,26 @@ def look(config: Config, results: dict, made: dict) -> dict:
     return entry
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Per arm, each seed's Head error on every sealed test instance and the arms against real
+    only (two-level bootstrap over the instances and seeds), the recipe, its hash and the
+    ledger's look."""
+
+    UNIT = "test instance"
+
+    instances: int
+    pool_instances: int
+    check_instances: int
+    seeds: int
+    units: str
+    recipe: dict
+    recipe_hash: str
+    arms: dict[str, dict]
+    against_real: dict[str, dict]
+    look: dict
+
+
 @register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect the lab data, train every arm, score the sealed test, log the look."""
@@ -332,7 +357,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
     results |= {"recipe": rec, "recipe_hash": config_hash(rec),
                 "check_instances": n_check, "pool_instances": len(pool)}
     results["look"] = look(config, results, made)
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment s2r-sealed").write(out)
     progress.record(recipe_hash=results["recipe_hash"], look=results["look"]["look"])
     return summary_lines(results)
 
@@ -350,3 +375,41 @@ def summary_lines(results: dict) -> list[str]:
             f"{against['ratio']['high']:.2f}]")
         lines.append(f"{arm:<8} Head {h['mean']:.2f} ± {h['std']:.2f} cm{vs}")
     return lines
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def sealed(folder: str) -> Table:
+    """`experiment s2r-sealed`: each arm's Head error on the sealed test (mean ± std over its
+    seeds) and, against real only, the ratio and the difference with their 95 % intervals
+    (instances x seeds)."""
+    from macrostate_mj.app.experiments.s2r_sealed import ARMS
+
+    r = record(Results, folder).as_json()
+    rows = [["arm", "Head error (cm)", "÷ real only [95 %]", "minus real only (cm) [95 %]"]]
+    for arm in ARMS:                         # in the experiment's order
+        h = r["arms"][arm]["head_cm"]  # type: ignore[index]
+        vs = r["against_real"].get(arm)  # type: ignore[index]
+        compared = ["1", "0"]               # real only against itself
+        if vs is not None:
+            q, d = vs["ratio"], vs["difference"]
+            compared = [f"{q['mean']:.2f} [{q['low']:.2f}, {q['high']:.2f}]",
+                        f"{d['mean']:+.2f} [{d['low']:+.2f}, {d['high']:+.2f}]"]
+        rows.append([arm, f"{h['mean']:.2f} ± {h['std']:.2f} ({h['n']} seeds)", *compared])
+    return rows
+
+
+@source
+def sealed_change(before: str, after: str, arm: str) -> Paired:
+    """One arm of two `s2r-sealed` runs on the same sealed test: the later's Head error minus
+    the earlier's, with its 95 % interval (`core.stats.two_level_bootstrap`: the instances
+    shared, each run's seeds apart)."""
+    from macrostate_mj.core.stats import two_level_bootstrap
+
+    a, b = ([list(v) for v in record(Results, f).as_json()["arms"][arm][  # type: ignore[index]
+        "head_cm_by_instance"].values()] for f in (after, before))
+    d = two_level_bootstrap(a, b)["difference"]
+    units = f"{len(a[0])} test instances, {len(a)} and {len(b)} seeds"
+    return Paired(d["mean"], d["low"], d["high"], len(a[0]), units, ".2f", "cm")
+

@@ -24,10 +24,16 @@ from estimators.retlo.train import TrainConfig, load_checkpoint
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.experiments.retlo import TrainTask, holdout_split
 from macrostate_mj.app.params import REAL_FOLDER, Count, Fraction, Precision, Seed, flag
+from macrostate_mj.app.results.sources import (
+    ms,
+    record,
+    source,
+)
 from macrostate_mj.core.cache import run_tasks
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic
+from macrostate_mj.core.evidence import Table
 from macrostate_mj.core.paths import real_thymioloc
+from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
@@ -63,6 +69,20 @@ def missing(config: Config) -> str | None:
     return f"the ThymioLoc file {config.real / absent[0]}" if absent else None
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Per set (held-out share, Val.csv), each seed's point and Gaussian errors, the Gaussians'
+    pooled calibration and the ensemble's."""
+
+    UNIT = "seed"
+
+    seeds: list[int]
+    holdout: float
+    n_instances: dict[str, int]
+    held: dict
+    val: dict
+
+
 @register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Train both heads per seed, score them and the ensemble on both sets; summary lines."""
@@ -82,9 +102,9 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
                      for j in range(config.seeds)] for i, name in enumerate(HEADS)}
     with progress.stage("evaluate"):
         results = {part: _scores(models, world) for part, world in sets.items()}
-    write_json_atomic(out / "results.json", {"seeds": list(seeds), "holdout": config.holdout,
+    Results.of({"seeds": list(seeds), "holdout": config.holdout,
                                              "n_instances": {p: len(w) for p, w in sets.items()},
-                                             **results})
+                                             **results}, "experiment uncertainty").write(out)
     return [f"{part}: point {mean_std(r['point_cm'])['mean']:.2f} cm, Gaussian "
             f"{mean_std(r['gaussian_cm'])['mean']:.2f} cm ({r['gaussian_vs_point']:+.1%}), "
             f"ensemble {r['ensemble_cm']:.2f} cm; 90 % regions hold "
@@ -109,3 +129,22 @@ def _scores(models: dict, world) -> dict:
             "gaussian_calibration": [g["calibration"]["pooled"] for g in gauss],
             "ensemble_cm": ensemble["mean_error_cm"],
             "ensemble_calibration": ensemble["calibration"]["pooled"]}
+
+
+# Its tables and numbers as the docs show them ----------------------------------------
+
+@source
+def uncertainty(folder: str, split: str) -> Table:
+    """Point against Gaussian ReTLo (and their ensemble): mean error (cm) and calibration."""
+    data = record(Results, folder).as_json()[split]  # type: ignore[index]
+    cal = data["gaussian_calibration"]
+    rows = [["model", "mean error (cm)", "coverage_50", "coverage_90", "NLL"]]
+    rows.append(["point", ms(data["point_cm"], ".2f"), "", "", ""])
+    rows.append(["Gaussian", ms(data["gaussian_cm"], ".2f"),
+                 ms([c["coverage_50"] for c in cal], ".2f"),
+                 ms([c["coverage_90"] for c in cal], ".2f"), ms([c["nll"] for c in cal], ".2f")])
+    ens = data["ensemble_calibration"]
+    rows.append(["ensemble of the Gaussians", f"{data['ensemble_cm']:.2f}",
+                 f"{ens['coverage_50']:.2f}", f"{ens['coverage_90']:.2f}", f"{ens['nll']:.2f}"])
+    return rows
+

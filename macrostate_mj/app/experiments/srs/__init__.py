@@ -37,7 +37,8 @@ from macrostate_mj.app.params import Count, Precision, Seed, flag
 from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
-from macrostate_mj.core.io import write_json_atomic, write_text_atomic
+from macrostate_mj.core.io import write_text_atomic
+from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
@@ -224,6 +225,20 @@ class _Cell:
     report: dict
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Chapter 3's errors per configuration and budget share (mean ± std over datasets and
+    model seeds), the baseline, and the distances of Fig 3.7; the datasets are the independent
+    units (each model's report in `models/`)."""
+
+    UNIT = "dataset"
+
+    profile: dict
+    baseline: dict
+    configs: dict[str, dict]
+    distances: dict
+
+
 @register
 def run(config: Config, out: Path, progress: Progress) -> list[str]:
     """Collect, train, test and plot; returns summary lines.
@@ -281,7 +296,7 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 
     results = _results(config, cells)
     results["distances"] = distances
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment srs").write(out)
     with progress.stage("figures"):
         plot_all(results, out, list(config.picks))
     progress.record(models=len(cells),
@@ -346,3 +361,6 @@ def _summary(results: dict, timings: dict[str, float]) -> list[str]:
     lines.append(f"datasets {timings['datasets']:.0f} s, models {timings['models']:.0f} s, "
                  f"total {timings['total']:.0f} s")
     return lines
+
+
+from macrostate_mj.app.experiments.srs import tables  # noqa: E402, F401  (its sources)

@@ -39,9 +39,9 @@ from macrostate_mj.app.params import (
 )
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import write_json_atomic
 from macrostate_mj.core.parallel import torch_threads
 from macrostate_mj.core.paths import real_dataset
+from macrostate_mj.core.records import OPTIONAL, Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
@@ -268,6 +268,27 @@ def selection_on_test(probe: Probe, history: dict[str, list[float]], n_stable: i
     return out
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """The one-class tables and figures' numbers: per run (m, split, seed) each method's AUC,
+    Table 4.1-4.2 and Fig 4.8 over the runs, Grad-CAM's hits; a run's splits are the
+    independent units (its seeds nested in them)."""
+
+    UNIT = "split"
+
+    table4_1_iogen_auc_by_m: dict
+    table4_2_auc_m2: dict
+    fig4_8_auc_by_bin_m2: dict
+    fig4_8_iogen_vs_dsvdd_marks: dict
+    fig4_10: dict
+    gradcam: dict
+    n_unstable: int
+    n_unstable_by_bin: dict
+    runs: dict[str, dict]
+    figures_run: str | None = field(default=None, metadata=OPTIONAL)
+    selection_on_test: dict | None = field(default=None, metadata=OPTIONAL)
+
+
 @register
 def run(exp: Config, out: Path, progress: Progress) -> list[str]:
     """Train and score every (m, split, seed); summarise over splits and seeds; draw the
@@ -328,7 +349,7 @@ def run(exp: Config, out: Path, progress: Progress) -> list[str]:
                                                  exp.gradcam_samples, main_m)
     figures.write_tables(out / PRODUCTS[1], table41, table42, fig48, len(d.unstable_ids), marks,
                          results.get("selection_on_test"))
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment oc").write(out)
     return [(out / PRODUCTS[1]).read_text()]
 
 
@@ -343,3 +364,6 @@ def _flow_weights(d: AntFlowData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     day_u = 18.0 * (np.asarray(d.unstable_ids) - first) / max(1, end - first)  # D+0 .. D+18
     return (np.concatenate([day_s, day_u]), np.concatenate([ws, wu]),
             np.concatenate([np.zeros(n, bool), np.ones(len(wu), bool)]))
+
+
+from macrostate_mj.app.experiments.oc import tables  # noqa: E402, F401  (its sources)

@@ -50,8 +50,9 @@ from macrostate_mj.app.params import (
 )
 from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.core.io import check_writable_dir, write_json_atomic
+from macrostate_mj.core.io import check_writable_dir
 from macrostate_mj.core.paths import real_thymioloc
+from macrostate_mj.core.records import OPTIONAL, Record
 from macrostate_mj.core.stats import cv_blocks, mean_std
 from macrostate_mj.env.estimated import HEURISTIC
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
@@ -159,6 +160,21 @@ def missing(cfg: Config) -> str | None:
     return f"the ThymioLoc file {absent[0]}" if absent else None
 
 
+@dataclass(frozen=True)
+class Results(Record):
+    """Chapter 2's ReTLo errors per test set and model (per fold-seed and per robot and step),
+    and Fig 2.9's curve analysis; each seed trains on its own data and is tested on its own
+    block."""
+
+    UNIT = "seed"
+
+    px_per_cm: float
+    seeds: list[int]
+    tests: list[dict]
+    results: dict[str, dict]
+    fig2_9: dict | None = field(default=None, metadata=OPTIONAL)
+
+
 @register
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train, test, plot, draw; return summary lines."""
@@ -221,7 +237,7 @@ def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
         "fig2_9": {"test": big["name"], **{kind: _aggregate_curves(per)
                                             for kind, per in curves.items()}},
     }
-    write_json_atomic(out / "results.json", results)
+    Results.of(results, "experiment retlo").write(out)
     with progress.stage("draw"):
         plot_overall(results, out / "fig2_7.png")
         plot_stepwise(results, big["name"], out / "fig2_8.png")
@@ -379,3 +395,6 @@ def _summary(results: dict, train_s: dict[str, list[float]]) -> list[str]:
     for kind, secs in train_s.items():
         lines.append(f"training {kind}: {np.mean(secs):.0f} s per seed (max {max(secs):.0f} s)")
     return lines
+
+
+from macrostate_mj.app.experiments.retlo import tables  # noqa: E402, F401  (its sources)
