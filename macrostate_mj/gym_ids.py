@@ -5,6 +5,11 @@ ExploreTail-v0")` works in a fresh process: gymnasium imports the module named b
 then looks the id up (stable-baselines3's `make_vec_env` workers rely on that). The entry points
 are strings, so registering imports nothing of `macrostate_mj.env` (dm_control, the physics):
 only gymnasium itself, and not even that is required for the rest of the package to import.
+
+`ENVS` is written here rather than derived from the task registry (`env.task.TASKS`): reading
+that registry imports the tasks (dm_control, the physics), which `import macrostate_mj` must not,
+and an id is more than a task's name (its defaults, for LocalizeTail another entry point). Each
+id's task is one of `TASKS` (`tests/core/test_registry.py` checks).
 """
 
 from __future__ import annotations

@@ -1,14 +1,20 @@
 """One way to name the things a user picks by name (dm_control's `suite` style): experiments,
-bench suites, the Tail's tasks, one-class methods, ReTLo model kinds.
+bench suites, the Tail's tasks and collection policies, SRS picks, one-class methods, ReTLo
+model kinds.
 
-Each entry registers itself where it is defined, with the registry's decorator; a registry that
-is read before its modules are imported names them (`modules`), and imports them on first read.
+Each entry registers itself where it is defined, with the registry's decorator. A registry
+whose entries live in other modules finds them by one rule: it names the packages to scan
+(`packages`), and on first read imports every module of theirs whose name does not start with
+`_` (`scan`), so adding an entry is adding a module. Where a package also holds modules that
+are not entries (heavy or optional ones), the registry names its modules instead (`modules`).
 A name not registered is bad input: one line naming the choices (a `UserError`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import pkgutil
 from collections.abc import Callable, Iterator, Sequence
 from typing import Generic, TypeVar
 
@@ -17,54 +23,94 @@ from macrostate_mj.core.errors import UserError
 T = TypeVar("T")
 
 
-class Registry(Generic[T]):
-    """Entries by name, in the order they registered."""
+def scan(package: str) -> list[str]:
+    """The full names of `package`'s modules not starting with `_`, sorted, none of them
+    imported (only the package itself): the one discovery rule, which a listing that must not
+    import the modules (the CLI's experiment names) reads too."""
+    path = importlib.import_module(package).__path__
+    return sorted(f"{package}.{info.name}" for info in pkgutil.iter_modules(path)
+                  if not info.name.startswith("_"))
 
-    def __init__(self, kind: str, modules: Sequence[str] = ()) -> None:
+
+class Registry(Generic[T]):
+    """Entries by name: by `rank` where entries give one (a registry whose order is shown and
+    whose modules may be imported in any order), else in the order they registered."""
+
+    def __init__(self, kind: str, modules: Sequence[str] = (),
+                 packages: Sequence[str] = ()) -> None:
         self.kind = kind
         self._modules = tuple(modules)
+        self._packages = tuple(packages)
         self._entries: dict[str, T] = {}
-        self._loaded = not self._modules
+        self._ranks: dict[str, float] = {}
+        self._loaded = not (self._modules or self._packages)
 
-    def register(self, name: str) -> Callable[[T], T]:
-        """A decorator that registers what it decorates under `name` and returns it as it is."""
+    def register(self, name: str, rank: float = 0) -> Callable[[T], T]:
+        """A decorator that registers what it decorates under `name` and returns it as it is;
+        entries read in `rank` order, equal ranks in the order they registered."""
 
         def add(entry: T) -> T:
             if name in self._entries and self._entries[name] is not entry:
                 raise ValueError(f"two {self.kind}s named {name!r}")
             self._entries[name] = entry
+            self._ranks[name] = rank
             return entry
 
         return add
+
+    def module_names(self) -> tuple[str, ...]:
+        """Every module this registry imports on first read, none of them imported here."""
+        return (*self._modules, *(m for p in self._packages for m in scan(p)))
+
+    @contextlib.contextmanager
+    def scanning(self, package: str) -> Iterator[None]:
+        """This registry with `package` scanned too, inside the block only (its entries are
+        forgotten after it): how a test adds a toy entry in a temporary package and leaves
+        nothing to the tests after it."""
+        kept = dict(self._load())
+        self._packages += (package,)
+        self._loaded = False
+        try:
+            yield
+        finally:
+            self._packages = self._packages[:-1]
+            self._entries, self._loaded = kept, True
+            self._ranks = {name: self._ranks[name] for name in kept}
 
     def _load(self) -> dict[str, T]:
         if not self._loaded:
             self._loaded = True         # before importing: a module may read its own registry
             try:
-                for module in self._modules:
+                for module in self.module_names():
                     importlib.import_module(module)
             except BaseException:
                 self._loaded = False    # a failed import is not a registry with fewer entries
                 raise
         return self._entries
 
+    def _ordered(self) -> list[str]:
+        entries = self._load()
+        return sorted(entries, key=self._ranks.__getitem__)    # stable: ties as registered
+
     def __getitem__(self, name: str) -> T:
         entries = self._load()
         if name not in entries:
-            raise UserError(f"unknown {self.kind} {name!r}; choose from {', '.join(entries)}")
+            raise UserError(f"unknown {self.kind} {name!r}; choose from "
+                            f"{', '.join(self._ordered())}")
         return entries[name]
 
     def __contains__(self, name: object) -> bool:
         return name in self._load()
 
     def __iter__(self) -> Iterator[str]:
-        return iter(tuple(self._load()))
+        return iter(self._ordered())
 
     def __len__(self) -> int:
         return len(self._load())
 
     def names(self) -> tuple[str, ...]:
-        return tuple(self._load())
+        return tuple(self._ordered())
 
     def items(self) -> list[tuple[str, T]]:
-        return list(self._load().items())
+        entries = self._load()
+        return [(name, entries[name]) for name in self._ordered()]

@@ -1,6 +1,6 @@
-"""The Tail's tasks by name, in one place (as dm_control's `suite`): importing this module
-imports every task, each registered by name in `SUITE` (`env.task.TASKS`) where it is defined,
-and `load` builds the task's `control.Environment` on a scenario's world.
+"""The Tail's tasks by name, in one place (as dm_control's `suite`): `SUITE` (`env.task.TASKS`)
+imports every task on first read, each registered by name where it is defined, and `load` builds
+the task's `control.Environment` on a scenario's world.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ from dm_control.rl import control
 from macrostate_mj.chain.scenarios import scenario_for
 from macrostate_mj.chain.world import build_world, validate_chain
 from macrostate_mj.core.errors import UserError
-from macrostate_mj.env import caging, explore, localize  # noqa: F401  (they register)
 from macrostate_mj.env.task import TASKS, TailTask
 
 SUITE = TASKS

@@ -2,7 +2,8 @@
 `before_step`, `after_step`, `get_observation`, `get_reward`, `get_termination`, and its
 seeded `random`): what every Tail task shares. The tasks themselves (`ExploreTask`,
 `CagingTask`) set the reward and the ending, and register themselves in `TASKS` by name
-(`@TASKS.register("explore")`); `env.suite` imports them and builds their `control.Environment`.
+(`@TASKS.register("explore")`), imported on `TASKS`' first read; `env.suite` builds their
+`control.Environment`.
 
 One environment step is one command tick: the agent sets the Tail's destination offset (the same
 control SRS perturbs), every robot's controller runs (planner, motion rules, unicycle tracking),
@@ -28,7 +29,10 @@ from macrostate_mj.core.registry import Registry
 from macrostate_mj.vision.health import TrackingHealth
 
 OBSERVE = ("truth", "camera")
-TASKS: Registry[type[TailTask]] = Registry("task")    # filled as `env.suite` imports the tasks
+# The task modules, named rather than scanned (`core.registry`): this package also holds modules
+# that are not tasks and need what a task does not (gymnasium, PettingZoo: an optional extra).
+TASKS: Registry[type[TailTask]] = Registry(
+    "task", [f"macrostate_mj.env.{m}" for m in ("caging", "explore", "localize")])
 
 
 class TailTask(base.Task):

@@ -8,6 +8,7 @@ carries a picklable `PolicySpec` to its worker, where `build` makes the hook (th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -16,10 +17,22 @@ import pyarrow as pa
 
 from macrostate_mj.chain.sim import ChainSim, Tracker
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.registry import Registry
 from macrostate_mj.tails import Tail
 from macrostate_mj.tails.scripted import Passive, RandOnly
 
-POLICIES = ("passive", "random")
+# The collection policies by name: the Tail each makes for an episode (`PolicyConfig.build`).
+POLICIES: Registry[Callable[[np.random.Generator, PolicyConfig], Tail]] = Registry("policy")
+
+
+@POLICIES.register("passive")
+def _passive(rng: np.random.Generator, cfg: PolicyConfig) -> Tail:
+    return Passive()
+
+
+@POLICIES.register("random")
+def _random(rng: np.random.Generator, cfg: PolicyConfig) -> Tail:
+    return RandOnly(rng, cfg.sigma, None, cfg.alternate)
 
 
 class PolicyHook(Protocol):
@@ -48,15 +61,12 @@ class PolicyConfig:
     alternate: int = 6         # steps per random / passive mode
 
     def __post_init__(self) -> None:
-        if self.name not in POLICIES:
-            raise UserError(f"unknown policy {self.name!r}; choose {' or '.join(POLICIES)}")
+        POLICIES[self.name]         # an unknown name is refused, naming the choices
         if self.sigma < 0:
             raise UserError(f"--sigma must be non-negative, got {self.sigma}")
 
     def build(self, rng: np.random.Generator, tracker: Tracker | None = None) -> TailPolicy:
-        tail = RandOnly(rng, self.sigma, None, self.alternate) if self.name == "random" \
-            else Passive()
-        return TailPolicy(tail)
+        return TailPolicy(POLICIES[self.name](rng, self))
 
 
 class TailPolicy:

@@ -30,6 +30,7 @@ from macrostate_mj.chain.motion import draw_tail_offsets, drive_tail
 from macrostate_mj.chain.sim import ChainSim, Tracker
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.frames import frame_of
+from macrostate_mj.core.registry import Registry
 from macrostate_mj.formats.srs_windows import (
     WINDOW,
     NoveltyScorer,
@@ -41,13 +42,14 @@ from macrostate_mj.formats.srs_windows import (
 
 # The pick policies of §3.5.2.1 as the quantile of the novelty e they take. "Q3" and "Q2" are
 # read as the upper and lower quartile (the text's "second and third quantile" is ambiguous).
-PICKS = {"max": 1.0, "q3": 0.75, "med": 0.5, "q2": 0.25}
+PICKS: Registry[float] = Registry("SRS pick")
+for _pick, _quantile in {"max": 1.0, "q3": 0.75, "med": 0.5, "q2": 0.25}.items():
+    PICKS.register(_pick)(_quantile)
 
 
 def check_srs(pick: str, k: int, sigma: float) -> None:
     """Refuse a pick, candidate count or σ the Tail cannot use, before anything is collected."""
-    if pick not in PICKS:
-        raise UserError(f"unknown SRS pick {pick!r}; choose one of {', '.join(PICKS)}")
+    PICKS[pick]                 # an unknown pick is refused, naming the choices
     if k < 2:
         raise UserError(f"--k must be at least 2 candidates, got {k}")
     if sigma < 0:

@@ -9,6 +9,7 @@ fails `test_every_option_goes_through_the_validation_layer`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from hypothesis import strategies as st
 
 from macrostate_mj.app.cli import main
 from macrostate_mj.app.cli.app import app
+from macrostate_mj.app.experiments import experiment, names
 
 # Options of free text that their commands parse (and test) themselves.
 TEXT_OPTIONS = {"--overlays", "--ray", "--split", "--randomize", "--days", "--crop", "--splits",
@@ -53,7 +55,8 @@ def _rows(keep) -> list[tuple[str, str]]:
 
 
 def _valid_args(tmp: Path) -> dict[str, list[str]]:
-    """For every command, arguments that pass parsing (inputs exist, outputs are fresh)."""
+    """For every command, arguments that pass parsing (inputs exist, outputs are fresh): the
+    experiments' generated from their modules (`experiment_args`), the rest written here."""
     csv, folder, out = tmp / "in.csv", tmp / "in_dir", tmp / "out"
     csv.write_text("")
     (tmp / "m.pt").write_bytes(b"")
@@ -70,22 +73,9 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "train retlo": ["--model", "fc", "--train", c, "--val", c, "--out", f"{out}.pt"],
         "evaluate retlo": ["--model", "heuristic2x", "--data", c, "--out", f"{out}.json"],
         "calibrate retlo": ["--model", f"{tmp}/m.pt", "--val", c, "--out", f"{out}.pt"],
-        "experiment retlo": ["--train", c, "--val", c, "--out", str(out)],
-        "experiment retlo-sim": ["--out", str(out)],
-        "experiment oc": ["--data", d, "--out", str(out)],
-        "experiment srs": ["--out", str(out)],
-        "experiment caging": ["--out", str(out)],
-        "experiment caging-multi": ["--out", str(out)],
-        "experiment learned-tail": ["--out", str(out)],
         "experiment list": [],
-        "experiment all": ["--out", str(out)],
-        "experiment ch3-gap": ["--out", str(out)],
-        "experiment uncertainty": ["--real", d, "--out", str(out)],
         "scenario show": ["lab"],
         "scenario check": ["lab"],
-        "experiment sim2real": ["--real", d, "--out", str(out)],
-        "experiment s2r-sealed": ["--real", d, "--out", str(out), "--ledger",
-                                  str(tmp / "ledger.jsonl")],
         "sysid": ["--train", c, "--val", c, "--out", str(out)],
         "ants simulate": ["--out", str(out)],
         "flow": ["--frames", d, "--out", str(out)],
@@ -94,7 +84,43 @@ def _valid_args(tmp: Path) -> dict[str, list[str]]:
         "bench": [],
         "view": [],
         "track": [c, "--robots", "3", "--out", str(out)],
-    }
+    } | {f"experiment {name}": experiment_args(name, tmp) for name in names()}
+
+
+@functools.cache
+def _experiment_flags(name: str) -> tuple[tuple[str, str, str], ...]:
+    """(flag, role, the full profile's path) of each flag `experiment_args` gives a value."""
+    command = typer.main.get_command(app).commands["experiment"].commands[name]
+    full = experiment(name).PROFILES["full"]
+    flags = []
+    for p in command.params:
+        role, named = str(_role(p)), getattr(full, p.name, None)
+        if p.required or (role.startswith(("input", "output")) and named):
+            assert role.startswith(("input", "output")), f"{name} {p.opts[0]}: give it a value"
+            named = named[0] if isinstance(named, tuple) else named
+            flags.append((p.opts[0], role, str(named or "")))
+    return tuple(flags)
+
+
+def experiment_args(name: str, tmp: Path) -> list[str]:
+    """`experiment NAME`'s valid arguments, generated from its command: each required flag,
+    and each path flag whose profile names a path (the published data, the committed ledger:
+    a test must neither need nor touch those), given a path of its kind in `tmp` (an input
+    existing, an output fresh; `--out` is `tmp/out`)."""
+    args = []
+    for flag, role, named in _experiment_flags(name):
+        if role == "output_dir":
+            path = tmp / "out"
+        elif role == "output_file":
+            path = tmp / Path(named).name
+        elif role == "input_dir":
+            path = tmp / "in_dir"
+            path.mkdir(exist_ok=True)
+        else:
+            path = tmp / f"in{Path(named).suffix}"
+            path.touch()
+        args += [flag, str(path)]
+    return args
 
 
 def _run(args: list[str]) -> tuple[int, str]:

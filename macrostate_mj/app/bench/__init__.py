@@ -3,7 +3,7 @@ or, where no such limit exists, against a fixed target that says so (`limit_kind
 
 Every suite returns figures made by `figure`, so that every `bench --json` line has the same
 keys: name, value, unit, limit, limit_kind, ratio, config (limit, limit_kind and ratio null
-where no limit exists), and registers itself in `SUITES` (`@SUITES.register("sim")`).
+where no limit exists), and registers itself in `SUITES` (`@SUITES.register("sim", rank=10)`).
 `ratio` reads the same way for every figure: 1.0 matches the limit, below falls short of it and
 above beats it, whether the figure is a rate (ratio = value / limit) or a time (limit / value).
 """
@@ -14,10 +14,11 @@ from collections.abc import Callable
 
 from macrostate_mj.core.registry import Registry
 
-# the suites, in the order `bench` runs them: each module's own, in the order they register
-SUITES: Registry[Callable[..., list[dict]]] = Registry("bench suite", [
-    f"{__name__}.{m}" for m in ("sim", "collect", "colony", "retlo", "flow", "iogen", "srs",
-                                "ensemble")])
+# Every module of this package registers its suites (`scan`). `bench` runs and lists them by
+# the rank each gives where it registers (`@SUITES.register("sim", rank=10)`), the one place a
+# suite's place is declared: the modules may be imported in any order (`bench --only srs` or a
+# test imports one first), and the cheap, basic loops run before the trainings.
+SUITES: Registry[Callable[..., list[dict]]] = Registry("bench suite", packages=[__name__])
 FIELDS = ("name", "value", "unit", "limit", "limit_kind", "ratio", "config")
 MEASURED, TARGET = "measured", "target"     # a limit measured in the same run, or a fixed goal
 

@@ -22,7 +22,7 @@ from macrostate_mj.vision.camera_chain import CameraChain
 from macrostate_mj.vision.tracker import Detections
 
 
-@SUITES.register("tracker")
+@SUITES.register("tracker", rank=40)
 def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> list[dict]:
     """Accuracy at default imaging noise over several episodes (each its own draw of light and
     camera error; every frame, every robot), and tracker time per 750 x 570 frame on one core
@@ -79,7 +79,7 @@ def bench_tracker(episodes: int = 6, seconds: float = 30.0, robots: int = 5) -> 
     ]
 
 
-@SUITES.register("health")
+@SUITES.register("health", rank=50)
 def bench_health(seconds: float = 30.0, robots: int = 5) -> list[dict]:
     """What the tracking health costs: a tracked run of the lab (physics, camera chain, pose
     log) with its health figures against the same run without them, best of alternated runs.
@@ -204,7 +204,7 @@ def _stages(spec, frames: int = 60) -> dict[str, float]:
     return out
 
 
-@SUITES.register("collect")
+@SUITES.register("collect", rank=60)
 def bench_collect(minutes: float = 1.0, robots: int = 3, repeats: int = 3) -> list[dict]:
     """Collection throughput against its limit (bare `mj_step` replaying the same commands
     plus bare renders of every frame the camera takes, at the same settings), for 1 and 2

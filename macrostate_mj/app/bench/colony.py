@@ -15,7 +15,7 @@ from macrostate_mj.app.bench.sim import _best_of
 from macrostate_mj.colony.sim import Colony, ColonyConfig
 
 
-@SUITES.register("colony")
+@SUITES.register("colony", rank=70)
 def bench_colony(ants: int = 55, seconds: float = 4.0, size: int = 256) -> list[dict]:
     import mujoco
 

@@ -43,7 +43,7 @@ def _jobs(k: int, kind: str) -> list:
             for i in range(k)]
 
 
-@SUITES.register("ensemble")
+@SUITES.register("ensemble", rank=120)
 def bench_ensemble(ks: tuple[int, ...] = KS) -> list[dict]:
     """Per network and K: the speed-up of training K together over K one after another."""
     from estimators.retlo.ensemble import train_many

@@ -39,7 +39,7 @@ def _rates(fns, pairs, repeats: int) -> list[float]:
     return best
 
 
-@SUITES.register("flow")
+@SUITES.register("flow", rank=90)
 def bench_flow(n: int = 400, size: int = 64, repeats: int = 5) -> list[dict]:
     """Pairs/s on one core at size × size: our FlowComputer + encode_flow vs bare DIS.calc."""
     import cv2

@@ -35,7 +35,7 @@ def _stage_seconds(x: np.ndarray, probe: OCConfig) -> dict[str, float]:
     return {stage: times[-1] - times[-2] for stage, times in stamps.items()}
 
 
-@SUITES.register("iogen")
+@SUITES.register("iogen", rank=100)
 def bench_iogen(n_train: int = 960, threads: int = 2) -> list[dict]:
     """Estimated wall time of one split's IO-GEN pipeline (default recipe, m = 2) on this CPU,
     in float32 and in bfloat16 mixed precision (`--precision bf16`).

@@ -49,7 +49,7 @@ def _bare_batch_seconds(cfg, n_hist_features: int, repeats: int = 30) -> float:
     return (time.perf_counter() - start) / repeats
 
 
-@SUITES.register("retlo")
+@SUITES.register("retlo", rank=80)
 def bench_retlo() -> list[dict]:
     """Figures: LSTM training wall time (limit: bare network steps), per-batch cost, accuracy."""
     import torch

@@ -67,7 +67,7 @@ def replay_bare(model: mujoco.MjModel, start: np.ndarray, ticks: list[tuple[int,
     return data
 
 
-@SUITES.register("sim")
+@SUITES.register("sim", rank=10)
 def bench_sim(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5,
               seconds: float = 60.0) -> list[dict]:
     """Our loop (controller, planner, logging) against bare `mj_step` replaying the very same
@@ -96,7 +96,7 @@ def bench_sim(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5,
     ]
 
 
-@SUITES.register("render")
+@SUITES.register("render", rank=20)
 def bench_render(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5, frames: int = 60
                  ) -> list[dict]:
     from macrostate_mj.vision.camera import OverheadRenderer
@@ -122,7 +122,7 @@ def bench_render(scenario: ScenarioConfig = SCENARIOS["lab"], robots: int = 5, f
                    limit_name="bare mujoco.Renderer, same camera", config=f"{w}x{h}")]
 
 
-@SUITES.register("env")
+@SUITES.register("env", rank=30)
 def bench_env(seconds: float = 60.0) -> list[dict]:
     """One Gymnasium step of a Tail environment against the same simulated time through
     `ChainSim` (controller, mission and physics, no hooks; for LocalizeTail plus one call of

@@ -11,7 +11,7 @@ import numpy as np
 from macrostate_mj.app.bench import SUITES, figure
 
 
-@SUITES.register("srs")
+@SUITES.register("srs", rank=110)
 def bench_srs(seconds: float = 120.0, k: int = 30, repeats: int = 2) -> list[dict]:
     """One webots 3-robot episode collected passively, then with the SRS Tail (k candidates,
     SRS-Max; a model of the default size with seeded weights: its cost does not depend on

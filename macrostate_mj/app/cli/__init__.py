@@ -1,32 +1,27 @@
 """Command-line entry point: a thin layer over the library API.
 
-Every command lives in a sibling module and imports its heavy dependencies lazily, so that
-`macrostate-mj --help` stays fast. Bad input, whether a `UserError` from the library or a bad
-value caught by the parser (`params`), becomes one line on stderr and exit code 2, never a
-traceback; on any failure the outputs the command created are tidied by `params.finish`.
+Every command lives in a sibling module (found by scanning this package) and imports its heavy
+dependencies lazily, so that `macrostate-mj --help` stays fast. Bad input, whether a `UserError`
+from the library or a bad value caught by the parser (`params`), becomes one line on stderr and
+exit code 2, never a traceback; on any failure the outputs the command created are tidied by
+`params.finish`.
 """
 
+import importlib
 import sys
 
 import typer
 
 from macrostate_mj.app import params
-from macrostate_mj.app.cli import ants as _ants  # noqa: F401
-from macrostate_mj.app.cli import bench as _bench  # noqa: F401  (registers commands)
-from macrostate_mj.app.cli import claims as _claims  # noqa: F401
-from macrostate_mj.app.cli import collect as _collect  # noqa: F401
-from macrostate_mj.app.cli import data as _data  # noqa: F401
-from macrostate_mj.app.cli import experiments as _experiments  # noqa: F401
-from macrostate_mj.app.cli import oc as _oc  # noqa: F401
-from macrostate_mj.app.cli import retlo as _retlo  # noqa: F401
-from macrostate_mj.app.cli import scenario as _scenario  # noqa: F401
-from macrostate_mj.app.cli import sim as _sim  # noqa: F401
-from macrostate_mj.app.cli import soak as _soak  # noqa: F401
-from macrostate_mj.app.cli import sysid as _sysid  # noqa: F401
-from macrostate_mj.app.cli import track as _track  # noqa: F401
-from macrostate_mj.app.cli import view as _view  # noqa: F401
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.core.errors import RunFailure, UserError
+from macrostate_mj.core.registry import scan
+
+# Every command module of this package registers its commands on `app` as it is imported: the
+# registries' rule (`core.registry.scan`), so a new command is a new module. `app` itself is one
+# of them (already imported), `__main__` is skipped by the rule.
+for _module in scan(__name__):
+    importlib.import_module(_module)
 
 # typer 0.29 vendors click and exports only `BadParameter` of its exception tree; its base class
 # is click's UsageError, which every parser error (bad flag, missing argument) derives from.

@@ -20,14 +20,14 @@ is claimed).
 
 `execute` wraps `run` in the one run lifecycle (`core.run.Run`: the folder claimed, the manifest
 with the config, its hash, stage timings and how the run ended). Adding an experiment is one
-new module here, its test and its docs row: `EXPERIMENTS` imports every module of this package
-on first read, and the CLI lists their names without importing them (`names`).
+new module here, its test and its docs row: `EXPERIMENTS` scans this package (every module not
+starting with `_`, imported on first read: `core.registry.scan`), and the CLI lists the names
+of the modules it scans without importing them (`names`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import pkgutil
 import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, fields, is_dataclass, replace
@@ -76,23 +76,25 @@ class Progress:
         self.run.record(**extra)
 
 
-_MODULES = sorted(info.name for info in pkgutil.iter_modules(__path__)
-                  if not info.name.startswith("_"))
-EXPERIMENTS: Registry[ModuleType] = Registry("experiment", [f"{__name__}.{m}" for m in _MODULES])
+EXPERIMENTS: Registry[ModuleType] = Registry("experiment", packages=[__name__])
 
 
 def register(run: Callable[..., list[str]]) -> Callable[..., list[str]]:
     """Decorates an experiment's `run`: registers its module (`Config`, `PROFILES`,
     `PRODUCTS`, `run`) under the module's name, `_` read as `-`."""
     module = sys.modules[run.__module__]
-    EXPERIMENTS.register(module.__name__.rsplit(".", 1)[-1].replace("_", "-"))(module)
+    EXPERIMENTS.register(_command_name(module.__name__))(module)
     return run
+
+
+def _command_name(module: str) -> str:
+    return module.rsplit(".", 1)[-1].replace("_", "-")
 
 
 def names() -> list[str]:
     """Every experiment's command name, without importing any (the CLI lists them while
-    parsing): the names `register` gives the modules `EXPERIMENTS` imports."""
-    return [m.replace("_", "-") for m in _MODULES]
+    parsing): the names `register` gives the modules `EXPERIMENTS` scans."""
+    return [_command_name(m) for m in EXPERIMENTS.module_names()]
 
 
 def registry() -> dict[str, ModuleType]:
