@@ -216,7 +216,9 @@ def _nested(root: Path) -> Path:
     runs = {f"m2_split{s}_s{k}": {"iogen": {"auc_all": 0.75 + 0.001 * s + 0.05 * (k - 1)}}
             for s in (1, 2, 3) for k in (0, 1, 2)}
     (root / "oc").mkdir(parents=True)
-    (root / "oc" / "results.json").write_text(json.dumps({"runs": runs}))
+    from macrostate_mj.app.experiments.oc import Results as OcResults
+
+    OcResults({}, {}, {}, {}, {}, {}, 0, {}, runs).write(root / "oc")   # only the runs matter
     for i, g in enumerate([28.275, 36.848, 37.852, 38.695, 43.212]):
         (root / "cv" / f"s{i}").mkdir(parents=True)
         (root / "cv" / f"s{i}" / "r.json").write_text(json.dumps({"g": g}))

@@ -13,9 +13,13 @@ from clitools import assert_clean_error, cli
 
 from macrostate_mj.app.experiments import execute, sim2real
 from macrostate_mj.app.experiments.sim2real import PROFILES, equivalent_fraction
+from macrostate_mj.app.experiments.sim2real.models import choose_settings
+from macrostate_mj.app.experiments.sim2real.report import summary_lines
 from macrostate_mj.chain import scenarios
+from macrostate_mj.core.cache import task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.stats import cv_blocks
+from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
 
 @pytest.mark.parametrize("fold", range(5))
@@ -82,7 +86,7 @@ def test_experiment_sim2real_quick(stand_in, tmp_path, monkeypatch):
         collected.append(req)
         raise Stop
 
-    monkeypatch.setattr(sim2real, "collect", collect)
+    monkeypatch.setattr(sim2real.data, "collect", collect)
     config = replace(PROFILES["quick"], real=stand_in)
     with pytest.raises(Stop):
         execute("sim2real", replace(config, randomize=("wide",)), out, overwrite=True)
@@ -158,17 +162,17 @@ def test_the_mixed_arm_keeps_the_weight_best_on_the_real_validation_block():
     reports = [real, mixed(0, 0.5, 0.25, 5.0, 3.0), mixed(0, 0.5, 0.5, 4.0, 9.0),
                mixed(1, 0.5, 0.25, 4.0, 4.0), mixed(1, 0.5, 0.5, 4.0, 1.0)]
     config = replace(PROFILES["quick"], fractions=(0.5,), mix_weight=(0.25, 0.5))
-    kept, tables = sim2real.choose_settings(reports, config)
+    kept, tables = choose_settings(reports, config)
     mixes = tables["mixes"]
     assert kept == [real, reports[2], reports[3]]          # seed 1: the first of equals
     assert mixes["mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.5, "1": 0.25}
     assert mixes["mixed"]["0.5"]["weights"]["0.25"]["head_cm_by_seed"] == {"0": 3.0, "1": 4.0}
     one = [real, reports[1], reports[3]]
-    assert sim2real.choose_settings(one, replace(config, mix_weight=(0.25,))) == (one, {})
+    assert choose_settings(one, replace(config, mix_weight=(0.25,))) == (one, {})
     # the fine-tuned mixing arm chooses its own weight, apart from the mixed arm's
     both = [*reports, {**reports[1], "arm": "finetune-mixed", "best_val_cm": 1.0},
             {**reports[2], "arm": "finetune-mixed"}]
-    kept, tables = sim2real.choose_settings(both, replace(config, arms=sim2real.ARMS))
+    kept, tables = choose_settings(both, replace(config, arms=sim2real.ARMS))
     assert kept[-1] == both[5] and set(tables["mixes"]) == {"mixed", "finetune-mixed"}
     assert tables["mixes"]["finetune-mixed"]["0.5"]["chosen_by_seed"] == {"0": 0.25}
 
@@ -187,7 +191,7 @@ def test_fine_tuned_arms_keep_the_epochs_best_on_the_real_validation_block():
                tuned("finetune-mixed", 0, 60, 2.5, 3.0, 0.5)]
     config = replace(PROFILES["quick"], fractions=(1.0,), finetune_epochs=(30, 60),
                      mix_weight=(0.25, 0.5), arms=("finetune", "finetune-mixed"))
-    kept, tables = sim2real.choose_settings(reports, config)
+    kept, tables = choose_settings(reports, config)
     assert kept == [reports[1], reports[5]]
     epochs = tables["finetunes"]["finetune-mixed"]["1"]
     assert epochs["chosen_by_seed"] == {"0": 60}
@@ -195,11 +199,11 @@ def test_fine_tuned_arms_keep_the_epochs_best_on_the_real_validation_block():
     assert tables["mixes"]["finetune-mixed"]["1"]["weights"]["0.25"]["head_cm_by_seed"] == \
         {"0": 7.0}                                                   # 30 beat 60 at 0.25
     assert tables["finetunes"]["finetune"]["1"]["chosen_by_seed"] == {"0": 60}
-    assert [c for c in sim2real._candidates(config, "finetune-mixed")] == [
+    assert [c for c in sim2real.candidates(config, "finetune-mixed")] == [
         {"mix_weight": w, "finetune_epochs": e} for w in (0.25, 0.5) for e in (30, 60)]
-    assert sim2real._candidates(config, "real") == [{}]
+    assert sim2real.candidates(config, "real") == [{}]
     line = "finetune at 100 % real, epochs chosen per seed: 60 1x"
-    assert line in sim2real.summary_lines({"arms": {}, **tables})
+    assert line in summary_lines({"arms": {}, **tables})
 
 
 def test_the_fine_tuned_mixing_arm_starts_from_the_sim_model_and_mixes_the_lab_in(tmp_path):
@@ -208,11 +212,11 @@ def test_the_fine_tuned_mixing_arm_starts_from_the_sim_model_and_mixes_the_lab_i
     (lab / "Train.csv").write_text("lab rows")             # keys read their inputs' bytes
     init.write_bytes(b"a checkpoint")
     config = PROFILES["quick"]
-    task = sim2real._arm_task("finetune-mixed", config, 0, chains, chains, chains, init, lab,
+    task = sim2real.arm_task("finetune-mixed", config, 0, chains, chains, chains, init, lab,
                               0.75)
     assert (task.init, task.mix, task.mix_weight) == (init, lab / "Train.csv", 0.75)
     assert (task.epochs, task.lr) == (config.finetune_epochs[0], config.finetune_lr)
-    plain = sim2real._arm_task("finetune", config, 0, chains, chains, chains, init, lab, None)
+    plain = sim2real.arm_task("finetune", config, 0, chains, chains, chains, init, lab, None)
     assert plain.mix is None and plain.key() != task.key()
     assert "finetune-mixed" not in config.arms          # trained only when named
 
@@ -227,14 +231,14 @@ def test_the_frozen_arm_fine_tunes_the_sim_model_with_its_encoders_fixed(tmp_pat
     (lab / "Train.csv").write_text("lab rows")
     init.write_bytes(b"a checkpoint")
     config = replace(PROFILES["quick"], finetune_epochs=(3, 5))
-    frozen = sim2real._arm_task("finetune-frozen", config, 0, chains, chains, chains, init, lab,
+    frozen = sim2real.arm_task("finetune-frozen", config, 0, chains, chains, chains, init, lab,
                                 finetune_epochs=5)
     assert (frozen.init, frozen.mix, frozen.epochs) == (init, None, 5)
     assert frozen.train_config().frozen == ENCODER
-    plain = sim2real._arm_task("finetune", config, 0, chains, chains, chains, init, lab,
+    plain = sim2real.arm_task("finetune", config, 0, chains, chains, chains, init, lab,
                                finetune_epochs=5)
     assert plain.train_config().frozen == () and plain.key() != frozen.key()
-    assert sim2real._candidates(config, "finetune-frozen") == [
+    assert sim2real.candidates(config, "finetune-frozen") == [
         {"finetune_epochs": 3}, {"finetune_epochs": 5}]
     assert "finetune-frozen" not in config.arms            # trained only when named
 
@@ -257,7 +261,7 @@ def test_no_chained_reaches_every_arm_and_keeps_the_default_keys():
     chains = np.zeros((4, 16, 3, 3))
     for chained in (True, False):
         config = replace(PROFILES["quick"], chained=chained)
-        tasks = [sim2real._arm_task(arm, config, 0, chains, chains, chains, None, None)
+        tasks = [sim2real.arm_task(arm, config, 0, chains, chains, chains, None, None)
                  for arm in ("real", "finetune")]
         assert all(t.train_config().chained is chained for t in tasks)
     plain = sim2real.ModelTask("real", 0, 2, chains, chains, chains)
@@ -293,13 +297,13 @@ def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, m
         return out
 
     monkeypatch.setattr(collectors.sysid, "fit", fit)
-    monkeypatch.setattr(sim2real, "_collect", lab)
+    monkeypatch.setattr(sim2real.data, "_collect", lab)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "real"),
                      fits=("fold", "train"), randomize=("wide",))
     out = tmp_path / "nested"
     execute("sim2real", config, out)
     pooled = sim2real.read_real(stand_in)
-    n_train = len(sim2real.read_csv(stand_in / "Train.csv").poses)
+    n_train = len(read_csv(stand_in / "Train.csv").poses)
     for fold in range(2):
         pool, val, test = cv_blocks(len(pooled), config.folds, fold, config.val_share)
         train_seen, val_seen = seen[fold]
@@ -349,7 +353,7 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
         original(self, *args, **kwargs)
         made.append(self)
 
-    monkeypatch.setattr(sim2real, "_collect", lab)
+    monkeypatch.setattr(sim2real.data, "_collect", lab)
     monkeypatch.setattr(sim2real.ModelTask, "__init__", record)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "finetune"),
                      fractions=(1.0,), randomize=("none", "wide"), finetune_epochs=(1, 2))
@@ -357,7 +361,7 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
     execute("sim2real", config, out)
     results = json.loads((out / "results.json").read_text())
     ranges = results["ranges"]["none"]
-    pooled = pixels_to_world(sim2real.read_real(stand_in), sim2real.DEFAULT_PX_PER_CM)
+    pooled = pixels_to_world(sim2real.read_real(stand_in), DEFAULT_PX_PER_CM)
     sims = [t for t in made if t.arm == "sim"]
     assert len(sims) == 4
     for s in ("0", "1"):
@@ -371,7 +375,7 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
             assert np.array_equal(task.select, pooled[val])
             assert np.array_equal(task.test, pooled[test])
         chosen = next(t for t in sims if t.seed == int(s) and
-                      (t.train.parent.name == "sim-" + sim2real.task_key("sim2real-lab", 1,
+                      (t.train.parent.name == "sim-" + task_key("sim2real-lab", 1,
                                                                         "wide")[:12])
                       == (pick == "wide"))
         tuned = [t for t in made if t.arm == "finetune" and t.seed == int(s)]
@@ -384,7 +388,7 @@ def test_randomization_candidates_are_chosen_on_each_fold_s_validation_block(sta
         assert epochs["chosen_by_seed"][s] == min(val_cm, key=lambda e: (val_cm[e], e))
         kept = epochs["epochs"][str(epochs["chosen_by_seed"][s])]["head_cm_by_seed"][s]
         assert results["arms"]["finetune"]["1"]["head_cm_by_seed"][s] == kept
-    assert "--randomize chosen per fold (none)" in "\n".join(sim2real.summary_lines(results))
+    assert "--randomize chosen per fold (none)" in "\n".join(summary_lines(results))
     with pytest.raises(UserError, match="each candidate once"):
         sim2real.validate(replace(config, randomize=("wide", "wide")))
 
@@ -408,7 +412,7 @@ def test_ablations_switch_parameters_off_in_each_seed_s_own_profile(stand_in, tm
 
     ranges = tmp_path / "ranges.json"
     ranges.write_text(json.dumps({"k_f": [0.9, 1.1], "k_t": 1.2}))
-    monkeypatch.setattr(sim2real, "_collect", lab)
+    monkeypatch.setattr(sim2real.data, "_collect", lab)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim",), randomize=(str(ranges),),
                      ablate=(("k_f",), ("k_t", "k_omega")))
     out = tmp_path / "ablate"
@@ -422,7 +426,7 @@ def test_ablations_switch_parameters_off_in_each_seed_s_own_profile(stand_in, tm
     assert without_kf["minus_lab"]["mean"] == pytest.approx(np.mean(diffs))
     assert without_kf["minus_lab"]["low"] < without_kf["minus_lab"]["mean"]
     assert results["ablations"]["k_t,k_omega"]["head_cm_by_seed"] == lab_by_seed  # same data
-    assert "without k_f: Head" in "\n".join(sim2real.summary_lines(results))
+    assert "without k_f: Head" in "\n".join(summary_lines(results))
     with pytest.raises(UserError, match="--ablate k_x"):
         sim2real.validate(replace(config, ablate=(("k_x",),)))
     with pytest.raises(UserError, match="make the first --fit"):
@@ -435,13 +439,13 @@ def test_ablations_that_cannot_be_measured_are_refused_or_said(stand_in, tmp_pat
     lab = _copying(stand_in)
     ranges = tmp_path / "ranges.json"
     ranges.write_text(json.dumps({"k_f": [0.9, 1.1]}))
-    monkeypatch.setattr(sim2real, "_collect", lab)
+    monkeypatch.setattr(sim2real.data, "_collect", lab)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim",), randomize=(str(ranges),),
                      ablate=(("frame_hz",),))
     execute("sim2real", config, tmp_path / "absent")
     results = json.loads((tmp_path / "absent" / "results.json").read_text())
     assert results["ablations"]["frame_hz"]["minus_lab"]["n"] == 0
-    assert "not in the lab's profile" in "\n".join(sim2real.summary_lines(results))
+    assert "not in the lab's profile" in "\n".join(summary_lines(results))
     for bad, words in (({"ablate": (("k_f", "k_t"), ("k_t", "k_f"))}, "each group once"),
                        ({"arms": ("real",)}, "add --arm sim")):
         with pytest.raises(UserError, match=words):
@@ -455,11 +459,11 @@ def test_sim_models_are_picked_on_the_lab_or_on_the_real_validation_block(tmp_pa
     lab.mkdir()
     for name in ("Train.csv", "Val.csv"):
         (lab / name).write_text(name)                    # keys read their inputs' bytes
-    plain = sim2real._sim_task(PROFILES["quick"], 0, lab, val, test, choose=False)
+    plain = sim2real.sim_task(PROFILES["quick"], 0, lab, val, test, choose=False)
     assert (plain.train, plain.val, plain.select) == (lab / "Train.csv", lab / "Val.csv", None)
     assert plain.key() == sim2real.ModelTask("sim", 0, PROFILES["quick"].epochs,
                                              lab / "Train.csv", lab / "Val.csv", test).key()
-    real = sim2real._sim_task(replace(PROFILES["quick"], sim_select="real"), 0, lab, val, test,
+    real = sim2real.sim_task(replace(PROFILES["quick"], sim_select="real"), 0, lab, val, test,
                               choose=True)
     assert real.val is val and real.select is val and real.test is test
     assert real.key() != plain.key()
@@ -490,10 +494,10 @@ def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tm
     folder.mkdir()
     shutil.copy(stand_in / "Train.csv", folder / "Train.csv")
     monkeypatch.setattr(collectors.sysid, "fit", fit)
-    monkeypatch.setattr(sim2real, "_collect", lab)
+    monkeypatch.setattr(sim2real.data, "_collect", lab)
     config = replace(PROFILES["quick"], real=folder, arms=("sim", "real"), fits=("train",),
                      randomize=("wide",), train_only=True)
-    train = sim2real.read_csv(folder / "Train.csv").poses
+    train = read_csv(folder / "Train.csv").poses
     assert np.array_equal(sim2real.validate(config), train)
     execute("sim2real", config, tmp_path / "out")
     results = json.loads((tmp_path / "out" / "results.json").read_text())
@@ -506,7 +510,7 @@ def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tm
 
 
 def _copying(stand_in: Path):
-    """A stand-in for the lab collection (`sim2real._collect`): the stand-in files copied."""
+    """A stand-in for the lab collection (`sim2real.data._collect`): the stand-in files copied."""
     def lab(config, out, progress, randomize):
         out.mkdir(parents=True, exist_ok=True)
         for name in ("Train.csv", "Val.csv"):
