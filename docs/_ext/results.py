@@ -20,27 +20,21 @@ to its file, key and rounding), and fails on any other number it was not told to
 from __future__ import annotations
 
 import json
-from datetime import UTC, datetime
-from functools import cache
+from collections.abc import Callable
 from pathlib import Path
 
 from docutils import nodes
 from docutils.parsers.rst import Directive
 from sphinx.util.docutils import SphinxRole
 
-from macrostate_mj.app.results.provenance import read_index
+from macrostate_mj.app.results import pages
 from macrostate_mj.app.results.sources import call, reading
+from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.evidence import Code, Table
 
 REPO = Path(__file__).resolve().parents[2]
 RESULTS = REPO / "results"
 NUMBERS = "_numbers.json"       # beside the built pages: every number each page was given
-
-
-@cache
-def index() -> dict:
-    """`results/index.toml`, checked (`macrostate_mj.app.results.provenance`), once per build."""
-    return read_index(RESULTS)
 
 
 def evaluate(expression: str) -> object:
@@ -153,165 +147,75 @@ class ResultsTable(Directive):
         return [table_node(rows)]  # type: ignore[arg-type]
 
 
+def _judged(directive: Directive, build: Callable[[], object]) -> object:
+    """What `build` makes of the results, a bad claims file or folder as the page's error."""
+    try:
+        return build()
+    except UserError as exc:
+        raise directive.error(str(exc)) from exc
+
+
 class Claims(Directive):
-    """``{claims} chapter``: the chapter's claims judged by `macrostate_mj.app.results.claims` (the
-    code `macrostate-mj claims` runs): the text's value against ours with its interval and n,
-    what it was compared with, and the verdict by the one rule of the reproduction index."""
+    """``{claims} chapter``: the chapter's claims judged by the code `macrostate-mj claims`
+    runs (`pages.chapter`), with the results folder they share."""
 
     required_arguments = 1
 
     def run(self) -> list[nodes.Node]:
-        from macrostate_mj.app.results.claims import judge_all
-        from macrostate_mj.core.errors import UserError
-
-        try:
-            judged = judge_all(RESULTS, [self.arguments[0]])
-        except UserError as exc:
-            raise self.error(str(exc)) from exc
-        folders = sorted({j.folder for j in judged if j.folder})
-        shared = len(folders) == 1
-        header = ["figure", "claim", "dissertation", "ours [95 % interval], n", "compared with",
-                  "verdict", "finding"]
-        rows: list[list] = [header if shared else [*header[:6], "results", header[6]]]
-        for j in judged:
-            decide = f"; {j.would_decide} units would decide it" if j.would_decide else ""
-            row = [j.figure, j.claim, j.text, j.ours_text + (" (smoke)" if j.smoke else ""),
-                   j.comparator, f"{j.verdict}: {j.why}{decide}", j.finding]
-            if not shared:
-                row.insert(6, j.folder or "")
-            rows.append(row)
+        rows, folder = _judged(self, lambda: pages.chapter(RESULTS, self.arguments[0]))
         _record(self.state.document.settings.env, f"claims {self.arguments[0]}", rows)
         out: list[nodes.Node] = [table_node(rows)]
-        if shared:
+        if folder:
             para = nodes.paragraph(text="Results: ")
-            para += nodes.literal(text=f"results/{folders[0]}")
+            para += nodes.literal(text=f"results/{folder}")
             out.append(para)
         return out
 
 
 class ClaimsSummary(Directive):
-    """``{claims-summary}``: the rule, stated once, each judged folder's units, nesting,
-    correction and what its units share (as results/index.toml declares them), and each
-    chapter's count of verdicts."""
+    """``{claims-summary}``: the rule, stated once, each judged folder's units, and each
+    chapter's count of verdicts (`pages.summary`)."""
 
     def run(self) -> list[nodes.Node]:
-        from macrostate_mj.app.results.claims import (
-            RULE,
-            VERDICTS,
-            counts,
-            design_of,
-            judge_all,
-            load_claims,
-        )
-        from macrostate_mj.app.results.provenance import RESULT_RULE
-
-        judged = judge_all(RESULTS)
-        chapters = list(dict.fromkeys(j.chapter for j in judged))
-        rows: list[list] = [["chapter", *VERDICTS, "claims"]]
-        for chapter in [*chapters, "all"]:
-            mine = [j for j in judged if chapter in ("all", j.chapter)]
-            rows.append([chapter, *counts(mine).values(), len(mine)])
-        _record(self.state.document.settings.env, "claims-summary", rows)
-        units: list[list] = [["results", "unit", "nested in it (averaged)", "correction",
-                              "every unit shares"]]
-        seen: set[tuple] = set()
-        for chapter in load_claims().values():
-            for claim in chapter:
-                d = design_of(claim, index())
-                key = (claim["folder"], d)
-                if key in seen:
-                    continue
-                seen.add(key)
-                units.append([nodes.literal(text=claim["folder"]),
-                              d.unit + (" (one training)" if d.trainings == 1 else ""),
-                              d.within or "-", d.correction(), d.shared or "-"])
-        _record(self.state.document.settings.env, "claims-units", units)
-        return [nodes.paragraph(text=RULE), table_node(units),
-                nodes.paragraph(text=RESULT_RULE), table_node(rows)]
+        units, rows = _judged(self, lambda: pages.summary(RESULTS))
+        env = self.state.document.settings.env
+        _record(env, "claims-summary", rows)
+        _record(env, "claims-units", units)
+        return [nodes.paragraph(text=pages.RULE), table_node(units),
+                nodes.paragraph(text=pages.RESULT_RULE), table_node(rows)]
 
 
 class ClaimsChanges(Directive):
-    """``{claims-changes} file``: the verdicts before the units, corrections and margins of
-    the rule (`claims --json` as it printed them, kept in `file` beside the page) against
-    today's, counted per chapter, and every claim whose verdict changed with today's reason."""
+    """``{claims-changes} file``: the verdicts before the rule (`claims --json` as it printed
+    them, kept in `file` beside the page) against today's (`pages.changes`)."""
 
     required_arguments = 1
 
     def run(self) -> list[nodes.Node]:
-        from macrostate_mj.app.results.claims import VERDICTS, counts, judge_all
-
         here = Path(self.state.document.current_source).parent
         before = [json.loads(line) for line in (here / self.arguments[0]).read_text()
                   .splitlines() if line.strip()]
-        after = judge_all(RESULTS)
-        was = {(b["chapter"], b["figure"], b["claim"]): b for b in before}
-        rows: list[list] = [["chapter", *[f"{v} (before → after)" for v in VERDICTS]]]
-        for chapter in dict.fromkeys(j.chapter for j in after):
-            old = [b for b in before if b["chapter"] == chapter]
-            new = counts([j for j in after if j.chapter == chapter])
-            rows.append([chapter, *[f"{sum(b['verdict'] == v for b in old)} → {new[v]}"
-                                    for v in VERDICTS]])
-        changed: list[list] = [["chapter", "figure", "claim", "before", "after", "why"]]
-        for j in after:
-            b = was.get((j.chapter, j.figure, j.claim))
-            if b is None:
-                raise self.error(f"{j.figure} ({j.claim}) is not in {self.arguments[0]}")
-            if b["verdict"] != j.verdict:
-                changed.append([j.chapter, j.figure, j.claim,
-                                f"{b['verdict']}, n {b['n']}", f"{j.verdict}, n {j.n} ({j.unit})",
-                                j.why])
+        rows, changed = _judged(self, lambda: pages.changes(RESULTS, before,
+                                                            self.arguments[0]))
         env = self.state.document.settings.env
         _record(env, "claims-changes counts", rows)
         _record(env, "claims-changes", changed)
         return [table_node(rows), table_node(changed)]
 
 
-def _units(entry: dict) -> str:
-    """How many units a folder's figures rest on, and which (as `results/index.toml` declares
-    them): independent ones, or folds and splits whose training data overlap."""
-    unit = entry.get("unit")
-    if not unit:
-        return f"{entry['units']} independent units"
-    what = f"{entry['units']} {unit}s"
-    if entry.get("folds") or entry.get("split_ratio"):
-        return what + " (their training data overlap: intervals Nadeau-Bengio corrected)"
-    return what + " (independent)"
-
-
 class Provenance(Directive):
-    """``{provenance} folder``: where a results folder comes from and what kind of figure it is."""
+    """``{provenance} folder``: where a results folder comes from and what kind of figure it
+    is (`pages.provenance`), and its command."""
 
     required_arguments = 1
 
     def run(self) -> list[nodes.Node]:
         folder = self.arguments[0]
-        entry = index().get(folder)
-        if entry is None:
-            raise self.error(f"results/{folder} is not in results/index.toml")
-        from macrostate_mj.app.results.provenance import disclosures, is_result
-
-        if entry["kind"].startswith("result") != is_result(entry):
-            raise self.error(f"results/index.toml [{folder}]: its kind contradicts the rule")
-        parts = [f"results/{folder}", entry["kind"], _units(entry), *disclosures(entry)]
-        manifest = RESULTS / folder / "manifest.json"
-        if manifest.is_file():
-            data = json.loads(manifest.read_text())
-            when = datetime.fromtimestamp(data["created_unix"], UTC).strftime("%Y-%m-%d")
-            parts.append(when)
-            machine = data.get("machine")
-            if isinstance(machine, dict):
-                parts.append(str(machine.get("cpu") or machine.get("processor") or ""))
-            made = data.get("code")
-            if made is None:        # made before manifests kept it: say so, never guess
-                parts.append("code not recorded (an earlier manifest)")
-            elif made.get("commit"):
-                parts.append(f"code {made['commit'][:7]}" + (" with changes" if made["dirty"]
-                                                            else ""))
+        parts, command = _judged(self, lambda: pages.provenance(RESULTS, folder))
         para = nodes.paragraph(classes=["provenance"])
-        _record(self.state.document.settings.env, f"provenance {folder}",
-                [[*parts, entry["command"]]])
+        _record(self.state.document.settings.env, f"provenance {folder}", [[*parts, command]])
         para += nodes.emphasis(text=" · ".join(p for p in parts if p) + ". ")
-        para += nodes.literal(text=entry["command"])
+        para += nodes.literal(text=command)
         return [para]
 
 

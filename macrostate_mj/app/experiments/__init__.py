@@ -138,4 +138,6 @@ def execute(name: str, config: Any, out: Path, overwrite: bool = False, workers:
         progress = Progress(run, report or Progress.report, workers, ray, overwrite)
         lines = module.run(config, Path(out), progress)
         run.record(products=module.PRODUCTS, workers=workers, ray=ray)
+        if (record := getattr(module, "Results", None)) is not None:
+            run.record(results=record.described())      # its type, version and unit
     return lines
