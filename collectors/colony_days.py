@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from macrostate_mj.colony.sim import Colony, ColonyConfig, aggression, day_name, parse_days
+from macrostate_mj.colony.colony_sim import Colony, ColonyConfig, aggression, day_name, parse_days
 from macrostate_mj.core import draw
 from macrostate_mj.core.checks import check_seed
 from macrostate_mj.core.errors import UserError

@@ -14,7 +14,7 @@ import time
 from dataclasses import asdict, dataclass
 from typing import ClassVar
 
-from macrostate_mj.chain.soak import SoakRunTask, SoakTask
+from macrostate_mj.chain.physics_soak import SoakRunTask, SoakTask
 
 
 @dataclass(frozen=True)

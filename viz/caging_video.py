@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from macrostate_mj.chain.caging import CagingConfig
+from macrostate_mj.chain.caging_mission import CagingConfig
 from macrostate_mj.chain.sim import ChainSim
 from viz.rerun_log import RerunRecorder
 from viz.video import Recorder, VideoRecorder

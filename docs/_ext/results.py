@@ -203,6 +203,16 @@ class ClaimsChanges(Directive):
         return [table_node(rows), table_node(changed)]
 
 
+class Experiments(Directive):
+    """``{experiments}``: every registered experiment, a row generated from its module
+    (`pages.experiments`): adding an experiment adds its row."""
+
+    def run(self) -> list[nodes.Node]:
+        rows = _judged(self, lambda: pages.experiments(RESULTS))
+        _record(self.state.document.settings.env, "experiments", rows)
+        return [table_node(rows)]
+
+
 class Provenance(Directive):
     """``{provenance} folder``: where a results folder comes from and what kind of figure it
     is (`pages.provenance`), and its command."""
@@ -230,4 +240,5 @@ def setup(app: object) -> dict:
     app.connect("build-finished", _dump)  # type: ignore[attr-defined]
     app.connect("env-get-outdated", _stale)  # type: ignore[attr-defined]
     app.add_directive("provenance", Provenance)  # type: ignore[attr-defined]
+    app.add_directive("experiments", Experiments)  # type: ignore[attr-defined]
     return {"parallel_read_safe": True, "version": "1"}

@@ -227,8 +227,8 @@ class NoveltyFile:
 
 @dataclass(frozen=True)
 class NoveltyTraining:
-    """These models as `collectors.srs.collect_srs` makes them (its `NoveltyTrainer`), wired
-    in by `app`: collectors cannot import estimators."""
+    """These models as `collectors.srs_collection.collect_srs` makes them (its
+    `NoveltyTrainer`), wired in by `app`: collectors cannot import estimators."""
 
     cfg: NoveltyConfig | None = None    # None: the defaults, seeded with the collection's seed
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from macrostate_mj.chain.caging import (
+from macrostate_mj.chain.caging_mission import (
     CagingConfig,
     CagingMission,
     repulsion,

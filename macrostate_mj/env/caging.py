@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
-from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
+from macrostate_mj.chain.caging_mission import CagingConfig, CagingMission, cage_report, start_poses
 from macrostate_mj.chain.sim import ChainSim
 from macrostate_mj.chain.team import (
     BranchedSim,

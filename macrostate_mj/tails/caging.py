@@ -8,7 +8,7 @@ from typing import Protocol
 
 import numpy as np
 
-from macrostate_mj.chain.caging import (
+from macrostate_mj.chain.caging_mission import (
     DETECTION,
     TRACK_STEPS,
     CagingConfig,

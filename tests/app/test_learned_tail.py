@@ -98,7 +98,7 @@ def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
     import gymnasium
 
     import macrostate_mj  # noqa: F401
-    from macrostate_mj.app.tail_eval import ENV_ID
+    from macrostate_mj.app.experiments.learned_tail.tail_eval import ENV_ID
     from macrostate_mj.tails.srs import SRSTail
 
     class Far:
@@ -122,7 +122,7 @@ def test_the_srs_tail_acts_on_log_ticks_within_the_bounds():
 def test_the_2x_heuristic_is_an_estimator_by_name_with_its_own_policy_folder(tmp_path):
     from estimators.retlo.heuristic import Heuristic2X
     from macrostate_mj.app.experiments.learned_tail import estimator_inputs
-    from macrostate_mj.app.tail_eval import make_env
+    from macrostate_mj.app.experiments.learned_tail.tail_eval import make_env
     from macrostate_mj.tails.ppo import PPOSpec, folder_for
 
     env = make_env("heuristic2x", 5.0)

@@ -279,7 +279,7 @@ def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, m
     end to end is `test_sysid`'s): each fitted factor is made of its data's size, and each
     collection is the stand-in lab with as many Train rows dropped, so every fit trains its
     own models (fit k makes factor 1 + k / 10 and drops k rows)."""
-    import collectors.sysid
+    import macrostate_mj.app.usecases.sysid
 
     seen = {}
 
@@ -296,7 +296,7 @@ def test_nested_fits_see_only_their_fold_s_training_blocks(stand_in, tmp_path, m
         shutil.copy(stand_in / "Val.csv", out / "Val.csv")
         return out
 
-    monkeypatch.setattr(collectors.sysid, "fit", fit)
+    monkeypatch.setattr(macrostate_mj.app.usecases.sysid, "fit", fit)
     monkeypatch.setattr(sim2real.data, "_collect", lab)
     config = replace(PROFILES["quick"], real=stand_in, arms=("sim", "real"),
                      fits=("fold", "train"), randomize=("wide",))
@@ -480,7 +480,7 @@ def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tm
     """`--train-only`: the folds are cut from Train.csv alone and a `--fit train` is checked
     on Train's last 15 %; a folder without Val.csv is enough, so the sealed file is never
     read (its absence proves it)."""
-    import collectors.sysid
+    import macrostate_mj.app.usecases.sysid
 
     seen = []
 
@@ -493,7 +493,7 @@ def test_train_only_cross_validates_without_reading_the_sealed_file(stand_in, tm
     folder = tmp_path / "train_only"
     folder.mkdir()
     shutil.copy(stand_in / "Train.csv", folder / "Train.csv")
-    monkeypatch.setattr(collectors.sysid, "fit", fit)
+    monkeypatch.setattr(macrostate_mj.app.usecases.sysid, "fit", fit)
     monkeypatch.setattr(sim2real.data, "_collect", lab)
     config = replace(PROFILES["quick"], real=folder, arms=("sim", "real"), fits=("train",),
                      randomize=("wide",), train_only=True)

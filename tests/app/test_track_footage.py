@@ -172,7 +172,7 @@ def test_an_evenly_restamped_video_without_its_sidecar_is_refused_by_the_motion(
     """With no sidecar to say so, the robots' motion does: across a hidden gap every robot
     moving steadily goes twice its way (`hidden_drop`); the true times never raise it. Twenty
     seconds, so that the chain has got going."""
-    from macrostate_mj.app.track import hidden_drop
+    from macrostate_mj.app.usecases.track import hidden_drop
 
     res = cli("simulate", "--scenario", str(footage / "drop.toml"), "--robots", "4",
               "--seconds", "20", "--seed", "3", "--track", "--camera-video",
@@ -272,7 +272,7 @@ def test_the_exit_1_line_names_the_likeliest_cause(where, share, cause):
 
     import mujoco
 
-    from macrostate_mj.app.track import missed_line
+    from macrostate_mj.app.usecases.track import missed_line
     from macrostate_mj.chain.scenarios import get_scenario
     from macrostate_mj.chain.world import build_world
     from macrostate_mj.vision.trackers import tracker_for
@@ -296,7 +296,7 @@ def test_the_exit_1_line_names_the_likeliest_cause(where, share, cause):
 def test_sampled_frames_are_the_frames_asked_for_sought_or_decoded_on(tmp_path):
     """1200 frames (samples 80 apart: sought from key frames, x264 puts one every 250), each
     filled with its index: the frames handed to the team check are the ones spread evenly."""
-    from macrostate_mj.app.track import probe, sample_frames
+    from macrostate_mj.app.usecases.track import probe, sample_frames
     from viz.video import CameraMp4Writer
 
     writer = CameraMp4Writer(tmp_path / "long.mp4", 4, (32, 16))

@@ -9,11 +9,11 @@ from builders import drive
 from macrostate_mj.chain.health import Fault, PhysicsError
 from macrostate_mj.chain.motion import body_twist
 from macrostate_mj.chain.parked import parked
+from macrostate_mj.chain.physics_soak import soak, soak_tasks, summary
 from macrostate_mj.chain.planners import FixedWaypoint
 from macrostate_mj.chain.scenario import steps_per_tick
 from macrostate_mj.chain.scenarios import SCENARIOS, get_scenario
 from macrostate_mj.chain.sim import ChainSim, Every, PoseLog, simulate_poses
-from macrostate_mj.chain.soak import soak, soak_tasks, summary
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.core.errors import UserError

@@ -8,10 +8,10 @@ import pytest
 from builders import drive
 
 from macrostate_mj.chain.markers import marker_colours, taken_for_marker
+from macrostate_mj.chain.physics_soak import soak, soak_tasks, summary
 from macrostate_mj.chain.robot import known_robots, load_robot
 from macrostate_mj.chain.scenarios import SCENARIOS
 from macrostate_mj.chain.sim import ChainSim
-from macrostate_mj.chain.soak import soak, soak_tasks, summary
 from macrostate_mj.chain.world import build_world
 from macrostate_mj.core.angles import wrap_angle
 from macrostate_mj.core.errors import UserError

@@ -193,7 +193,7 @@ def _episodes(out):
 def test_the_srs_phases_follow_collect_s_progress_callback():
     """`collect` reports (episodes, sim minutes, of them resumed); each SRS phase's reporter
     takes the same three (the CLI's `collect --policy srs` drives a bar with them)."""
-    from collectors.srs import _reporter
+    from collectors.srs_collection import _reporter
 
     seen = []
     _reporter(lambda *args: seen.append(args), "RO phase", 4)(2, 1.0, 0.5)

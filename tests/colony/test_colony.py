@@ -9,7 +9,7 @@ import pytest
 from clitools import cli_inprocess
 
 import macrostate_mj  # noqa: F401  (sets MUJOCO_GL before mujoco loads)
-from macrostate_mj.colony.sim import (
+from macrostate_mj.colony.colony_sim import (
     BEHAVIOURS,
     DUEL,
     HEAD_TIP,

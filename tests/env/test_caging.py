@@ -7,7 +7,7 @@ import pytest
 from clitools import cli
 
 import macrostate_mj.env  # noqa: F401  (registers the ids)
-from macrostate_mj.chain.caging import (
+from macrostate_mj.chain.caging_mission import (
     CagingConfig,
     cage_report,
     circling_centre,

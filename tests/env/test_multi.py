@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from clitools import cli
 
-from macrostate_mj.chain.caging import CagingConfig, start_poses
+from macrostate_mj.chain.caging_mission import CagingConfig, start_poses
 from macrostate_mj.chain.team import ring_order, split_branches, team_start_poses
 from macrostate_mj.core.errors import UserError
 
@@ -164,7 +164,7 @@ def test_experiment_caging_multi_quick(tmp_path):
 def test_the_team_rehearsals_are_every_chains_consecutive_triples():
     """The two-chain ReTLo arm's estimator rehearses on the team: each chain's three-robot
     windows, Head first (chains H-A1-A2-TA and H-B1-TB: three triples, two holding the Head)."""
-    from collectors.caging import team_rehearsal_runs
+    from collectors.caging_runs import team_rehearsal_runs
 
     runs = team_rehearsal_runs(1, 3.0)
     assert runs.shape[0] == 3 and runs.shape[2:] == (3, 3)

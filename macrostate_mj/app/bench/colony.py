@@ -12,7 +12,7 @@ import numpy as np
 
 from macrostate_mj.app.bench import SUITES, figure
 from macrostate_mj.app.bench.sim import _best_of
-from macrostate_mj.colony.sim import Colony, ColonyConfig
+from macrostate_mj.colony.colony_sim import Colony, ColonyConfig
 
 
 @SUITES.register("colony", rank=70)

@@ -130,7 +130,7 @@ def bench_env(seconds: float = 60.0) -> list[dict]:
     LocalizeTail (>= 0.77). ExploreTail on lab with 3 robots, CagingTail on robotarium with 6,
     LocalizeTail on webots with 5 (its default estimator, `env.estimated.DEFAULT_CHECKPOINT`)."""
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.chain.caging import CagingConfig, CagingMission
+    from macrostate_mj.chain.caging_mission import CagingConfig, CagingMission
     from macrostate_mj.env.estimated import load_estimator, localize_tail
     from macrostate_mj.env.gym import TailEnv
 

@@ -98,14 +98,14 @@ def collect(
 
 def _tracking_line(written: dict) -> None:
     """The collection's one-line tracking health, from its manifest."""
-    from macrostate_mj.app.simulate import tracking_summary
+    from macrostate_mj.app.usecases.simulate import tracking_summary
 
     typer.echo(f"{'tracking':<16} {tracking_summary(written['manifest'])}")
 
 
 def _collect_srs(req, pick: str, instances: int, ro_instances: int, k: int,
                  track: bool) -> None:
-    from collectors.srs import SRSRequest, collect_srs
+    from collectors.srs_collection import SRSRequest, collect_srs
     from estimators.srs.novelty import NoveltyTraining
     from macrostate_mj.core.progress import LoggedProgress
 

@@ -55,7 +55,7 @@ def flow(
     overwrite: bool = Switch(False, "Replace samples already there."),
 ) -> None:
     """Video or frames -> optical-flow samples (flow_x/flow_y/img JPEGs, 64 × 64, 128 = still)."""
-    from macrostate_mj.app.oneclass import flow as run_flow
+    from macrostate_mj.app.usecases.oneclass import flow as run_flow
 
     target, ids = run_flow(out, video, frames, every, gap, m, method, label, start_id,
                            _crop(crop), fps, overwrite)
@@ -88,7 +88,7 @@ def oc_train(
 ) -> None:
     """Train a one-class model on stable samples only; model selection on held-out stable data."""
     from estimators.oneclass import OCConfig
-    from macrostate_mj.app.oneclass import train
+    from macrostate_mj.app.usecases.oneclass import train
 
     methods = tuple(METHODS) if "all" in method else tuple(dict.fromkeys(method))
     cfg = OCConfig.recipe(recipe, m=m, seed=seed, threads=threads, device=device,
@@ -114,7 +114,7 @@ def oc_evaluate(
 ) -> None:
     """AUC of stable test vs unstable samples (unstable = positive), overall and per time bin,
     with bootstrap intervals and, against a baseline, paired p-values."""
-    from macrostate_mj.app.oneclass import evaluate
+    from macrostate_mj.app.usecases.oneclass import evaluate
 
     report = evaluate(model, data, out, split, method, unstable, baseline, intervals, overwrite,
                       lambda line: typer.echo(line, err=True))

@@ -1,4 +1,4 @@
-"""`stats`, `train retlo`, `evaluate retlo`, `experiment retlo`: ThymioLoc data and ReTLo models."""
+"""`train retlo`, `evaluate retlo`, `calibrate retlo`: ReTLo models on ThymioLoc data."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from estimators.retlo import MODEL_KINDS
-from macrostate_mj.app.cli.app import app, calibrate_app, evaluate_app, train_app
+from macrostate_mj.app.cli.app import calibrate_app, evaluate_app, train_app
 from macrostate_mj.app.params import (
     CSV,
     Chained,
@@ -17,7 +17,6 @@ from macrostate_mj.app.params import (
     History,
     InputFile,
     InputFileOr,
-    InputFiles,
     OutputFile,
     Positive,
     Precision,
@@ -31,71 +30,6 @@ from macrostate_mj.env.estimated import HEURISTIC
 if TYPE_CHECKING:
     from estimators.retlo.chain import Module
 
-
-
-@app.command()
-def stats(
-    csv: list[Path] = InputFiles("ThymioLoc CSV files (real or from `collect`).", CSV),
-    px_per_cm: float = PxPerCm,
-    as_json: bool = Switch(False, "One JSON object per file (its path, then the figures).",
-                           "--json/--table"),
-    compare: bool = Switch(False, "Two files (SIM REAL): compare distributions, per robot and "
-                           "pooled, with the Kolmogorov-Smirnov distance of each feature."),
-    rank: bool = Switch(False, "With --compare: the statistics ranked by how far apart the "
-                        "two files are (worst robot's KS; an autocorrelation's ten lags as one), "
-                        "with the lab parameters that shape each."),
-    plot: Path = OutputFile(None, "With --compare: histograms side by side to this PNG.",
-                            (".png",)),
-    effects: Path = InputFile(None, "With --rank: an `experiment sim2real --ablate` run's "
-                              "results.json; beside each statistic, what switching off each "
-                              "parameter group that shapes it does to the sim-only Head error.",
-                              (".json",)),
-    overwrite: bool = Switch(False, "Replace an existing --plot."),
-) -> None:
-    """Neighbour spacing, per-robot speed and |turn rate| of ThymioLoc files, side by side;
-    with --compare, the distributions of two files and their KS distances."""
-    import json
-    from dataclasses import asdict
-
-    from rich.console import Console
-    from rich.table import Table
-
-    from macrostate_mj.core.errors import UserError
-    from macrostate_mj.formats.thymioloc import chain_stats, read_csv
-
-    if compare or plot is not None or rank or effects is not None:
-        if not compare or len(csv) != 2:
-            raise UserError("--compare takes exactly two files (SIM.csv REAL.csv), and --plot "
-                            "and --rank need --compare")
-        if effects is not None and not rank:
-            raise UserError("--effects puts the estimator's sensitivity beside the ranked "
-                            "gap; add --rank")
-        _compare(csv, px_per_cm, plot, overwrite, as_json, rank,
-                 None if effects is None else _ablations(effects))
-        return
-    found = [(p, chain_stats(read_csv(p).poses, px_per_cm)) for p in csv]
-    if as_json:
-        for path, stats in found:
-            print(json.dumps({"file": str(path), "px_per_cm": px_per_cm, **asdict(stats)}))
-        return
-    table = Table(title=f"ThymioLoc statistics ({px_per_cm:g} px/cm, 2 Hz)")
-    table.add_column("")
-    unique = len({p.name for p, _ in found}) == len(found)
-    for path, _ in found:       # the shortest label that tells the files apart
-        table.add_column(path.name if unique else f"{path.parent.name}/{path.name}",
-                         justify="right")
-    table.add_row("instances x steps", *(f"{s.n_instances} x {s.n_steps}" for _, s in found))
-    table.add_row("robots", *(str(len(s.robots)) for _, s in found))
-    table.add_row("spacing cm, mean ± std", *(f"{s.spacing_cm[0]:.1f} ± {s.spacing_cm[1]:.1f}"
-                                               for _, s in found))
-    table.add_row("spacing cm, 5th-95th pct", *(f"{s.spacing_cm[2]:.1f}-{s.spacing_cm[3]:.1f}"
-                                                 for _, s in found))
-    robots = max((s.robots for _, s in found), key=len)
-    for what, attr, unit in (("speed", "speed_cm_s", "cm/s"), ("|turn|", "turn_deg_s", "°/s")):
-        for r in robots:
-            table.add_row(f"{what} {r} {unit}", *(f"{getattr(s, attr)[r]:.1f}"
-                                                  if r in s.robots else "-" for _, s in found))
-    Console().print(table)
 
 
 @train_app.command("retlo")
@@ -141,8 +75,8 @@ def train_retlo(
     both at once (--mix)."""
     from estimators.retlo.models import ModelConfig
     from estimators.retlo.train import ENCODER, TrainConfig
-    from macrostate_mj.app.retlo_train import TrainingInterrupted, TrainRequest
-    from macrostate_mj.app.retlo_train import train as run_train
+    from macrostate_mj.app.usecases.retlo_train import TrainingInterrupted, TrainRequest
+    from macrostate_mj.app.usecases.retlo_train import train as run_train
 
     cfg = TrainConfig(epochs=epochs, patience=patience, seed=seed, chained=chained, lr=lr,
                       frozen=ENCODER if freeze_encoder else (), precision=precision,
@@ -190,7 +124,7 @@ def evaluate_retlo(
 ) -> None:
     """Errors (cm) of every robot the Tail cannot see, per robot and per step; for models
     with uncertainty, their calibration."""
-    from macrostate_mj.app.retlo_eval import evaluate_request, outputs_checked
+    from macrostate_mj.app.usecases.retlo_eval import evaluate_request, outputs_checked
 
     outputs_checked(out, video, rerun, overwrite)
     module, name = _load_predictor(model)
@@ -227,7 +161,7 @@ def calibrate_retlo(
     """Refit a Gaussian ReTLo model's uncertainty (its covariance scale and the radii of its
     50 %/90 % regions) on other chains, as training does on its validation file: for chains
     unlike that file (longer, another lab) without retraining."""
-    from macrostate_mj.app.retlo_train import calibrate
+    from macrostate_mj.app.usecases.retlo_train import calibrate
 
     record = calibrate(model, val, out, seed, px_per_cm, overwrite)
     radii = "; ".join(f"{r['50%']:.3g} / {r['90%']:.3g}" for r in record["region_radius2"])
@@ -263,93 +197,3 @@ def _load_one(model: str) -> tuple[Module, str]:
                         f"or {HEURISTIC}")
     net, ckpt = load_checkpoint(model)
     return TorchPredictor(net), str(ckpt["kind"])
-
-
-def _compare(csv: list[Path], px_per_cm: float, plot: Path | None, overwrite: bool,
-             as_json: bool, rank: bool = False, effects: dict | None = None) -> None:
-    import json
-
-    from rich.console import Console
-    from rich.table import Table
-
-    from macrostate_mj.core.io import check_writable_file
-    from macrostate_mj.formats import motion_stats
-    from macrostate_mj.formats.thymioloc import read_csv
-
-    if plot is not None:
-        check_writable_file(plot, overwrite, "--plot")
-    poses = [read_csv(p).poses for p in csv]
-    motion_stats.check_comparable(poses[0].shape, poses[1].shape, (csv[0].name, csv[1].name))
-    feats = [motion_stats.features(p, px_per_cm) for p in poses]
-    rows = motion_stats.compare(*feats)
-    if plot is not None:
-        from viz.compare_figures import compare_figure
-
-        compare_figure(plot, *feats, rows, (csv[0].name, csv[1].name))
-    if rank:
-        _ranked(csv, rows, as_json, effects)
-        return
-    if as_json:
-        for row in rows:
-            print(json.dumps({"files": [str(p) for p in csv], **row}))
-        return
-    table = Table(title=f"{csv[0].name} vs {csv[1].name}: median (mean) and KS distance")
-    for col in ("feature", "robot", csv[0].name, csv[1].name, "KS", "p"):
-        table.add_column(col, justify="left" if col in ("feature", "robot") else "right")
-    for r in rows:
-        if r["feature"].endswith(tuple(f"lag{k}" for k in range(2, 11))) and r["robot"] != "pooled":
-            continue            # lags 2..10 pooled only; --json has every row
-        table.add_row(r["feature"], r["robot"],
-                      *(f"{r['median'][i]:.3g} ({r['mean'][i]:.3g})" for i in (0, 1)),
-                      f"{r['ks']:.3f}", f"{r['p']:.2g}")
-    Console(width=120).print(table)
-    if plot is not None:
-        print(f"plot      {plot}")
-
-
-
-def _ablations(path: Path) -> dict:
-    """The `ablations` of a sim2real results.json; one-line errors otherwise."""
-    import json
-
-    from macrostate_mj.core.errors import UserError
-
-    try:
-        found = json.loads(path.read_text()).get("ablations")
-    except (ValueError, AttributeError):
-        found = None
-    if not isinstance(found, dict) or not found:
-        raise UserError(f"--effects {path}: no ablations in it; pass the results.json of an "
-                        "`experiment sim2real --ablate ...` run")
-    return found
-
-
-def _ranked(csv: list[Path], rows: list[dict], as_json: bool,
-            effects: dict | None = None) -> None:
-    """`stats --compare --rank`: the gap between two files, its largest statistic first."""
-    import json
-
-    from rich.console import Console
-    from rich.table import Table
-
-    from collectors.gap import ranked_gap
-
-    ranked = ranked_gap(rows, effects)
-    if as_json:
-        for row in ranked:
-            print(json.dumps({"files": [str(p) for p in csv], **row}))
-        return
-    table = Table(title=f"{csv[0].name} vs {csv[1].name}: statistics ranked by the worst "
-                  "robot's KS distance")
-    columns = ["#", "statistic", "worst", "each robot (pair)", "sum", "shaped in the lab by"]
-    for col in columns + (["Head error without it (cm)"] if effects is not None else []):
-        table.add_column(col, justify="right" if col in ("#", "sum") else "left")
-    for i, r in enumerate(ranked, 1):
-        cells = [str(i), r["statistic"], f"{r['worst']} {r['ks'][r['worst']]:.3f}",
-                 "  ".join(f"{who} {ks:.3f}" for who, ks in r["ks"].items()),
-                 f"{r['sum']:.2f}", ", ".join(r["shaped_by"]) or "-"]
-        if effects is not None:
-            cells.append("; ".join(f"{g} {d['mean']:+.2f} [{d['low']:+.2f}, {d['high']:+.2f}]"
-                                   for g, d in r["effects"].items()) or "-")
-        table.add_row(*cells)
-    Console(width=150 if effects is None else 210).print(table)

@@ -55,8 +55,8 @@ def soak(
 ) -> None:
     """Run many seeds and count tips, NaNs, escapes, climbing and obstacle intrusions; exit 1
     if any run faulted. With --track, judge every run's tracking health instead."""
-    from macrostate_mj.app.soak import check
-    from macrostate_mj.app.soak import soak as run_soak
+    from macrostate_mj.app.usecases.soak import check
+    from macrostate_mj.app.usecases.soak import soak as run_soak
     from macrostate_mj.core.progress import sim_progress
 
     with sim_progress(seeds, f"soak {scenario.name} {robots} robots", unit="runs") as bar:

@@ -47,7 +47,7 @@ def sysid(
     """System identification of a scenario (`lab` unless named): gains, speed caps, the wait
     rule's slack and the tracker's noise that make the motion distributions match the real
     Train file (checked on Val)."""
-    from collectors.sysid import CHECK_SHARE, SysidConfig, sysid
+    from macrostate_mj.app.usecases.sysid import CHECK_SHARE, SysidConfig, sysid
     from macrostate_mj.core.progress import LoggedProgress
 
     cfg = SysidConfig(scenario=scenario, robots=robots, minutes=minutes, seed=seed, first=first,

@@ -41,7 +41,12 @@ def track(
 ) -> None:
     """Track a recorded video with the scenario's camera and tracker into a pose log and
     ThymioLoc instances, as a simulated run's would be."""
-    from macrostate_mj.app.track import TrackRequest, check_request, detected_line, track_video
+    from macrostate_mj.app.usecases.track import (
+        TrackRequest,
+        check_request,
+        detected_line,
+        track_video,
+    )
     from macrostate_mj.core.progress import sim_progress
 
     req = TrackRequest(video, scenario, robots, out, overwrite, px_per_cm, times, fps)

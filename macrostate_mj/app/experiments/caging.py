@@ -17,7 +17,7 @@ Per policy over the seeds: success rate (caged before the time limit), time to c
 spacing's coefficient of variation (mean ± std), and Fig 2.3-style snapshots of the first seed.
 
 This module composes: the scripted Tail and the oracle are `chain.caging`'s, the episode, the
-live head source and the estimator's runs `collectors.caging`'s, the recordings
+live head source and the estimator's runs `collectors.caging_runs`'s, the recordings
 `viz.caging_video`'s, the estimator `estimators.retlo`'s.
 """
 
@@ -76,7 +76,7 @@ def run_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None = 
     the Tail's estimate of the Head drawn in, a rerun recording, when asked)."""
     import gymnasium
 
-    from collectors.caging import run_caging_episode
+    from collectors.caging_runs import run_caging_episode
     from viz.caging_video import caging_recorders
 
     env = gymnasium.make("macrostate_mj/CagingTail-v0", time_limit=cfg.time_limit)
@@ -135,12 +135,12 @@ class EstimatorTask:
     @staticmethod
     def rehearse(runs: int, seconds: float) -> np.ndarray:
         """The rehearsal runs: passive-Tail caging episodes of the line team."""
-        from collectors.caging import rehearsal_runs
+        from collectors.caging_runs import rehearsal_runs
 
         return rehearsal_runs(runs, seconds)
 
     def compute(self) -> dict[str, bytes]:
-        from collectors.caging import estimator_runs
+        from collectors.caging_runs import estimator_runs
         from estimators.retlo.mlp import fit_runs
 
         t = self.training
@@ -168,7 +168,7 @@ class Results(Record):
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Every policy on every seed; results.json, snapshots.png, videos; summary lines."""
     from estimators.retlo.mlp import ChainedMLP
-    from macrostate_mj.chain.caging import CagingConfig
+    from macrostate_mj.chain.caging_mission import CagingConfig
     from viz.caging_figures import plot_snapshots
 
     with progress.stage("train_retlo"):

@@ -80,7 +80,7 @@ class TeamEstimatorTask(caging.EstimatorTask):
 
     @staticmethod
     def rehearse(runs: int, seconds: float) -> np.ndarray:
-        from collectors.caging import team_rehearsal_runs
+        from collectors.caging_runs import team_rehearsal_runs
 
         return team_rehearsal_runs(runs, seconds)
 
@@ -90,7 +90,7 @@ def team_episode(policy: str, seed: int, cfg: Config, model: ChainedMLP | None =
     """One seeded episode of the two-chain team, its Tails scripted (`two_tails`, fed the
     truth; `two_tails_retlo`, fed `model` live) or passive."""
     from estimators.retlo.online import OnlineChain
-    from macrostate_mj.chain.caging import cage_report
+    from macrostate_mj.chain.caging_mission import cage_report
     from macrostate_mj.env.multi import parallel_env
     from macrostate_mj.tails.caging import LiveHeadSource, SideTails, oracle_source
 

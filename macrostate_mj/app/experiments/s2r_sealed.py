@@ -60,6 +60,7 @@ from macrostate_mj.core.run import code, config_hash
 from macrostate_mj.core.stats import mean_std, two_level_bootstrap
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv
 
+REAL_DATA = ("retlo",)   # the published datasets it reads (`data fetch NAME`)
 PRODUCTS = ["results.json"]
 SEALED = True       # a look is counted: `experiment all` never takes one
 ARMS = ("lab", "real", "quarter", "all")    # what each seed trains, in this order

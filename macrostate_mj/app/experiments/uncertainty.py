@@ -37,6 +37,7 @@ from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
+REAL_DATA = ("retlo",)   # the published datasets it reads (`data fetch NAME`)
 PRODUCTS = ["results.json"]
 HEADS = {"point": POINT, "gaussian": GAUSSIAN}
 PARTICLES = 32      # `evaluate retlo`'s Monte Carlo draws (3-robot data draws none)

@@ -25,11 +25,10 @@ from macrostate_mj.core.records import Record
 from macrostate_mj.core.registry import Registry
 
 R = TypeVar("R", bound=Record)
-# where sources live: beside the experiments, the bench and the soak that write what they read
-PACKAGES = ("macrostate_mj.app.experiments", "macrostate_mj.app.results",
-            "macrostate_mj.app.bench")
-SOURCES: Registry[Callable[..., object]] = Registry(
-    "results source", modules=["macrostate_mj.app.soak"], packages=PACKAGES)
+# where sources live: beside the experiments, use cases and bench that write what they read
+PACKAGES = ("macrostate_mj.app.experiments", "macrostate_mj.app.usecases",
+            "macrostate_mj.app.bench", "macrostate_mj.app.results")
+SOURCES: Registry[Callable[..., object]] = Registry("results source", packages=PACKAGES)
 _ROOTS: list[Path] = []          # the results folder being read (`reading`)
 
 

@@ -45,6 +45,7 @@ from macrostate_mj.core.records import OPTIONAL, Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
+REAL_DATA = ("hsants", "hsants-dev")   # the published datasets it reads (`data fetch NAME`)
 PRODUCTS = ["results.json", "tables.md", "fig4_7_flow_weight.png", "fig4_8_bins.png",
             "fig4_9_flows.png", "fig4_10_distances.png", "gradcam"]
 

@@ -57,6 +57,7 @@ from macrostate_mj.core.stats import cv_blocks, mean_std
 from macrostate_mj.env.estimated import HEURISTIC
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
+REAL_DATA = ("retlo",)   # the published datasets it reads (`data fetch NAME`)
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models"]
 CV_TEST = "cross-validated train + val"
 CV_VAL_SHARE = 0.15     # of each fold's training blocks, the last share selects

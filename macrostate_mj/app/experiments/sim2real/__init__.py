@@ -55,6 +55,7 @@ from macrostate_mj.app.experiments.sim2real.config import (
     PARALLEL,
     PRODUCTS,
     PROFILES,
+    REAL_DATA,
     TUNED,
     Config,
     configure,
@@ -84,7 +85,7 @@ from macrostate_mj.app.experiments.sim2real.report import (
 from macrostate_mj.core.stats import cv_blocks
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
-__all__ = ["FLAGS", "PARALLEL", "PRODUCTS", "PROFILES", "TUNED", "Config", "ModelTask",
+__all__ = ["FLAGS", "PARALLEL", "PRODUCTS", "PROFILES", "REAL_DATA", "TUNED", "Config", "ModelTask",
            "Results", "arm_task", "candidates", "configure", "equivalent_fraction", "fold_of",
            "missing", "read_real", "share", "sim_task", "train_models", "validate"]
 

@@ -27,6 +27,7 @@ from macrostate_mj.chain.scenarios import ScenarioRef, get_scenario
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.paths import real_thymioloc
 
+REAL_DATA = ("retlo",)   # the published datasets it reads (`data fetch NAME`)
 PRODUCTS = ["results.json", "sim2real.png"]
 ARMS = ("sim", "real", "finetune", "mixed", "finetune-mixed", "finetune-frozen")
 MIXING = ("mixed", "finetune-mixed")      # the arms that mix the lab data into the loss

@@ -146,7 +146,7 @@ def _fitted_lab(config: Config, train: np.ndarray, val: np.ndarray, out: Path, n
     `out / "data"`. The candidates' collections of the fit are cached in `out / "sysid"`,
     shared by every fit of the run."""
     from collectors.randomize import around
-    from collectors.sysid import SysidConfig, fit
+    from macrostate_mj.app.usecases.sysid import SysidConfig, fit
 
     cfg = SysidConfig(scenario=config.lab, robots=3, minutes=config.sysid_minutes,
                       seed=config.sim_seed, first=config.sysid_first,
@@ -181,7 +181,7 @@ def lab_data(config: Config, fit: str, pooled: np.ndarray, folds: list[tuple], o
             None if r == PLAIN else r)] * len(folds)
             for r in config.candidates}, {}
     if fit == "train":
-        from collectors.sysid import split_check
+        from macrostate_mj.app.usecases.sysid import split_check
 
         n_train = len(read_csv(config.real / REAL_FILES[0]).poses)
         train, check = split_check(pooled) if config.train_only else (

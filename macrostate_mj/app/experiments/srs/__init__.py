@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from collectors.runner import CollectRequest, collect, finished
-from collectors.srs import SRSRequest, collect_srs, episodes_for, finished_srs
+from collectors.srs_collection import SRSRequest, collect_srs, episodes_for, finished_srs
 from macrostate_mj.app.experiments import Parallel, Progress, register
 from macrostate_mj.app.params import Count, Precision, Seed, flag
 from macrostate_mj.chain.scenarios import ScenarioRef

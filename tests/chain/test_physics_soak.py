@@ -5,7 +5,7 @@ import shutil
 
 from clitools import cli_inprocess
 
-import macrostate_mj.chain.soak as soak_module
+import macrostate_mj.chain.physics_soak as soak_module
 
 
 def test_an_interrupted_soak_resumes_from_its_finished_seeds(monkeypatch, capsys, tmp_path):

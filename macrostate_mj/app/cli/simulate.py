@@ -51,7 +51,7 @@ def simulate(
     overwrite: bool = Switch(False, "Replace existing outputs."),
 ) -> None:
     """Simulate a robot chain; write its pose log (and optionally a video and a rerun file)."""
-    from macrostate_mj.app.simulate import SimulateRequest, check_request, simulate_run
+    from macrostate_mj.app.usecases.simulate import SimulateRequest, check_request, simulate_run
     from macrostate_mj.chain.scenarios import scenario_for
 
     req = SimulateRequest(scenario_for(scenario, head_speed), robots, seconds, seed, out, video,
@@ -63,7 +63,7 @@ def simulate(
     for kind, path in written.items():
         typer.echo(f"{kind:<9} {path}")
     if track:
-        from macrostate_mj.app.simulate import tracking_summary
+        from macrostate_mj.app.usecases.simulate import tracking_summary
 
         typer.echo(f"tracking  {tracking_summary(written['manifest'])}")
 

@@ -10,7 +10,7 @@ import pytest
 from clitools import cli
 
 from collectors.randomize import ABSOLUTE
-from collectors.sysid import (
+from macrostate_mj.app.usecases.sysid import (
     FITTED,
     SysidConfig,
     best_still,

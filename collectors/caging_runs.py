@@ -15,7 +15,7 @@ import gymnasium
 import numpy as np
 
 from collectors.robotarium import K_T_FACTORS, noisy_replicas, training_runs
-from macrostate_mj.chain.caging import CagingConfig, CagingMission, cage_report, start_poses
+from macrostate_mj.chain.caging_mission import CagingConfig, CagingMission, cage_report, start_poses
 from macrostate_mj.chain.scenarios import SCENARIOS
 from macrostate_mj.chain.sim import ChainSim, Every
 from macrostate_mj.chain.team import (

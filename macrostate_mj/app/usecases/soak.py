@@ -23,8 +23,8 @@ def soak(scenario: ScenarioConfig, robots: int, seeds: int, seconds: float, firs
          workers: int, ray: str | None, check_hz: float, out: Path | None, track: bool,
          overwrite: bool, bar: Callable[..., None] | None = None) -> tuple[dict, list]:
     """The summary row and every seed's run (in seed order); `bar(done, cached)` follows them."""
-    from macrostate_mj.chain.soak import run_records, soak_tasks, summary
-    from macrostate_mj.chain.soak import soak as run_soak
+    from macrostate_mj.chain.physics_soak import run_records, soak_tasks, summary
+    from macrostate_mj.chain.physics_soak import soak as run_soak
     from macrostate_mj.core.cache import TaskCache
     from macrostate_mj.core.io import write_json_atomic
     from macrostate_mj.core.run import Run
@@ -56,7 +56,7 @@ def check(runs: list, scenario: ScenarioConfig, robots: int, seconds: float,
           track: bool) -> None:
     """A `RunFailure` naming the first unhealthy (tracked) or faulted seed, with the
     `simulate` command that reproduces it; nothing when every run was sound."""
-    from macrostate_mj.app.simulate import SimulateRequest, reproduce_command
+    from macrostate_mj.app.usecases.simulate import SimulateRequest, reproduce_command
 
     failures = (([r for r in runs if r.findings] if track else []), "tracked unhealthily",
                 lambda r: r.findings[0], track), \

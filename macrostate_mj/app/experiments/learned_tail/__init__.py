@@ -148,7 +148,7 @@ class Results(Record):
 def run(cfg: Config, out: Path, progress: Progress) -> list[str]:
     """Train (or resume) the policy, tune the scripted Tail, evaluate every Tail; results.json,
     learning_curve.png; summary lines."""
-    from macrostate_mj.app import tail_eval
+    from macrostate_mj.app.experiments.learned_tail import tail_eval
     from macrostate_mj.env.estimated import DEFAULT_CHECKPOINT
     from macrostate_mj.tails import ppo
     from viz.learned_tail_figures import plot_learning_curve
@@ -207,9 +207,10 @@ def estimator_inputs(checkpoint: str | None) -> list:
 def srs_models(cfg: Config, out: Path, workers: int) -> Any:
     """SRS-Med's novelty models: an SRS collection of 3 robots in the env's scenario (seed
     `SRS_SEED`), its RO phase of `srs_ro_instances` instances at σ, then the one SR instance
-    the collection needs (`collectors.srs`; cached, resumed); the stored models' source."""
+    the collection needs (`collectors.srs_collection`; cached, resumed); the stored models'
+    source."""
     from collectors.runner import CollectRequest
-    from collectors.srs import NOVELTY, SRSRequest, collect_srs, finished_srs
+    from collectors.srs_collection import NOVELTY, SRSRequest, collect_srs, finished_srs
     from estimators.srs.novelty import NoveltyTraining
     from macrostate_mj.env.estimated import ID_DEFAULTS
 
@@ -227,7 +228,7 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
               progress: Progress, videos: Path) -> list[dict]:
     """Every Tail on every evaluation seed; seed 0's episode of each also as a video with the
     estimates drawn (`videos/<policy>_seed0.mp4`)."""
-    from macrostate_mj.app import tail_eval
+    from macrostate_mj.app.experiments.learned_tail import tail_eval
     from macrostate_mj.tails import Tail
     from macrostate_mj.tails.learned import Learned, shield_limit
     from macrostate_mj.tails.scripted import ChainOffset, Passive, RandOnly
@@ -269,7 +270,7 @@ def _evaluate(cfg: Config, model: object, tuned: dict | None, novelty: Any,
 
 
 def _summary(eps: list[dict], passive: list[dict]) -> dict:
-    from macrostate_mj.app.tail_eval import paired_vs
+    from macrostate_mj.app.experiments.learned_tail.tail_eval import paired_vs
 
     return {"seeds": len(eps), "head_error_m": mean_std([e["head_error_m"] for e in eps]),
             "all_error_m": mean_std([e["all_error_m"] for e in eps]),
