@@ -146,15 +146,15 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
 def ch3_gap(folder: str) -> Table:
     """`experiment ch3-gap`: each model's 5-robot error, its validation error, and its Head
     error per 3-robot module given true inputs (cm; one dataset and one model each)."""
-    data = record(Results, folder).as_json()
-    first = next(iter(data["scenarios"]))  # type: ignore[index]
+    data = record(Results, folder)
+    first = next(iter(data.scenarios))
     rows: Table = []
     for part, label in (("scenarios", "scenario"), ("variants", f"training on {first}")):
-        for name, r in data[part].items():  # type: ignore[index]
+        for name, r in getattr(data, part).items():
             if part == "variants" and name == "ours":
                 continue                    # the first scenario's row already
             rows.append([label, name, f"{r['all_cm']:.1f}", f"{r['best_val_cm']:.1f}",
                          *(f"{v:.1f}" for v in r["modules_cm"].values())])
-    modules = list(data["scenarios"][first]["modules_cm"])  # type: ignore[index]
+    modules = list(data.scenarios[first]["modules_cm"])
     return [["", "", "5-robot error", "validation", *modules], *rows]
 

@@ -137,7 +137,7 @@ def _scores(models: dict, world) -> dict:
 @source
 def uncertainty(folder: str, split: str) -> Table:
     """Point against Gaussian ReTLo (and their ensemble): mean error (cm) and calibration."""
-    data = record(Results, folder).as_json()[split]  # type: ignore[index]
+    data = getattr(record(Results, folder), split)
     cal = data["gaussian_calibration"]
     rows = [["model", "mean error (cm)", "coverage_50", "coverage_90", "NLL"]]
     rows.append(["point", ms(data["point_cm"], ".2f"), "", "", ""])

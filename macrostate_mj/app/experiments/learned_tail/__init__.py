@@ -290,7 +290,7 @@ def _p(p: float | None) -> str:
 def learned_tail(folder: str) -> Table:
     """Each Tail's frozen-estimator error (cm) on held-out seeds, its paired test against the
     Passive Tail, the chain's spacing and its breaks."""
-    table = record(Results, folder).as_json()["table"]  # type: ignore[index]
+    table = record(Results, folder).table
     rows = [["Tail", "Head error (cm)", "all robots (cm)", "p vs passive", "better seeds",
              "spacing (cm)", "breaks"]]
     for tail, arm in table.items():
@@ -313,10 +313,10 @@ def learned_tail_seeds(*folders: str) -> Table:
     rows = [["PPO seed", "Head error (cm)", "Passive (cm)", "p vs passive", "better seeds",
              "breaks"]]
     for folder in folders:
-        data = record(Results, folder).as_json()
-        table = data["table"]  # type: ignore[index]
+        data = record(Results, folder)
+        table = data.table
         learned, test = table["learned"], table["learned"]["vs_passive"]
-        rows.append([str(data["config"]["seed"]), stat(learned["head_error_m"], ".1f", 100),  # type: ignore[index]
+        rows.append([str(data.config["seed"]), stat(learned["head_error_m"], ".1f", 100),  # type: ignore[index]
                      stat(table["passive"]["head_error_m"], ".1f", 100),
                      f"{test['wilcoxon_p']:.2g}", f"{test['better']} / {test['pairs']}",
                      f"{learned['breaks']} / {learned['seeds']}"])

@@ -10,14 +10,14 @@ from macrostate_mj.app.results.sources import (
     record,
     source,
 )
-from macrostate_mj.core.evidence import ClaimsError, Figure, Q, Table, dig
+from macrostate_mj.core.evidence import ClaimsError, Figure, Q, Table
 
 
 @source
 def oc_marks(folder: str, sign: str) -> Q:
     """Fig 4.8's paired tests, IO-GEN against DSVDD over every run and bin: how many cells
     IO-GEN wins (`above`), loses (`below`) or neither (`level`) at p < .05."""
-    runs = dig(record(Results, folder).as_json(), "runs")
+    runs = record(Results, folder).runs
     counts = {"above": 0, "below": 0, "level": 0}
     for run in runs.values():  # type: ignore[union-attr]
         for test in run["iogen_vs_dsvdd"]["bins"].values():
@@ -29,9 +29,9 @@ def oc_marks(folder: str, sign: str) -> Q:
 @source
 def oc_table42(folder: str) -> Table:
     """Table 4.2: AUC on all unstable samples, mean ± std over the folder's runs."""
-    data = record(Results, folder).as_json()
+    data = record(Results, folder)
     rows = [["method", "AUC"]]
-    for method, ms in data["table4_2_auc_m2"].items():  # type: ignore[index]
+    for method, ms in data.table4_2_auc_m2.items():  # type: ignore[index]
         rows.append([method, f"{ms['mean']:.3f} ± {ms['std']:.3f}"])
     return rows
 
@@ -39,7 +39,7 @@ def oc_table42(folder: str) -> Table:
 @source
 def oc_fig48(folder: str) -> Table:
     """Fig 4.8: AUC by time bin, mean ± std over the folder's runs."""
-    data = record(Results, folder).as_json()["fig4_8_auc_by_bin_m2"]  # type: ignore[index]
+    data = record(Results, folder).fig4_8_auc_by_bin_m2
     bins = list(next(iter(data.values())))
     order = sorted(bins, key=lambda b: int(re.findall(r"\d+", b)[0]))
     rows = [["method", *order]]
@@ -52,7 +52,7 @@ def oc_fig48(folder: str) -> Table:
 @source
 def oc_runs(folder: str) -> Table:
     """The runs behind a one-class folder: m, split, seed and each method's AUC."""
-    runs = record(Results, folder).as_json()["runs"]  # type: ignore[index]
+    runs = record(Results, folder).runs
     methods = list(next(iter(runs.values())))
     methods = [m for m in methods if m != "iogen_vs_dsvdd"]
     rows = [["run", *methods]]
@@ -65,7 +65,7 @@ def oc_runs(folder: str) -> Table:
 def oc_pairs(base: str, other: str) -> Table:
     """Two one-class folders on their common runs (m, split, seed): per method the AUC of
     each run in both, and the mean difference (other - base)."""
-    a, b = (record(Results, f).as_json()["runs"] for f in (base, other))  # type: ignore[index]
+    a, b = (record(Results, f).runs for f in (base, other))  # type: ignore[index]
     shared = [r for r in a if r in b]  # type: ignore[operator]
     methods = [m for m in a[shared[0]] if m in b[shared[0]] and m != "iogen_vs_dsvdd"]
     rows = [["method", *[f"{r}: {base} / {other}" for r in shared], "mean difference"]]
@@ -86,7 +86,7 @@ def gradcam_hits(folder: str) -> Table:
     """§4.7.4 scored on a simulated colony: per map, the share (%) of true duel/bite boxes its
     top 5 % touches and the share of its top 5 % on a box, all unstable samples with a box,
     with the bootstrap 95 % interval."""
-    data = record(Results, folder).as_json()["gradcam"]["top5"]  # type: ignore[index]
+    data = record(Results, folder).gradcam["top5"]  # type: ignore[index]
     rows = [["map", "boxes hit (%)", "top-5 % pixels on a box (%)"]]
     for name, kind in data.items():
         rows.append([name, _share_ci(kind["boxes_hit"]["all"]),
@@ -97,7 +97,7 @@ def gradcam_hits(folder: str) -> Table:
 @source
 def gradcam_bins(folder: str, metric: str) -> Table:
     """One of `gradcam_hits`' measures (%) per day bin, with the samples each bin holds."""
-    data = record(Results, folder).as_json()["gradcam"]["top5"]  # type: ignore[index]
+    data = record(Results, folder).gradcam["top5"]  # type: ignore[index]
     first = next(iter(data.values()))[metric]["bins"]
     bins = sorted(first, key=lambda b: int(re.findall(r"\d+", b)[0]))
     rows = [["map", *bins]]
@@ -108,7 +108,7 @@ def gradcam_bins(folder: str, metric: str) -> Table:
 
 
 def _oc_runs(folder: str, m: str) -> dict[str, dict]:
-    runs_ = dig(record(Results, folder).as_json(), "runs")
+    runs_ = record(Results, folder).runs
     got = {key.split("_", 1)[1]: run for key, run in runs_.items()  # type: ignore[union-attr]
            if key.startswith(f"m{m}_")}
     if not got:

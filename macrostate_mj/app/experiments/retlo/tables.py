@@ -1,29 +1,24 @@
-"""`experiment retlo`'s tables, numbers and claims' figures (and `calibrate retlo`'s
-comparison), read through its record."""
+"""`experiment retlo`'s tables, numbers and claims' figures, read through its record."""
 
 from __future__ import annotations
-
-import json
 
 from macrostate_mj.app.experiments.retlo import Results
 from macrostate_mj.app.results.sources import (
     load,
     record,
-    root,
     source,
     stat,
 )
-from macrostate_mj.core.evidence import Code, Figure, Q, Table, dig
-from macrostate_mj.core.stats import mean_std
+from macrostate_mj.core.evidence import Code, Figure, Table
 
 
 @source
 def retlo_models(folder: str) -> Table:
     """Fig 2.7: each model's mean error (cm) per test set and robot, mean ± std over seeds."""
-    data = record(Results, folder).as_json()
+    data = record(Results, folder)
     rows = [["test set", "robots", "model", "mean error (cm)", "per robot (cm)"]]
-    for test in data["tests"]:  # type: ignore[index]
-        for model, agg in data["results"][test["name"]].items():  # type: ignore[index]
+    for test in data.tests:  # type: ignore[index]
+        for model, agg in data.results[test["name"]].items():  # type: ignore[index]
             per = "; ".join(f"{r} {stat(v, '.1f')}" if isinstance(v, dict) else f"{r} {v:.1f}"
                             for r, v in agg["per_robot_cm"].items())
             rows.append([test["name"], str(test["n_robots"]), model,
@@ -42,9 +37,9 @@ def retlo_trainings(*folders: str) -> Table:
     from estimators.retlo import MODEL_KINDS
     from macrostate_mj.app.experiments.retlo import CV_TEST
 
-    runs = [(record(Results, f).as_json(), load(f"{f}/manifest.json")["config"])  # type: ignore
+    runs = [(record(Results, f), load(f"{f}/manifest.json")["config"])  # type: ignore
             for f in folders]
-    tests = [t["name"] for t in runs[0][0]["tests"]]  # type: ignore[index]
+    tests = [t["name"] for t in runs[0][0].tests]
     rows = [["training", "model", *tests, "per fold (cross-validated)",
              "folds better than the first"]]
     for i, (data, config) in enumerate(runs):
@@ -53,9 +48,9 @@ def retlo_trainings(*folders: str) -> Table:
         if config.get("precision", "fp32") != "fp32":
             label += f", {config['precision']}"
         for model in MODEL_KINDS:
-            cells = [stat(data["results"][t][model]["mean_error_cm"], ".2f") for t in tests]
-            per = data["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
-            first = runs[0][0]["results"].get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
+            cells = [stat(data.results[t][model]["mean_error_cm"], ".2f") for t in tests]
+            per = data.results.get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
+            first = runs[0][0].results.get(CV_TEST, {}).get(model, {}).get("per_seed_cm", [])
             better = sum(a < b for a, b in zip(per, first, strict=True))
             rows.append([Code(label), model, *cells,
                          " ".join(f"{v:.2f}" for v in per),
@@ -69,11 +64,11 @@ def retlo_calibration(folder: str) -> Table:
     and robot (and pooled), the share of true positions inside the 50 % and 90 % regions and
     the NLL, mean ± std over seeds; where the models carry fitted region radii, the coverage
     of the plain Gaussian's χ² regions beside."""
-    data = record(Results, folder).as_json()
+    data = record(Results, folder)
     head = ["test set", "model", "robot", "coverage 50 %", "coverage 90 %"]
     rows: Table = []
-    for test in data["tests"]:  # type: ignore[index]
-        for model, agg in data["results"][test["name"]].items():  # type: ignore[index]
+    for test in data.tests:  # type: ignore[index]
+        for model, agg in data.results[test["name"]].items():  # type: ignore[index]
             for who, cal in agg.get("calibration", {}).items():
                 plain = [stat(cal[k], ".2f") for k in ("gaussian_coverage_50",
                                                         "gaussian_coverage_90") if k in cal]
@@ -84,46 +79,10 @@ def retlo_calibration(folder: str) -> Table:
             *rows]
 
 
-REFIT_KEYS = ("coverage_50", "coverage_90", "gaussian_coverage_50", "gaussian_coverage_90")
-
-
-def _arm(folder: str, arm: str) -> list[dict]:
-    """The `evaluate retlo` reports of one arm of a `calibrate retlo` comparison, a seed each
-    (`reports/<arm>_s<seed>.json`)."""
-    found = sorted((root() / folder / "reports").glob(f"{arm}_s*.json"))
-    if not found:
-        raise ValueError(f"results/{folder}/reports holds no {arm}_s*.json")
-    return [json.loads(p.read_text()) for p in found]
-
-
-@source
-def refit(folder: str, arm: str, keypath: str, fmt: str = ".2f") -> Q:
-    """One figure of a `calibrate retlo` arm's reports, mean ± std over its seeds."""
-    ms = mean_std([float(dig(r, keypath)) for r in _arm(folder, arm)])  # type: ignore[arg-type]
-    return Q(ms["mean"], ms["std"], fmt, "")
-
-
-@source
-def retlo_refit(folder: str) -> Table:
-    """`calibrate retlo` (results/retlo_lab5_calibrated): per arm and robot, the coverage of the
-    model's regions and of the plain Gaussian's χ² regions, mean ± std over model seeds (each
-    seed's `evaluate retlo` report on the test chains)."""
-    rows = [["regions fitted on", "robot", "coverage 50 %", "coverage 90 %", "Gaussian χ² 50 %",
-             "Gaussian χ² 90 %"]]
-    label = {"trained": "lab 3-robot validation (training)",
-             "refitted": "lab 5-robot chains, seed 3 (calibrate retlo)"}
-    for arm in label:
-        reports = _arm(folder, arm)
-        for who in (w for w in reports[0]["calibration"] if w != "nll_unit"):
-            rows.append([label[arm], who, *(stat(mean_std(
-                [r["calibration"][who][k] for r in reports]), ".2f") for k in REFIT_KEYS)])
-    return rows
-
-
 @source
 def retlo_fig29(folder: str) -> Table:
     """Fig 2.9: the inside-of-curve bias (cm) and the largest-error share per robot and model."""
-    data = record(Results, folder).as_json()["fig2_9"]  # type: ignore[index]
+    data = record(Results, folder).fig2_9
     rows = [["model", "robot", "toward the inside (cm)", "curved steps",
              "instants it errs most (%)"]]
     for model in ("fc", "lstm"):
@@ -136,7 +95,7 @@ def retlo_fig29(folder: str) -> Table:
 
 
 def _retlo(folder: str, test: str) -> dict:
-    return dig(record(Results, folder).as_json(), f"results/{test}")  # type: ignore[return-value]
+    return record(Results, folder).results[test]
 
 
 @source

@@ -149,10 +149,10 @@ def _tuned(folder: str, tuned: str, setting: str) -> Table:
     `Tuned` named `tuned`): each candidate's error there and on the test blocks (mean ± std
     over the seeds) and for how many seeds it was kept."""
     table, cells = next((t.table, t.cells) for t in TUNED if t.name == tuned)
-    data = record(Results, folder).as_json()
+    data = record(Results, folder)
     rows = [["arm", "real data", setting, "validation block, mean error (cm)",
              "test block, Head (cm)", "kept for"]]
-    for arm, shares in data[table].items():
+    for arm, shares in getattr(data, table).items():
         for share, cell in shares.items():
             kept = [f"{w:g}" for w in cell["chosen_by_seed"].values()]
             for value, w in sorted(cell[cells].items(), key=lambda kv: float(kv[0])):

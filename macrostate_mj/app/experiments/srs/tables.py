@@ -17,22 +17,22 @@ from macrostate_mj.app.results.sources import (
     source,
     stat,
 )
-from macrostate_mj.core.evidence import ClaimsError, Figure, Q, Table, dig
+from macrostate_mj.core.evidence import ClaimsError, Figure, Q, Table
 
 
 @source
 def srs_cell(folder: str, config: str, budget: str, metric: str) -> Q:
     """Chapter 3: one configuration's error (cm) at a budget share (`1.0000`, `0.6667`, ...),
     mean ± std over its datasets and model seeds."""
-    ms = dig(record(Results, folder).as_json(), f"configs/{config}/{budget}/{metric}")
+    ms = record(Results, folder).configs[config][budget][metric]
     return Q(float(ms["mean"]), float(ms["std"]), ".1f", "cm")  # type: ignore[index]
 
 
 @source
 def srs_table(folder: str, metric: str) -> Table:
     """Chapter 3: per configuration, the error (cm) at each budget share of the largest."""
-    data = record(Results, folder).as_json()
-    configs = data["configs"]  # type: ignore[index]
+    data = record(Results, folder)
+    configs = data.configs
     budgets = sorted({b for c in configs.values() for b in c}, key=float)
     rows = [["configuration", *[f"{float(b) * 100:.0f} % of budget" for b in budgets]]]
     for name, by_budget in configs.items():
@@ -124,7 +124,7 @@ def srs_quantile(folder: str, config: str, pair: str, q: str, datasets: str = "3
     the datasets' distances one after another, in equal parts)."""
     import numpy as np
 
-    values = np.asarray(dig(record(Results, folder).as_json(), f"distances/{config}/{pair}"))
+    values = np.asarray(record(Results, folder).distances[config][pair])
     parts = np.split(values, int(datasets))
     return Figure.of({f"d{j}": float(np.quantile(p, float(q))) for j, p in enumerate(parts)},
                      ".1f", "cm")
