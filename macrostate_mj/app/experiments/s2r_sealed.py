@@ -385,8 +385,6 @@ def sealed(folder: str) -> Table:
     """`experiment s2r-sealed`: each arm's Head error on the sealed test (mean ± std over its
     seeds) and, against real only, the ratio and the difference with their 95 % intervals
     (instances x seeds)."""
-    from macrostate_mj.app.experiments.s2r_sealed import ARMS
-
     r = record(Results, folder)
     rows = [["arm", "Head error (cm)", "÷ real only [95 %]", "minus real only (cm) [95 %]"]]
     for arm in ARMS:                         # in the experiment's order

@@ -25,6 +25,7 @@ from estimators.oneclass.metrics import auc_report, paired_report, roc_auc
 from estimators.oneclass.model import OCModel, Probe, fit
 from estimators.oneclass.train import OCConfig
 from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.experiments.oc.record import Results
 from macrostate_mj.app.params import (
     MAX_WORKERS,
     Choice,
@@ -41,7 +42,6 @@ from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.parallel import torch_threads
 from macrostate_mj.core.paths import real_dataset
-from macrostate_mj.core.records import OPTIONAL, Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.hsants import AntFlowData, open_dataset
 
@@ -267,27 +267,6 @@ def selection_on_test(probe: Probe, history: dict[str, list[float]], n_stable: i
         out[meth] = {"auc_by_epoch": aucs, "kept_epoch": kept, "kept_auc": aucs[kept],
                      "best_epoch": best, "best_auc": aucs[best]}
     return out
-
-
-@dataclass(frozen=True)
-class Results(Record):
-    """The one-class tables and figures' numbers: per run (m, split, seed) each method's AUC,
-    Table 4.1-4.2 and Fig 4.8 over the runs, Grad-CAM's hits; a run's splits are the
-    independent units (its seeds nested in them)."""
-
-    UNIT = "split"
-
-    table4_1_iogen_auc_by_m: dict
-    table4_2_auc_m2: dict
-    fig4_8_auc_by_bin_m2: dict
-    fig4_8_iogen_vs_dsvdd_marks: dict
-    fig4_10: dict
-    gradcam: dict
-    n_unstable: int
-    n_unstable_by_bin: dict
-    runs: dict[str, dict]
-    figures_run: str | None = field(default=None, metadata=OPTIONAL)
-    selection_on_test: dict | None = field(default=None, metadata=OPTIONAL)
 
 
 @register

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from macrostate_mj.app.experiments.oc import Results
+from macrostate_mj.app.experiments.oc.record import Results
 from macrostate_mj.app.results.claims import ALPHA
 from macrostate_mj.app.results.sources import (
     record,

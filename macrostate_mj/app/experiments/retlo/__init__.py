@@ -34,6 +34,7 @@ from estimators.retlo.heuristic import Heuristic2X
 from estimators.retlo.models import ModelConfig, TorchPredictor
 from estimators.retlo.train import TrainConfig, checkpoint_bytes, load_checkpoint
 from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.experiments.retlo.record import CV_TEST, Results
 from macrostate_mj.app.params import (
     CSV,
     Chained,
@@ -52,14 +53,12 @@ from macrostate_mj.core.cache import run_tasks, task_key
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.io import check_writable_dir
 from macrostate_mj.core.paths import real_thymioloc
-from macrostate_mj.core.records import OPTIONAL, Record
 from macrostate_mj.core.stats import cv_blocks, mean_std
 from macrostate_mj.env.estimated import HEURISTIC
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM
 
 REAL_DATA = ("retlo",)   # the published datasets it reads (`data fetch NAME`)
 PRODUCTS = ["results.json", "fig2_7.png", "fig2_8.png", "fig2_9.mp4", "models"]
-CV_TEST = "cross-validated train + val"
 CV_VAL_SHARE = 0.15     # of each fold's training blocks, the last share selects
 FIRST = "first_"        # with --split, the first module's model: models/first_<kind>_seed<i>.pt
 
@@ -159,21 +158,6 @@ def missing(cfg: Config) -> str | None:
     """The input this run cannot start without, if it is absent (`experiment all` skips it)."""
     absent = [p for p in (*cfg.train, cfg.val, *cfg.test) if not Path(p).is_file()]
     return f"the ThymioLoc file {absent[0]}" if absent else None
-
-
-@dataclass(frozen=True)
-class Results(Record):
-    """Chapter 2's ReTLo errors per test set and model (per fold-seed and per robot and step),
-    and Fig 2.9's curve analysis; each seed trains on its own data and is tested on its own
-    block."""
-
-    UNIT = "seed"
-
-    px_per_cm: float
-    seeds: list[int]
-    tests: list[dict]
-    results: dict[str, dict]
-    fig2_9: dict | None = field(default=None, metadata=OPTIONAL)
 
 
 @register

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from macrostate_mj.app.experiments.retlo import Results
+from macrostate_mj.app.experiments.retlo.record import CV_TEST, Results
 from macrostate_mj.app.results.sources import (
     load,
     record,
@@ -35,7 +35,6 @@ def retlo_trainings(*folders: str) -> Table:
     mean ± std over seeds; the per-fold figures of the cross-validated test in the last
     column, and on how many folds each run beats the first."""
     from estimators.retlo import MODEL_KINDS
-    from macrostate_mj.app.experiments.retlo import CV_TEST
 
     runs = [(record(Results, f), load(f"{f}/manifest.json")["config"])  # type: ignore
             for f in folders]

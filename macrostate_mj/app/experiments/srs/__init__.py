@@ -33,12 +33,12 @@ import numpy as np
 from collectors.runner import CollectRequest, collect, finished
 from collectors.srs_collection import SRSRequest, collect_srs, episodes_for, finished_srs
 from macrostate_mj.app.experiments import Parallel, Progress, register
+from macrostate_mj.app.experiments.srs.record import Results
 from macrostate_mj.app.params import Count, Precision, Seed, flag
 from macrostate_mj.chain.scenarios import ScenarioRef
 from macrostate_mj.core.cache import ShipsFiles, run_tasks, task_key
 from macrostate_mj.core.errors import RunFailure
 from macrostate_mj.core.io import write_text_atomic
-from macrostate_mj.core.records import Record
 from macrostate_mj.core.stats import mean_std
 from macrostate_mj.formats.thymioloc import DEFAULT_PX_PER_CM, read_csv, to_world
 
@@ -223,20 +223,6 @@ class _Cell:
     budget: float
     key: str
     report: dict
-
-
-@dataclass(frozen=True)
-class Results(Record):
-    """Chapter 3's errors per configuration and budget share (mean ± std over datasets and
-    model seeds), the baseline, and the distances of Fig 3.7; the datasets are the independent
-    units (each model's report in `models/`)."""
-
-    UNIT = "dataset"
-
-    profile: dict
-    baseline: dict
-    configs: dict[str, dict]
-    distances: dict
 
 
 @register

@@ -7,7 +7,7 @@ import re
 import statistics
 from collections.abc import Callable
 
-from macrostate_mj.app.experiments.srs import Results
+from macrostate_mj.app.experiments.srs.record import Results
 from macrostate_mj.app.results.sources import (
     load,
     ms,
