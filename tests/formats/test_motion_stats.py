@@ -88,7 +88,8 @@ def test_the_ranked_gap_shows_what_each_modelled_difference_does_to_the_estimato
     clean, noisy = _file(tmp_path, "c.csv"), _file(tmp_path, "n.csv", jitter=0.01)
     run = tmp_path / "results.json"
     cell = {"mean": 0.4, "low": -0.1, "high": 0.9, "n": 5}
-    run.write_text(json.dumps({"ablations": {"frame_hz,frame_jitter": {"minus_lab": cell},
+    run.write_text(json.dumps({"profile": {}, "real_instances": 0, "arms": {},   # a record
+                               "ablations": {"frame_hz,frame_jitter": {"minus_lab": cell},
                                              "follow_hold": {"minus_lab": cell}}}))
     code, out, err = _cli(capsys, "stats", "--compare", str(clean), str(noisy), "--rank",
                           "--json", "--effects", str(run))

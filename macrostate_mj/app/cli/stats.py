@@ -43,7 +43,7 @@ def stats(
     from rich.console import Console
     from rich.table import Table
 
-    from macrostate_mj.app.usecases.stats import compare, file_stats, ranked
+    from macrostate_mj.app.usecases import stats as usecase
     from macrostate_mj.core.errors import UserError
 
     if compare or plot is not None or rank or effects is not None:
@@ -53,15 +53,15 @@ def stats(
         if effects is not None and not rank:
             raise UserError("--effects puts the estimator's sensitivity beside the ranked "
                             "gap; add --rank")
-        rows = compare(csv, px_per_cm, plot, overwrite)
+        rows = usecase.compare(csv, px_per_cm, plot, overwrite)
         if rank:
-            _print_ranked(csv, ranked(rows, effects), as_json, effects is not None)
+            _print_ranked(csv, usecase.ranked(rows, effects), as_json, effects is not None)
         else:
             _print_compared(csv, rows, as_json)
         if plot is not None and not as_json and not rank:
             print(f"plot      {plot}")
         return
-    found = file_stats(csv, px_per_cm)
+    found = usecase.file_stats(csv, px_per_cm)
     if as_json:
         for path, stats in found:
             print(json.dumps({"file": str(path), "px_per_cm": px_per_cm, **asdict(stats)}))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import statistics
 from collections.abc import Callable, Iterator
 from functools import cache
@@ -84,15 +85,23 @@ def record(kind: type[R], folder: str) -> R:
     return _record(kind, root() / folder)
 
 
-def record_of(folder: str) -> Record:
-    """The typed record of `folder`, of the type its run's experiment declares (`Results`;
-    its manifest names the experiment)."""
+def record_type(folder: str) -> type[Record] | None:
+    """The record type of `folder`'s run: its experiment's `Results`, the experiment named by
+    its manifest; None where no manifest names an experiment that declares one."""
     from macrostate_mj.app.experiments import experiment
 
-    manifest = read_path(root() / folder / "manifest.json")
-    command = str(manifest.get("command", ""))  # type: ignore[union-attr]
-    kind = getattr(experiment(command.removeprefix("experiment ").split()[0]), "Results",
-                   None) if command.startswith("experiment ") else None
+    manifest = root() / folder / "manifest.json"
+    if not manifest.is_file():
+        return None
+    command = str(read_path(manifest).get("command", ""))  # type: ignore[union-attr]
+    if not command.startswith("experiment "):
+        return None
+    return getattr(experiment(command.split()[1]), "Results", None)
+
+
+def record_of(folder: str) -> Record:
+    """The typed record of `folder`, of the type its run's experiment declares."""
+    kind = record_type(folder)
     if kind is None:
         raise ClaimsError(f"results/{folder}: its manifest names no experiment with a record")
     return record(kind, folder)
@@ -110,8 +119,6 @@ def runs_of(pattern: str) -> list[Path]:
 def parse(expression: str) -> tuple[str, list[str]]:
     """`name(arg, arg, ...)` with bare-word arguments (no quotes needed): the name and the
     arguments; ("", []) when it is not such an expression."""
-    import re
-
     match = re.fullmatch(r"\s*(\w+)\((.*)\)\s*", expression, re.S)
     if not match:
         return "", []
@@ -167,23 +174,13 @@ def design(folders: list[str], seeds: list[str]) -> tuple[Design, dict[str, str]
 
 def _records(folders: list[str]) -> list[Record] | None:
     """The typed records of `folders`' runs, where their writer declares a design of its own."""
-    from macrostate_mj.app.experiments import experiment
-
-    kinds = set()
-    for f in folders:
-        manifest = root() / f / "manifest.json"
-        if not manifest.is_file():
-            return None
-        command = json.loads(manifest.read_text()).get("command", "")
-        name = command.removeprefix("experiment ").split()[0] if command.startswith(
-            "experiment ") else ""
-        kind = getattr(experiment(name), "Results", None) if name else None
-        if kind is None or not hasattr(kind, "design_of"):
-            return None
-        kinds.add(kind)
+    kinds = {record_type(f) for f in folders}
+    if None in kinds or not all(hasattr(k, "design_of") for k in kinds):
+        return None
     if len(kinds) > 1:
         raise ValueError(f"{', '.join(folders)}: runs of different experiments cannot pool")
     kind = kinds.pop()
+    assert kind is not None
     return [record(kind, f) for f in folders]
 
 

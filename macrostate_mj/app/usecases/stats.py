@@ -54,11 +54,12 @@ def ranked(rows: list[dict], effects: Path | None = None) -> list[dict]:
 
 
 def ablations(path: Path) -> dict:
-    """The `ablations` of an `experiment sim2real --ablate` run, read through its record."""
-    folder = path.parent if path.suffix == ".json" else path
+    """The `ablations` of an `experiment sim2real --ablate` run (its results.json, or its
+    folder), read through its record."""
+    file = path / Sim2RealResults.FILE if path.is_dir() else path
     try:
-        found = Sim2RealResults.read(folder).ablations
-    except RecordError:
+        found = Sim2RealResults.of(json.loads(file.read_text()), str(file)).ablations
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecordError):
         found = None
     if not found:
         raise UserError(f"--effects {path}: no ablations in it; pass the results.json of an "
