@@ -9,20 +9,26 @@ Each module here is one experiment and exports:
   overwritten without `--overwrite`);
 - `run(config, out, progress) -> list[str]`: writes the products, returns summary lines, and
   registers its module in `EXPERIMENTS` (`@register`) under the module's name (`retlo_sim` ->
-  `retlo-sim`).
+  `retlo-sim`);
+- `Results`: its record (`core.records.Record`), what its `results.json` holds and its unit,
+  which `run` writes through and its sources (`@source`, `app.results.sources`) read through.
 
 Its command, `experiment NAME`, is generated from the module (`app.cli.experiments`): the
-docstring is its help, each `Config` field declared with `params.flag` a flag; optionally
+docstring is its help (its first sentence, after "`experiment NAME`:", is its row of the docs'
+experiments table), each `Config` field declared with `params.flag` a flag; optionally
 `PARALLEL` (its tasks spread over `--workers` and Ray), `FLAGS` and `configure(config,
 changes, ...)` (flags that are not one field: the profile's config, the fields' changes and
-these flags' values give more changes), and `validate(config)` (input checked before the folder
-is claimed).
+these flags' values give more changes), `validate(config)` (input checked before the folder
+is claimed), `missing(config)` (what `experiment all` skips it for) and the tag `REAL_DATA`
+(the published datasets it reads).
 
 `execute` wraps `run` in the one run lifecycle (`core.run.Run`: the folder claimed, the manifest
-with the config, its hash, stage timings and how the run ended). Adding an experiment is one
-new module here, its test and its docs row: `EXPERIMENTS` scans this package (every module not
-starting with `_`, imported on first read: `core.registry.scan`), and the CLI lists the names
-of the modules it scans without importing them (`names`).
+with the config, its hash, stage timings, its record's type and unit, and how the run ended).
+Adding an experiment is one new module (or package) here and its test: `EXPERIMENTS` scans this
+package (every module not starting with `_`, imported on first read: `core.registry.scan`), the
+CLI lists the names of the modules it scans without importing them (`names`), and its command,
+its row of the parameter tests and of the docs' experiments table are generated from it
+(docs/explanation/design.md walks one through).
 """
 
 from __future__ import annotations
