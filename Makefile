@@ -39,7 +39,7 @@ test: $(STAMP) lint docs
 	$(VENV)/bin/pytest
 
 demo: $(STAMP)
-	$(PY) -m macrostate_mj.app.usecases.demo --out $(OUT)
+	$(PY) -m macrostate_mj.app.demo --out $(OUT)
 
 clean:
 	rm -rf $(VENV) out docs/_build

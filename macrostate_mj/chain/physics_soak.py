@@ -1,5 +1,6 @@
-"""`macrostate-mj soak`: many seeds of one scenario in parallel, in the spirit of Menagerie's
-`model_test`: a physics claim is a property over seeds nobody tuned to, not one trajectory.
+"""The physics soak behind `macrostate-mj soak`: many seeds of one scenario in parallel, in the
+spirit of Menagerie's `model_test`: a physics claim is a property over seeds nobody tuned to,
+not one trajectory.
 
 Seed s runs exactly the trajectory of `simulate --seed s` (same reset, same controller ticks;
 the extra health checks only cut the C stepping into shorter stretches, which changes nothing).

@@ -179,8 +179,9 @@ class ChainSim:
         self.log_phase = 0.0
         # Displacement of the Tail's destination (m), set by a data-collection policy (SRS).
         self.tail_offset = np.zeros(2)
-        # A mission (e.g. `chain.caging.CagingMission`) that rewrites the reference velocities;
-        # with one, the Head is driven by its velocity, not by the planner's (v, omega).
+        # A mission (e.g. `chain.caging_mission.CagingMission`) that rewrites the reference
+        # velocities; with one, the Head is driven by its velocity, not by the planner's
+        # (v, omega).
         self.mission = mission
         self.n = len(world.names)
         self._body = world.body

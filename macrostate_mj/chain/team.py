@@ -6,11 +6,12 @@ several chains, and each Tail then drives the Followers of its own chain.
 Robots are ordered [H, A1, ..., TA, B1, ..., TB] (chain A, the longer, first). Each chain obeys
 the §2.3 rules as a line of its own with the shared Head; the robots of both avoid each other.
 
-Caging with this team (`TeamCaging`): the Head drives to the object as in `chain.caging` and,
-once it senses it, parks on the boundary instead of circling (a circling Head would drag both
-chains round the same way). Both Tails must then wrap their chains round opposite sides of the
-object; when they face each other on the far side, the ring [TA, ..., A1, H, B1, ..., TB] closes
-and every robot becomes a Follower of its two ring neighbours, as the one-chain ring does.
+Caging with this team (`TeamCaging`): the Head drives to the object as in
+`chain.caging_mission` and, once it senses it, parks on the boundary instead of circling (a
+circling Head would drag both chains round the same way). Both Tails must then wrap their
+chains round opposite sides of the object; when they face each other on the far side, the ring
+[TA, ..., A1, H, B1, ..., TB] closes and every robot becomes a Follower of its two ring
+neighbours, as the one-chain ring does.
 `tails.caging.SideTails` is a scripted pair of Tails that does this through the environment's
 actions.
 """
@@ -85,7 +86,7 @@ class BranchedSim(ChainSim):
 def team_start_poses(cfg: CagingConfig, branches: list[np.ndarray], spacing: float,
                      rng: np.random.Generator,
                      arena: tuple[float, float] | None = None) -> np.ndarray:
-    """The one-chain start of as many robots (`chain.caging.start_poses`, the same draws and
+    """The one-chain start of as many robots (`chain.caging_mission.start_poses`, the same draws and
     the same mirror given the `arena`, so a seed puts the Head where it puts the one-chain
     Head), chain A trailing straight back from the Head along that line, chain B at
     `SPLAY_DEG` from it toward the arena's middle; each robot facing the one ahead."""

@@ -2,8 +2,8 @@
 independent units (`Figure`), what a folder's runs are as evidence (`Design`), a paired
 difference over those units (`Paired`) and a table (`Table`).
 
-The experiments' own sources (beside each experiment, `app.results.sources`) return these; the
-docs print them and `app.results.claims` judges them by one rule.
+Every results source returns one of these: a page prints it, a claim's verdict judges a
+`Figure` by one rule. They hold no results layout of their own: that is each record's.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 
 from macrostate_mj.core import stats
 from macrostate_mj.core.errors import UserError
+from macrostate_mj.core.records import UNITS
 
 
 @dataclass(frozen=True)
@@ -135,8 +136,8 @@ class Design:
     @classmethod
     def of(cls, entry: dict, where: str) -> Design:
         if not entry.get("unit"):
-            raise ClaimsError(f"{where} declares no `unit`: name what is independent (seed, "
-                              "fold, dataset, split or test instance) in results/index.toml")
+            raise ClaimsError(f"{where} declares no `unit`: name what is independent (one of "
+                              f"{', '.join(UNITS)}) in results/index.toml")
         if bool(entry.get("within")) != bool(entry.get("group")):
             raise ClaimsError(f"{where}: `within` and `group` come together (the nested unit "
                               "and the regex that finds its outer unit in a run's key)")

@@ -8,6 +8,10 @@ the claims' sources, beside it) reads through `read`, so a renamed key fails whe
 written, in the experiment's own test, not on a page. Nested values stay JSON (dicts, lists):
 the type fixes the file's shape at its top level and names its unit.
 
+`UNIT` is the experiment's default; a folder's entry of `results/index.toml` may declare
+another (a cross-validated run's folds, a map's test instances), and the claims and pages read
+that first.
+
 A field whose default is `None` and whose metadata says `OPTIONAL` is a key the file holds only
 in some runs (a profile's extra table): left out when `None`, read as `None` where absent, so
 the records of earlier runs read with the same type.

@@ -1,12 +1,13 @@
 """One way to name the things a user picks by name (dm_control's `suite` style): experiments,
-bench suites, the Tail's tasks and collection policies, SRS picks, one-class methods, ReTLo
-model kinds.
+their results records and sources, bench suites, the Tail's tasks and collection policies, SRS
+picks, one-class methods, ReTLo model kinds.
 
 Each entry registers itself where it is defined, with the registry's decorator. A registry
 whose entries live in other modules finds them by one rule: it names the packages to scan
 (`packages`), and on first read imports every module of theirs whose name does not start with
-`_` (`scan`), so adding an entry is adding a module. Where a package also holds modules that
-are not entries (heavy or optional ones), the registry names its modules instead (`modules`).
+`_` (`scan`; with `deep`, of their subpackages too), so adding an entry is adding a module.
+Where a package also holds modules that are not entries (heavy or optional ones), the registry
+names its modules instead (`modules`).
 A name not registered is bad input: one line naming the choices (a `UserError`).
 """
 
@@ -16,6 +17,7 @@ import contextlib
 import importlib
 import pkgutil
 from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
 from typing import Generic, TypeVar
 
 from macrostate_mj.core.errors import UserError
@@ -23,13 +25,24 @@ from macrostate_mj.core.errors import UserError
 T = TypeVar("T")
 
 
-def scan(package: str) -> list[str]:
+def scan(package: str, deep: bool = False) -> list[str]:
     """The full names of `package`'s modules not starting with `_`, sorted, none of them
     imported (only the package itself): the one discovery rule, which a listing that must not
-    import the modules (the CLI's experiment names) reads too."""
-    path = importlib.import_module(package).__path__
-    return sorted(f"{package}.{info.name}" for info in pkgutil.iter_modules(path)
-                  if not info.name.startswith("_"))
+    import the modules (the CLI's experiment names) reads too. `deep`: the modules of its
+    subpackages too (an experiment's `tables.py` beside its `__init__.py`)."""
+    return _modules(package, importlib.import_module(package).__path__, deep)
+
+
+def _modules(prefix: str, path: Sequence[str], deep: bool) -> list[str]:
+    found = []
+    for info in pkgutil.iter_modules(path):
+        if info.name.startswith("_"):
+            continue
+        found.append(f"{prefix}.{info.name}")
+        if deep and info.ispkg:
+            found += _modules(f"{prefix}.{info.name}", [str(Path(p) / info.name) for p in path],
+                              deep)
+    return sorted(found)
 
 
 class Registry(Generic[T]):
@@ -37,8 +50,9 @@ class Registry(Generic[T]):
     whose modules may be imported in any order), else in the order they registered."""
 
     def __init__(self, kind: str, modules: Sequence[str] = (),
-                 packages: Sequence[str] = ()) -> None:
+                 packages: Sequence[str] = (), deep: bool = False) -> None:
         self.kind = kind
+        self._deep = deep
         self._modules = tuple(modules)
         self._packages = tuple(packages)
         self._entries: dict[str, T] = {}
@@ -60,7 +74,7 @@ class Registry(Generic[T]):
 
     def module_names(self) -> tuple[str, ...]:
         """Every module this registry imports on first read, none of them imported here."""
-        return (*self._modules, *(m for p in self._packages for m in scan(p)))
+        return (*self._modules, *(m for p in self._packages for m in scan(p, self._deep)))
 
     @contextlib.contextmanager
     def scanning(self, package: str) -> Iterator[None]:

@@ -1,9 +1,9 @@
 """The caging task (seed §2.5.4): the Tail as the agent of a 6-robot robotarium team whose Head
-finds an object and circles it (`chain.caging`). The Tail must help close a ring around it.
+finds an object and circles it (`chain.caging_mission`). The Tail must help close a ring around it.
 
 Action: the Tail's destination offset, bounded to ±2d here (to leave the chain and encircle,
 the Tail moves its destination further than in `explore`). Reward 1 on every tick the team is
-caged (the judge `chain.caging.cage_report`), 0 otherwise; the episode ends `SETTLE_S` after
+caged (the judge `chain.caging_mission.cage_report`), 0 otherwise; the episode ends `SETTLE_S` after
 the team was first caged (the net settles), or (discount 0) when the physics faults, and is
 truncated at the time limit. Every robot's pose at the start (`team_at_start`, Head first) is
 what the Tail knows at τ (§2.4); every `CagingConfig.share_every_s` the team shares its poses

@@ -181,8 +181,9 @@ class LiveHeadSource:
     """The Head's position as the Tail's live estimator (`chain`, e.g. ReTLo's `OnlineChain`) has
     it after each of its steps (every `stride` ticks; lagging n - 2 steps), from the Tail's
     observations and the poses the team shares (at τ: `team_at_start`, Head first, and in the
-    step info's `team`); None between steps. A `chain.caging.HeadSource`. In a team of several
-    chains (`chain.team`), `robots` are the team's rows of this Tail's chain, Head first: the
+    step info's `team`); None between steps. A `chain.caging_mission.HeadSource`. In a team of
+    several chains (`chain.team`), `robots` are the team's rows of this Tail's chain, Head first:
+    the
     estimator sees only those of what the team shares."""
 
     def __init__(self, chain: OnlineEstimator, team_at_start: np.ndarray, stride: int,

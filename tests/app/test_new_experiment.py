@@ -17,7 +17,7 @@ from test_params import _assert_refused, _with, experiment_args
 
 from macrostate_mj.app.experiments import EXPERIMENTS, names
 from macrostate_mj.app.results.pages import experiments
-from macrostate_mj.app.results.sources import SOURCES, call, reading
+from macrostate_mj.app.results.sources import RECORDS, SOURCES, call, reading
 
 TOY = '''
     """`experiment toy-count`: count from the seed, a toy that holds the claim (its test:
@@ -71,13 +71,14 @@ def toy(tmp_path, monkeypatch):
     (package / "toy_count.py").write_text(textwrap.dedent(TOY))
     monkeypatch.syspath_prepend(str(tmp_path))
     try:
-        with EXPERIMENTS.scanning("toy_experiments"), SOURCES.scanning("toy_experiments"):
+        with EXPERIMENTS.scanning("toy_experiments"), SOURCES.scanning("toy_experiments"), \
+                RECORDS.scanning("toy_experiments"):
             yield tmp_path
     finally:
         for module in ("toy_experiments.toy_count", "toy_experiments"):
             sys.modules.pop(module, None)
     assert "toy-count" not in names() and "toy-count" not in EXPERIMENTS
-    assert "toy_count" not in SOURCES
+    assert "toy_count" not in SOURCES and "toy-count" not in RECORDS
 
 
 def test_one_module_is_a_listed_runnable_checked_experiment(toy, capsys):

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from macrostate_mj.app.cli.app import app
 from macrostate_mj.app.params import Choice, InputDir, Switch
+from macrostate_mj.app.results import CLAIMS
 
-CLAIMS = Path(__file__).parents[1] / "results" / "claims.toml"   # app/results/claims.toml
 CHAPTERS = tuple(tomllib.loads(CLAIMS.read_text()))
 
 

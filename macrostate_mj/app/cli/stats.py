@@ -53,9 +53,10 @@ def stats(
         if effects is not None and not rank:
             raise UserError("--effects puts the estimator's sensitivity beside the ranked "
                             "gap; add --rank")
+        found = None if effects is None else usecase.ablations(effects)     # before any work
         rows = usecase.compare(csv, px_per_cm, plot, overwrite)
         if rank:
-            _print_ranked(csv, usecase.ranked(rows, effects), as_json, effects is not None)
+            _print_ranked(csv, usecase.ranked(rows, found), as_json, found is not None)
         else:
             _print_compared(csv, rows, as_json)
         if plot is not None and not as_json and not rank:
@@ -108,22 +109,6 @@ def _print_compared(csv: list[Path], rows: list[dict], as_json: bool) -> None:
                       f"{r['ks']:.3f}", f"{r['p']:.2g}")
     Console(width=120).print(table)
 
-
-
-def _ablations(path: Path) -> dict:
-    """The `ablations` of a sim2real results.json; one-line errors otherwise."""
-    import json
-
-    from macrostate_mj.core.errors import UserError
-
-    try:
-        found = json.loads(path.read_text()).get("ablations")
-    except (ValueError, AttributeError):
-        found = None
-    if not isinstance(found, dict) or not found:
-        raise UserError(f"--effects {path}: no ablations in it; pass the results.json of an "
-                        "`experiment sim2real --ablate ...` run")
-    return found
 
 
 def _print_ranked(csv: list[Path], ranked: list[dict], as_json: bool, effects: bool) -> None:

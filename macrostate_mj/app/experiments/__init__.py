@@ -11,7 +11,8 @@ Each module here is one experiment and exports:
   registers its module in `EXPERIMENTS` (`@register`) under the module's name (`retlo_sim` ->
   `retlo-sim`);
 - `Results`: its record (`core.records.Record`), what its `results.json` holds and its unit,
-  which `run` writes through and its sources (`@source`, `app.results.sources`) read through.
+  which `run` writes through and its sources (`@source`, `app.results.sources`) read through
+  (`all`, whose products are the other experiments' folders and an index, has none).
 
 Its command, `experiment NAME`, is generated from the module (`app.cli.experiments`): the
 docstring is its help (its first sentence, after "`experiment NAME`:", is its row of the docs'
@@ -87,9 +88,15 @@ EXPERIMENTS: Registry[ModuleType] = Registry("experiment", packages=[__name__])
 
 def register(run: Callable[..., list[str]]) -> Callable[..., list[str]]:
     """Decorates an experiment's `run`: registers its module (`Config`, `PROFILES`,
-    `PRODUCTS`, `run`) under the module's name, `_` read as `-`."""
+    `PRODUCTS`, `run`) under the module's name, `_` read as `-`, and its record (`Results`,
+    declared above `run`) under the same name, for the sources that read its folders."""
+    from macrostate_mj.app.results.sources import RECORDS
+
     module = sys.modules[run.__module__]
-    EXPERIMENTS.register(_command_name(module.__name__))(module)
+    name = _command_name(module.__name__)
+    EXPERIMENTS.register(name)(module)
+    if (record := getattr(module, "Results", None)) is not None:
+        RECORDS.register(name)(record)
     return run
 
 

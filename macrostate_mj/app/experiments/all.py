@@ -134,7 +134,7 @@ def all_index(folder: str) -> Table:
     index = load(f"{folder}/index.json")
     rows = [["experiment", "profile", "status", "wall (min)", "stages (min)"]]
     for name, entry in index["experiments"].items():  # type: ignore[index]
-        file = root() / folder / name / "manifest.json"
+        file = root() / folder / name / MANIFEST
         stages = json.loads(file.read_text()).get("timings_s", {}) if file.is_file() else {}
         rows.append([name, index["profile"], entry["status"],  # type: ignore[index]
                      f"{entry['wall_s'] / 60:.1f}",

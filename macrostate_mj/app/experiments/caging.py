@@ -6,7 +6,7 @@ Gymnasium API only: success rate, time to cage, final spacing CV over the seeds,
 - retlo: runs the §2.5 three-MLP ReTLo estimator live at 1 Hz (`OnlineChain`, trained here on
   the robotarium training runs of `experiment retlo-sim` and on rehearsal caging runs, cached)
   from its own and its neighbour's observed positions and the poses the team shares (at τ and
-  every 5 s); when its last `chain.caging.TRACK_STEPS` estimates of the Head fit a circle of
+  every 5 s); when its last `chain.caging_mission.TRACK_STEPS` estimates of the Head fit a circle of
   about the boundary's size (`circling_centre`, loose `DETECTION` bounds), it encircles
   clockwise, against the Head: around the mean centre of the circles found, then, once its own
   sensor has the object (the `object` observation), around the object;
@@ -16,9 +16,9 @@ Gymnasium API only: success rate, time to cage, final spacing CV over the seeds,
 Per policy over the seeds: success rate (caged before the time limit), time to cage, the final
 spacing's coefficient of variation (mean ± std), and Fig 2.3-style snapshots of the first seed.
 
-This module composes: the scripted Tail and the oracle are `chain.caging`'s, the episode, the
-live head source and the estimator's runs `collectors.caging_runs`'s, the recordings
-`viz.caging_video`'s, the estimator `estimators.retlo`'s.
+This module composes: the scripted Tail and the oracle are `chain.caging_mission`'s, the
+episode, the live head source and the estimator's runs `collectors.caging_runs`'s, the
+recordings `viz.caging_video`'s, the estimator `estimators.retlo`'s.
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def _summary(eps: list[dict]) -> dict:
 def caging(folder: str) -> Table:
     """Every Tail of a caging run (or of `experiment caging-multi`'s arms): caged seeds, time
     to cage, spacing CV, the Head estimate."""
-    table = record_of(folder).table  # type: ignore[attr-defined]
+    table = record_of(folder).table
     rows = [["Tail", "caged", "time to cage (s)", "final spacing CV", "Head estimate (cm)"]]
     for tail, arm in table.items():
         caged = round(arm["success_rate"] * arm["seeds"])
@@ -239,11 +239,11 @@ def caging(folder: str) -> Table:
 @source
 def caging_cell(folder: str, tail: str, field: str) -> Q:
     """A caging arm: `caged` (% of seeds), `seeds`, or `time` (mean ± std s, caged runs)."""
-    arm = record_of(folder).table[tail]  # type: ignore[attr-defined]
+    arm = record_of(folder).table[tail]
     if field == "caged":
-        return Q(100 * float(arm["success_rate"]), None, ".0f", "%")  # type: ignore[index]
+        return Q(100 * float(arm["success_rate"]), None, ".0f", "%")
     if field == "seeds":
-        return Q(arm["seeds"], None, "d")  # type: ignore[index]
-    time = arm["time_to_cage_s"]  # type: ignore[index]
+        return Q(arm["seeds"], None, "d")
+    time = arm["time_to_cage_s"]
     return Q(float(time["mean"]), float(time["std"]), ".1f", "s")
 

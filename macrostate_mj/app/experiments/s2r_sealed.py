@@ -388,8 +388,8 @@ def sealed(folder: str) -> Table:
     r = record(Results, folder)
     rows = [["arm", "Head error (cm)", "÷ real only [95 %]", "minus real only (cm) [95 %]"]]
     for arm in ARMS:                         # in the experiment's order
-        h = r.arms[arm]["head_cm"]  # type: ignore[index]
-        vs = r.against_real.get(arm)  # type: ignore[index]
+        h = r.arms[arm]["head_cm"]
+        vs = r.against_real.get(arm)
         compared = ["1", "0"]               # real only against itself
         if vs is not None:
             q, d = vs["ratio"], vs["difference"]
@@ -406,7 +406,7 @@ def sealed_change(before: str, after: str, arm: str) -> Paired:
     shared, each run's seeds apart)."""
     from macrostate_mj.core.stats import two_level_bootstrap
 
-    a, b = ([list(v) for v in record(Results, f).arms[arm][  # type: ignore[index]
+    a, b = ([list(v) for v in record(Results, f).arms[arm][
         "head_cm_by_instance"].values()] for f in (after, before))
     d = two_level_bootstrap(a, b)["difference"]
     units = f"{len(a[0])} test instances, {len(a)} and {len(b)} seeds"

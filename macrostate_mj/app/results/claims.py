@@ -20,11 +20,11 @@ from dataclasses import dataclass, field, replace
 from importlib import import_module
 from pathlib import Path
 
+from macrostate_mj.app.results import CLAIMS
 from macrostate_mj.app.results.sources import call, reading
 from macrostate_mj.core import stats
 from macrostate_mj.core.evidence import ClaimsError, Design, Figure, Unpaired, dig
 
-CLAIMS = Path(__file__).with_name("claims.toml")
 ALPHA = 0.05
 # a value claim's margin on its metric's own scale: (absolute, share of the text's value); 10 %
 # of an AUC would be 0.05-0.08, wider than the gaps the text ranks
@@ -198,7 +198,17 @@ def _side(spec: object, ours: Figure | None, design: Design) -> Figure | float:
         if ours is None:
             raise ClaimsError("an order row names `ours` but the claim has none")
         return ours
-    return design.apply(call(str(spec)))
+    return design.apply(_ours(str(spec)))
+
+
+def _ours(expression: str) -> Figure:
+    """A source's figure of ours, over units it counts (a page may show a mean and spread a
+    file keeps without its count; a claim may not judge one)."""
+    fig = call(expression)
+    if not isinstance(fig, Figure) or fig.n == 0:
+        raise ClaimsError(f"{expression}: not a figure over counted units (a source of claims "
+                          "returns a Figure whose records keep n)")
+    return fig
 
 
 def _margin(claim: dict, text_value: float) -> tuple[float, str]:
@@ -233,7 +243,7 @@ def judge(chapter: str, claim: dict, smoke_folders: frozenset[str] = frozenset()
         module, _, keypath = claim["text_from"].partition(":")
         claim = {**claim, "text": str(dig(vars(import_module(module)), keypath))}
         text_value = float(re.findall(r"[\d.]+", claim["text"])[0])
-    ours = design.apply(call(claim["ours"])) if claim.get("ours") else None
+    ours = design.apply(_ours(claim["ours"])) if claim.get("ours") else None
     comparator, why, would, margin = claim.get("comparator_text", ""), "", None, ""
     if kind == "value":
         if ours is None or text_value is None:

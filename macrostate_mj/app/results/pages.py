@@ -24,6 +24,7 @@ from macrostate_mj.app.results.provenance import (
     read_index,
 )
 from macrostate_mj.core.evidence import ClaimsError, Code, Table
+from macrostate_mj.core.run import MANIFEST
 
 
 def chapter(results: Path, name: str) -> tuple[Table, str | None]:
@@ -142,7 +143,7 @@ def provenance(results: Path, folder: str) -> tuple[list[str], str]:
     if entry["kind"].startswith("result") != is_result(entry):
         raise ClaimsError(f"results/index.toml [{folder}]: its kind contradicts the rule")
     parts = [f"results/{folder}", entry["kind"], _units(entry), *disclosures(entry)]
-    manifest = results / folder / "manifest.json"
+    manifest = results / folder / MANIFEST
     if manifest.is_file():
         data = json.loads(manifest.read_text())
         parts.append(datetime.fromtimestamp(data["created_unix"], UTC).strftime("%Y-%m-%d"))

@@ -24,12 +24,17 @@ from typing import TypeVar
 from macrostate_mj.core.evidence import ClaimsError, Design, Figure, Paired, Q, dig
 from macrostate_mj.core.records import Record
 from macrostate_mj.core.registry import Registry
+from macrostate_mj.core.run import MANIFEST
 
 R = TypeVar("R", bound=Record)
 # where sources live: beside the experiments, use cases and bench that write what they read
 PACKAGES = ("macrostate_mj.app.experiments", "macrostate_mj.app.usecases",
             "macrostate_mj.app.bench", "macrostate_mj.app.results")
-SOURCES: Registry[Callable[..., object]] = Registry("results source", packages=PACKAGES)
+SOURCES: Registry[Callable[..., object]] = Registry("results source", packages=PACKAGES,
+                                                    deep=True)
+# each experiment's record type by the experiment's name (`app.experiments.register` adds it)
+RECORDS: Registry[type[Record]] = Registry("results record",
+                                           packages=["macrostate_mj.app.experiments"])
 _ROOTS: list[Path] = []          # the results folder being read (`reading`)
 
 
@@ -88,15 +93,13 @@ def record(kind: type[R], folder: str) -> R:
 def record_type(folder: str) -> type[Record] | None:
     """The record type of `folder`'s run: its experiment's `Results`, the experiment named by
     its manifest; None where no manifest names an experiment that declares one."""
-    from macrostate_mj.app.experiments import experiment
-
-    manifest = root() / folder / "manifest.json"
+    manifest = root() / folder / MANIFEST
     if not manifest.is_file():
         return None
-    command = str(read_path(manifest).get("command", ""))  # type: ignore[union-attr]
-    if not command.startswith("experiment "):
+    command = str(read_path(manifest).get("command", "")).split()  # type: ignore[union-attr]
+    if command[:1] != ["experiment"] or len(command) < 2 or command[1] not in RECORDS:
         return None
-    return getattr(experiment(command.split()[1]), "Results", None)
+    return RECORDS[command[1]]
 
 
 def record_of(folder: str) -> Record:
@@ -133,8 +136,10 @@ def call(expression: str) -> object:
                           f"{sorted(SOURCES)})")
     try:
         return SOURCES[name](*args)
-    except (KeyError, IndexError, TypeError) as exc:
+    except (KeyError, IndexError) as exc:
         raise ClaimsError(f"{expression}: the results hold no {exc}") from exc
+    except (TypeError, OSError) as exc:     # arguments it does not take, a file it cannot read
+        raise ClaimsError(f"{expression}: {exc}") from exc
 
 
 def ms(values: list[float], fmt: str) -> str:
@@ -155,19 +160,29 @@ def stat(d: dict | None, fmt: str, scale: float = 1.0) -> str:
 
 def design(folders: list[str], seeds: list[str]) -> tuple[Design, dict[str, str]]:
     """What the seeds of `folders`' runs are as evidence, by the rule the claims judge by
-    (`Design`): the folders' units as `results/index.toml` declares them or, where it declares
-    none, as the runs' own records say (`design_of` of the record type that wrote them); with
-    it, each seed's key, where `Design.apply` finds its unit."""
+    (`Design`): the folders' units as `results/index.toml` declares them (a folder may be
+    scored otherwise than its experiment's default: cross-validated folds, test instances) or,
+    where it declares none, as the runs' own records say (their `design_of`, or their `UNIT`);
+    with it, each seed's key, where `Design.apply` finds its unit."""
     from macrostate_mj.app.results.provenance import read_index
 
     index = read_index(root())
     entries = [{k: v for k, v in index.get(f.split("/")[0], {}).items() if k in Design.KEYS}
                for f in folders]
     records = None if any(e.get("unit") for e in entries) else _records(folders)
+    if records is None and not any(entries) and any(
+            (root() / f / "results.json").is_file() and isinstance(
+                (profile := read_path(root() / f / "results.json")).get("profile"), dict)  # type: ignore[union-attr]
+            and profile["profile"].get("folds") for f in folders):
+        raise ClaimsError(f"{', '.join(folders)}: cross-validated runs whose manifest names no "
+                          "experiment: their folds cannot be read; declare the unit in "
+                          "results/index.toml")
     if records is None:
         if any(e != entries[0] for e in entries):
             raise ValueError(f"{', '.join(folders)}: runs of different units cannot pool")
-        plan = Design.of(entries[0], "results/" + folders[0]) if entries[0] else Design("seed")
+        kind = record_type(folders[0])
+        plan = Design.of(entries[0], "results/" + folders[0]) if entries[0] else Design(
+            kind.UNIT if kind else "seed")
         return plan, {s: s for s in seeds}
     return type(records[0]).design_of(records, seeds, ", ".join(folders))
 
@@ -205,11 +220,11 @@ SOURCES.register("json")(json_value)
 @source
 def meanstd(path: str, keypath: str, fmt: str = ".3f", unit: str = "", scale: str = "1",
             n: str = "") -> Figure:
-    """A `{mean, std, n}` object of a results file (`n` given where the file omits it)."""
+    """A `{mean, std, n}` object of a results file (`n` given where the file omits it; a page
+    may show one without, a claim refuses it: n 0)."""
     d = dict(dig(load(path), keypath))  # type: ignore[call-overload]
-    if n:
-        d["n"] = int(n)
-    return Figure(float(d["mean"]) * float(scale), float(d["std"]) * float(scale), int(d["n"]),
+    count = int(n) if n else int(d.get("n", 0))
+    return Figure(float(d["mean"]) * float(scale), float(d["std"]) * float(scale), count,
                   None, None, fmt, unit)
 
 

@@ -17,6 +17,7 @@ from macrostate_mj.app.results.sources import (
 from macrostate_mj.chain.scenario import ScenarioConfig
 from macrostate_mj.core.errors import RunFailure
 from macrostate_mj.core.evidence import Table
+from macrostate_mj.core.run import MANIFEST
 
 
 def soak(scenario: ScenarioConfig, robots: int, seeds: int, seconds: float, first_seed: int,
@@ -98,7 +99,7 @@ def track_soak(folder: str) -> Table:
              "max identity", "s/run"]]
     for soak_file in sorted((root() / folder).glob("*/soak.json")):
         summary = json.loads(soak_file.read_text())["summary"]
-        manifest = json.loads((soak_file.parent / "manifest.json").read_text())
+        manifest = json.loads((soak_file.parent / MANIFEST).read_text())
         scenario = manifest["config"]["tasks"]["scenario"]
         kind = scenario.get("markers", {}).get("dictionary") and "aruco" or "colour"
         rows.append([soak_file.parent.name, kind, str(summary["robots"]),

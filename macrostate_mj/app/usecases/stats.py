@@ -45,12 +45,12 @@ def compare(csv: list[Path], px_per_cm: float, plot: Path | None = None,
     return rows
 
 
-def ranked(rows: list[dict], effects: Path | None = None) -> list[dict]:
+def ranked(rows: list[dict], effects: dict | None = None) -> list[dict]:
     """The compared statistics ranked by the worst robot's KS distance, with a sim-to-real
-    run's ablations beside each (`effects`: its folder or its results.json)."""
+    run's ablations beside each (`effects`, read by `ablations`)."""
     from collectors.gap import ranked_gap
 
-    return ranked_gap(rows, None if effects is None else ablations(effects))
+    return ranked_gap(rows, effects)
 
 
 def ablations(path: Path) -> dict:
@@ -59,8 +59,10 @@ def ablations(path: Path) -> dict:
     file = path / Sim2RealResults.FILE if path.is_dir() else path
     try:
         found = Sim2RealResults.of(json.loads(file.read_text()), str(file)).ablations
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecordError):
-        found = None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"--effects {path}: cannot read it ({exc})") from exc
+    except RecordError as exc:
+        raise UserError(f"--effects: no ablations in it: {exc}") from exc
     if not found:
         raise UserError(f"--effects {path}: no ablations in it; pass the results.json of an "
                         "`experiment sim2real --ablate ...` run")

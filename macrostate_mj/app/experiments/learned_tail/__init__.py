@@ -316,7 +316,7 @@ def learned_tail_seeds(*folders: str) -> Table:
         data = record(Results, folder)
         table = data.table
         learned, test = table["learned"], table["learned"]["vs_passive"]
-        rows.append([str(data.config["seed"]), stat(learned["head_error_m"], ".1f", 100),  # type: ignore[index]
+        rows.append([str(data.config["seed"]), stat(learned["head_error_m"], ".1f", 100),
                      stat(table["passive"]["head_error_m"], ".1f", 100),
                      f"{test['wilcoxon_p']:.2g}", f"{test['better']} / {test['pairs']}",
                      f"{learned['breaks']} / {learned['seeds']}"])

@@ -344,6 +344,3 @@ def _flow_weights(d: AntFlowData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     day_u = 18.0 * (np.asarray(d.unstable_ids) - first) / max(1, end - first)  # D+0 .. D+18
     return (np.concatenate([day_s, day_u]), np.concatenate([ws, wu]),
             np.concatenate([np.zeros(n, bool), np.ones(len(wu), bool)]))
-
-
-from macrostate_mj.app.experiments.oc import tables  # noqa: E402, F401  (its sources)

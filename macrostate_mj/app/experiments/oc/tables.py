@@ -19,9 +19,9 @@ def oc_marks(folder: str, sign: str) -> Q:
     IO-GEN wins (`above`), loses (`below`) or neither (`level`) at p < .05."""
     runs = record(Results, folder).runs
     counts = {"above": 0, "below": 0, "level": 0}
-    for run in runs.values():  # type: ignore[union-attr]
+    for run in runs.values():
         for test in run["iogen_vs_dsvdd"]["bins"].values():
-            key = "level" if test["p"] >= 0.05 else ("above" if test["diff"] > 0 else "below")
+            key = "level" if test["p"] >= ALPHA else ("above" if test["diff"] > 0 else "below")
             counts[key] += 1
     return Q(counts[sign], None, "d", f"of {sum(counts.values())} run-bins")
 
@@ -31,7 +31,7 @@ def oc_table42(folder: str) -> Table:
     """Table 4.2: AUC on all unstable samples, mean ± std over the folder's runs."""
     data = record(Results, folder)
     rows = [["method", "AUC"]]
-    for method, ms in data.table4_2_auc_m2.items():  # type: ignore[index]
+    for method, ms in data.table4_2_auc_m2.items():
         rows.append([method, f"{ms['mean']:.3f} ± {ms['std']:.3f}"])
     return rows
 
@@ -65,8 +65,8 @@ def oc_runs(folder: str) -> Table:
 def oc_pairs(base: str, other: str) -> Table:
     """Two one-class folders on their common runs (m, split, seed): per method the AUC of
     each run in both, and the mean difference (other - base)."""
-    a, b = (record(Results, f).runs for f in (base, other))  # type: ignore[index]
-    shared = [r for r in a if r in b]  # type: ignore[operator]
+    a, b = (record(Results, f).runs for f in (base, other))
+    shared = [r for r in a if r in b]
     methods = [m for m in a[shared[0]] if m in b[shared[0]] and m != "iogen_vs_dsvdd"]
     rows = [["method", *[f"{r}: {base} / {other}" for r in shared], "mean difference"]]
     for m in methods:
@@ -86,7 +86,7 @@ def gradcam_hits(folder: str) -> Table:
     """§4.7.4 scored on a simulated colony: per map, the share (%) of true duel/bite boxes its
     top 5 % touches and the share of its top 5 % on a box, all unstable samples with a box,
     with the bootstrap 95 % interval."""
-    data = record(Results, folder).gradcam["top5"]  # type: ignore[index]
+    data = record(Results, folder).gradcam["top5"]
     rows = [["map", "boxes hit (%)", "top-5 % pixels on a box (%)"]]
     for name, kind in data.items():
         rows.append([name, _share_ci(kind["boxes_hit"]["all"]),
@@ -97,7 +97,7 @@ def gradcam_hits(folder: str) -> Table:
 @source
 def gradcam_bins(folder: str, metric: str) -> Table:
     """One of `gradcam_hits`' measures (%) per day bin, with the samples each bin holds."""
-    data = record(Results, folder).gradcam["top5"]  # type: ignore[index]
+    data = record(Results, folder).gradcam["top5"]
     first = next(iter(data.values()))[metric]["bins"]
     bins = sorted(first, key=lambda b: int(re.findall(r"\d+", b)[0]))
     rows = [["map", *bins]]
@@ -109,7 +109,7 @@ def gradcam_bins(folder: str, metric: str) -> Table:
 
 def _oc_runs(folder: str, m: str) -> dict[str, dict]:
     runs_ = record(Results, folder).runs
-    got = {key.split("_", 1)[1]: run for key, run in runs_.items()  # type: ignore[union-attr]
+    got = {key.split("_", 1)[1]: run for key, run in runs_.items()
            if key.startswith(f"m{m}_")}
     if not got:
         raise ClaimsError(f"results/{folder} has no m = {m} runs")

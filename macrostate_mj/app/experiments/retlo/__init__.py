@@ -380,6 +380,3 @@ def _summary(results: dict, train_s: dict[str, list[float]]) -> list[str]:
     for kind, secs in train_s.items():
         lines.append(f"training {kind}: {np.mean(secs):.0f} s per seed (max {max(secs):.0f} s)")
     return lines
-
-
-from macrostate_mj.app.experiments.retlo import tables  # noqa: E402, F401  (its sources)

@@ -10,6 +10,7 @@ from macrostate_mj.app.results.sources import (
     stat,
 )
 from macrostate_mj.core.evidence import Code, Figure, Table
+from macrostate_mj.core.run import MANIFEST
 
 
 @source
@@ -17,8 +18,8 @@ def retlo_models(folder: str) -> Table:
     """Fig 2.7: each model's mean error (cm) per test set and robot, mean ± std over seeds."""
     data = record(Results, folder)
     rows = [["test set", "robots", "model", "mean error (cm)", "per robot (cm)"]]
-    for test in data.tests:  # type: ignore[index]
-        for model, agg in data.results[test["name"]].items():  # type: ignore[index]
+    for test in data.tests:
+        for model, agg in data.results[test["name"]].items():
             per = "; ".join(f"{r} {stat(v, '.1f')}" if isinstance(v, dict) else f"{r} {v:.1f}"
                             for r, v in agg["per_robot_cm"].items())
             rows.append([test["name"], str(test["n_robots"]), model,
@@ -36,7 +37,7 @@ def retlo_trainings(*folders: str) -> Table:
     column, and on how many folds each run beats the first."""
     from estimators.retlo import MODEL_KINDS
 
-    runs = [(record(Results, f), load(f"{f}/manifest.json")["config"])  # type: ignore
+    runs = [(record(Results, f), load(f"{f}/{MANIFEST}")["config"])
             for f in folders]
     tests = [t["name"] for t in runs[0][0].tests]
     rows = [["training", "model", *tests, "per fold (cross-validated)",
@@ -66,8 +67,8 @@ def retlo_calibration(folder: str) -> Table:
     data = record(Results, folder)
     head = ["test set", "model", "robot", "coverage 50 %", "coverage 90 %"]
     rows: Table = []
-    for test in data.tests:  # type: ignore[index]
-        for model, agg in data.results[test["name"]].items():  # type: ignore[index]
+    for test in data.tests:
+        for model, agg in data.results[test["name"]].items():
             for who, cal in agg.get("calibration", {}).items():
                 plain = [stat(cal[k], ".2f") for k in ("gaussian_coverage_50",
                                                         "gaussian_coverage_90") if k in cal]

@@ -184,6 +184,3 @@ def run(config: Config, out: Path, progress: Progress) -> list[str]:
         lines.append("these folds pool Val.csv, the sim-to-real work's sealed test (experiment "
                      "s2r-sealed): choose settings with --train-only, then look once there")
     return lines
-
-
-from macrostate_mj.app.experiments.sim2real import tables  # noqa: E402, F401  (its sources)

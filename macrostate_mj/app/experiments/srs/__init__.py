@@ -347,6 +347,3 @@ def _summary(results: dict, timings: dict[str, float]) -> list[str]:
     lines.append(f"datasets {timings['datasets']:.0f} s, models {timings['models']:.0f} s, "
                  f"total {timings['total']:.0f} s")
     return lines
-
-
-from macrostate_mj.app.experiments.srs import tables  # noqa: E402, F401  (its sources)

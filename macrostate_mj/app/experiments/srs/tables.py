@@ -9,7 +9,6 @@ from collections.abc import Callable
 
 from macrostate_mj.app.experiments.srs.record import Results
 from macrostate_mj.app.results.sources import (
-    load,
     ms,
     read_path,
     record,
@@ -24,8 +23,8 @@ from macrostate_mj.core.evidence import ClaimsError, Figure, Q, Table
 def srs_cell(folder: str, config: str, budget: str, metric: str) -> Q:
     """Chapter 3: one configuration's error (cm) at a budget share (`1.0000`, `0.6667`, ...),
     mean ± std over its datasets and model seeds."""
-    ms = record(Results, folder).configs[config][budget][metric]
-    return Q(float(ms["mean"]), float(ms["std"]), ".1f", "cm")  # type: ignore[index]
+    cell = record(Results, folder).configs[config][budget][metric]
+    return Q(float(cell["mean"]), float(cell["std"]), ".1f", "cm")
 
 
 @source
@@ -42,15 +41,8 @@ def srs_table(folder: str, metric: str) -> Table:
 
 
 def _srs_errors(folder: str) -> dict[tuple[str, int, int, int], float]:
-    """A chapter-3 folder's per-model reports (`models/<config>_b<budget>_d<j>_m<i>.json`):
-    the error of all predictions (cm), by (configuration, budget %, dataset, model seed)."""
-    out = {}
-    for file in sorted((root() / folder / "models").glob("*.json")):
-        match = re.fullmatch(r"(.+)_b(\d+)_d(\d+)_m(\d+)", file.stem)
-        if match:
-            out[(match[1], int(match[2]), int(match[3]), int(match[4]))] = float(
-                load(f"{folder}/models/{file.name}")["mean_error_cm"])  # type: ignore[index]
-    return out
+    """The error of all predictions (cm) of each of a chapter-3 folder's models (`_srs_models`)."""
+    return {key: float(rep["mean_error_cm"]) for key, rep in _srs_models(folder).items()}
 
 
 @source
@@ -84,6 +76,8 @@ def srs_pairs(base: str, other: str, spread: str = "") -> Table:
 
 
 def _srs_models(folder: str) -> dict[tuple[str, int, int, int], dict]:
+    """A chapter-3 folder's per-model reports (`models/<config>_b<budget>_d<j>_m<i>.json`), by
+    (configuration, budget %, dataset, model seed)."""
     out = {}
     for file in sorted((root() / folder / "models").glob("*.json")):
         match = re.fullmatch(r"(.+)_b(\d+)_d(\d+)_m(\d+)", file.stem)
