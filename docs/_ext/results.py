@@ -205,10 +205,12 @@ class ClaimsChanges(Directive):
 
 class Experiments(Directive):
     """``{experiments}``: every registered experiment, a row generated from its module
-    (`pages.experiments`): adding an experiment adds its row."""
+    (`app.experiments.catalogue`): adding an experiment adds its row."""
 
     def run(self) -> list[nodes.Node]:
-        rows = _judged(self, lambda: pages.experiments(RESULTS))
+        from macrostate_mj.app.experiments import catalogue
+
+        rows = _judged(self, lambda: catalogue(RESULTS))
         _record(self.state.document.settings.env, "experiments", rows)
         return [table_node(rows)]
 

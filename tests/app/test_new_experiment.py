@@ -15,8 +15,7 @@ import pytest
 from clitools import cli_inprocess
 from test_params import _assert_refused, _with, experiment_args
 
-from macrostate_mj.app.experiments import EXPERIMENTS, names
-from macrostate_mj.app.results.pages import experiments
+from macrostate_mj.app.experiments import EXPERIMENTS, catalogue, names
 from macrostate_mj.app.results.sources import RECORDS, SOURCES, call, reading
 
 TOY = '''
@@ -99,7 +98,7 @@ def test_one_module_is_a_listed_runnable_checked_experiment(toy, capsys):
                                     '--quick --out results/out"\nkind = "smoke"\nunits = 1\n')
     with reading(ran):
         assert call("toy_count(out)") == [["numbers"], [0], [1], [2]]
-    rows = experiments(ran)
+    rows = catalogue(ran)
     assert [str(c) for c in next(r for r in rows if str(r[0]) == "toy-count")] == [
         "toy-count", "count from the seed, a toy that holds the claim (its test: "
         "tests/app/test_new_experiment.py)", "full, quick", "seed", "-", "out"]

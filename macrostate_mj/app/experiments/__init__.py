@@ -40,12 +40,15 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from macrostate_mj.core.cache import TaskCache
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.registry import Registry
 from macrostate_mj.core.run import Run
+
+if TYPE_CHECKING:
+    from macrostate_mj.core.evidence import Table
 
 CACHE = "cache"          # an experiment's cached tasks, inside its output folder
 
@@ -154,3 +157,30 @@ def execute(name: str, config: Any, out: Path, overwrite: bool = False, workers:
         if (record := getattr(module, "Results", None)) is not None:
             run.record(results=record.described())      # its type, version and unit
     return lines
+
+
+def catalogue(results: Path) -> Table:
+    """Every registered experiment, generated from its module: what it reproduces (its help),
+    its profiles, what its record counts as independent, the published datasets it reads (its
+    `REAL_DATA` tag: what `data fetch` takes), and the results folders made by it (their
+    commands in results/index.toml)."""
+    from macrostate_mj.app.results.provenance import read_index
+    from macrostate_mj.core.datasets import DATASETS
+    from macrostate_mj.core.evidence import ClaimsError, Code
+
+    index = read_index(results)
+    rows: Table = [["experiment", "reproduces", "profiles", "unit", "real data",
+                    "results folders"]]
+    named = {d for module in registry().values() for d in getattr(module, "REAL_DATA", ())}
+    unknown = named - set(DATASETS)
+    if unknown:
+        raise ClaimsError(f"REAL_DATA names no published dataset: {sorted(unknown)}")
+    for name, module in registry().items():
+        doc = " ".join((module.__doc__ or "").split("\n\n")[0].split(":", 1)[-1].split())
+        record = getattr(module, "Results", None)
+        made = [f for f, e in index.items()
+                if f"experiment {name} " in e["command"] + " "]
+        data = ", ".join(getattr(module, "REAL_DATA", ())) or "-"
+        rows.append([Code(name), doc.split(". ")[0].rstrip("."), ", ".join(module.PROFILES),
+                     record.UNIT if record else "-", data, ", ".join(made) or "-"])
+    return rows

@@ -96,32 +96,6 @@ def changes(results: Path, before: list[dict], where: str) -> tuple[Table, Table
     return rows, changed
 
 
-def experiments(results: Path) -> Table:
-    """Every registered experiment, generated from its module: what it reproduces (its help),
-    its profiles, what its record counts as independent, the published datasets it reads (its
-    `REAL_DATA` tag: what `data fetch` takes), and the results folders made by it (their
-    commands in results/index.toml)."""
-    from macrostate_mj.app.experiments import registry
-    from macrostate_mj.core.datasets import DATASETS
-
-    index = read_index(results)
-    rows: Table = [["experiment", "reproduces", "profiles", "unit", "real data",
-                    "results folders"]]
-    named = {d for module in registry().values() for d in getattr(module, "REAL_DATA", ())}
-    unknown = named - set(DATASETS)
-    if unknown:
-        raise ClaimsError(f"REAL_DATA names no published dataset: {sorted(unknown)}")
-    for name, module in registry().items():
-        doc = " ".join((module.__doc__ or "").split("\n\n")[0].split(":", 1)[-1].split())
-        record = getattr(module, "Results", None)
-        made = [f for f, e in index.items()
-                if f"experiment {name} " in e["command"] + " "]
-        data = ", ".join(getattr(module, "REAL_DATA", ())) or "-"
-        rows.append([Code(name), doc.split(". ")[0].rstrip("."), ", ".join(module.PROFILES),
-                     record.UNIT if record else "-", data, ", ".join(made) or "-"])
-    return rows
-
-
 def _units(entry: dict) -> str:
     """How many units a folder's figures rest on, and which (as `results/index.toml` declares
     them): independent ones, or folds and splits whose training data overlap."""
@@ -159,5 +133,4 @@ def provenance(results: Path, folder: str) -> tuple[list[str], str]:
     return parts, entry["command"]
 
 
-__all__ = ["RESULT_RULE", "RULE", "changes", "chapter", "experiments", "provenance",
-           "summary"]
+__all__ = ["RESULT_RULE", "RULE", "changes", "chapter", "provenance", "summary"]

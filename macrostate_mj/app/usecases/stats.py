@@ -1,17 +1,16 @@
 """`stats` as a use case: the statistics of ThymioLoc files, and with `--compare` the
 distributions of two files, their KS distances and, with `--rank`, the statistics ranked by the
 gap (`collectors.gap`), with what switching each parameter group off does to a sim-to-real run's
-Head error beside (`--effects`, read through `experiment sim2real`'s record). The command only
-parses flags and prints; the ranked rows it prints with `--json` are what the docs' gap table
-reads (`gap_ranked`, below)."""
+Head error beside (`--effects`, read through `experiment sim2real`'s record, found by name).
+The command only parses flags and prints; the ranked rows it prints with `--json` are what the
+docs' gap table reads (`gap_ranked`, below)."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from macrostate_mj.app.experiments.sim2real import Results as Sim2RealResults
-from macrostate_mj.app.results.sources import root, source
+from macrostate_mj.app.results.sources import RECORDS, root, source
 from macrostate_mj.core.errors import UserError
 from macrostate_mj.core.evidence import Table
 from macrostate_mj.core.records import RecordError
@@ -56,9 +55,10 @@ def ranked(rows: list[dict], effects: dict | None = None) -> list[dict]:
 def ablations(path: Path) -> dict:
     """The `ablations` of an `experiment sim2real --ablate` run (its results.json, or its
     folder), read through its record."""
-    file = path / Sim2RealResults.FILE if path.is_dir() else path
+    record = RECORDS["sim2real"]            # `experiment sim2real`'s, by name: no import up
+    file = path / record.FILE if path.is_dir() else path
     try:
-        found = Sim2RealResults.of(json.loads(file.read_text()), str(file)).ablations
+        found = record.of(json.loads(file.read_text()), str(file)).ablations  # type: ignore[attr-defined]
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise UserError(f"--effects {path}: cannot read it ({exc})") from exc
     except RecordError as exc:
