@@ -74,8 +74,8 @@ class Record:
                          if n not in data and not f.metadata.get("optional"))
         if unknown or missing:
             raise RecordError(f"{where} is not a {cls.__qualname__} record (unknown keys "
-                              f"{unknown or 'none'}, missing {missing or 'none'}): rerun the "
-                              "command that wrote it")
+                              f"{_few(unknown)}, missing {_few(missing)}): rerun the command "
+                              "that wrote it")
         return cls(**data)
 
     @classmethod
@@ -88,3 +88,11 @@ class Record:
             raise RecordError(f"cannot read {path}: {exc}; rerun the command that wrote "
                               "it") from exc
         return cls.of(data, str(path))
+
+
+def _few(keys: list[str]) -> str:
+    """Keys as an error line names them: the first five, and how many more."""
+    if not keys:
+        return "none"
+    more = f" and {len(keys) - 5} more" if len(keys) > 5 else ""
+    return f"{keys[:5]}{more}"

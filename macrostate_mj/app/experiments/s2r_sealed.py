@@ -404,8 +404,6 @@ def sealed_change(before: str, after: str, arm: str) -> Paired:
     """One arm of two `s2r-sealed` runs on the same sealed test: the later's Head error minus
     the earlier's, with its 95 % interval (`core.stats.two_level_bootstrap`: the instances
     shared, each run's seeds apart)."""
-    from macrostate_mj.core.stats import two_level_bootstrap
-
     a, b = ([list(v) for v in record(Results, f).arms[arm][
         "head_cm_by_instance"].values()] for f in (after, before))
     d = two_level_bootstrap(a, b)["difference"]

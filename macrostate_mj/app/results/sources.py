@@ -25,6 +25,7 @@ from macrostate_mj.core.evidence import ClaimsError, Design, Figure, Paired, Q, 
 from macrostate_mj.core.records import Record
 from macrostate_mj.core.registry import Registry
 from macrostate_mj.core.run import MANIFEST
+from macrostate_mj.core.stats import mean_std
 
 R = TypeVar("R", bound=Record)
 # where sources live: beside the experiments, use cases and bench that write what they read
@@ -143,10 +144,9 @@ def call(expression: str) -> object:
 
 
 def ms(values: list[float], fmt: str) -> str:
-    """`mean ± population std` of `values`, empty when there are none."""
-    if not values:
-        return ""
-    return f"{statistics.fmean(values):{fmt}} ± {statistics.pstdev(values):{fmt}}"
+    """`mean ± population std` of `values` (`core.stats.mean_std`), empty when there are
+    none."""
+    return stat(mean_std(values), fmt)
 
 
 def stat(d: dict | None, fmt: str, scale: float = 1.0) -> str:
@@ -166,37 +166,34 @@ def design(folders: list[str], seeds: list[str]) -> tuple[Design, dict[str, str]
     with it, each seed's key, where `Design.apply` finds its unit."""
     from macrostate_mj.app.results.provenance import read_index
 
+    where, each = ", ".join(folders), {s: s for s in seeds}
     index = read_index(root())
     entries = [{k: v for k, v in index.get(f.split("/")[0], {}).items() if k in Design.KEYS}
                for f in folders]
-    records = None if any(e.get("unit") for e in entries) else _records(folders)
-    if records is None and not any(entries) and any(
-            (root() / f / "results.json").is_file() and isinstance(
-                (profile := read_path(root() / f / "results.json")).get("profile"), dict)  # type: ignore[union-attr]
-            and profile["profile"].get("folds") for f in folders):
-        raise ClaimsError(f"{', '.join(folders)}: cross-validated runs whose manifest names no "
-                          "experiment: their folds cannot be read; declare the unit in "
-                          "results/index.toml")
-    if records is None:
+    if any(entries):                    # declared beside the results
         if any(e != entries[0] for e in entries):
-            raise ValueError(f"{', '.join(folders)}: runs of different units cannot pool")
-        kind = record_type(folders[0])
-        plan = Design.of(entries[0], "results/" + folders[0]) if entries[0] else Design(
-            kind.UNIT if kind else "seed")
-        return plan, {s: s for s in seeds}
-    return type(records[0]).design_of(records, seeds, ", ".join(folders))
-
-
-def _records(folders: list[str]) -> list[Record] | None:
-    """The typed records of `folders`' runs, where their writer declares a design of its own."""
+            raise ValueError(f"{where}: runs of different units cannot pool")
+        return Design.of(entries[0], "results/" + folders[0]), each
     kinds = {record_type(f) for f in folders}
-    if None in kinds or not all(hasattr(k, "design_of") for k in kinds):
-        return None
     if len(kinds) > 1:
-        raise ValueError(f"{', '.join(folders)}: runs of different experiments cannot pool")
+        raise ValueError(f"{where}: runs of different experiments (or of none) cannot pool")
     kind = kinds.pop()
-    assert kind is not None
-    return [record(kind, f) for f in folders]
+    if kind is None:                    # files no experiment's run wrote: each seed a unit
+        if any(_keeps_folds(f) for f in folders):
+            raise ClaimsError(f"{where}: cross-validated runs whose manifest names no "
+                              "experiment: their folds cannot be read; declare the unit in "
+                              "results/index.toml")
+        return Design("seed"), each
+    if hasattr(kind, "design_of"):
+        return kind.design_of([record(kind, f) for f in folders], seeds, where)
+    return Design(kind.UNIT), each
+
+
+def _keeps_folds(folder: str) -> bool:
+    """Does `folder`'s results.json say its seeds ran on folds (a profile with `folds`)?"""
+    file = root() / folder / "results.json"
+    profile = read_path(file).get("profile") if file.is_file() else None  # type: ignore[union-attr]
+    return isinstance(profile, dict) and bool(profile.get("folds"))
 
 
 def paired_of(differences: dict[str, float], folders: list[str], fmt: str = ".2f",
